@@ -1,0 +1,25 @@
+//! Every capacity of the core, named once. A scene that exceeds one of these is
+//! rejected with [`crate::Error::Capacity`], which names the constant.
+
+/// Triangles in one scene (after fan triangulation).
+pub const MAX_TRIANGLES: usize = 1 << 22;
+/// BVH nodes: a binary tree over `n` leaves never needs more than `2n - 1`.
+pub const MAX_BVH_NODES: usize = 2 * MAX_TRIANGLES;
+/// Depth of the BVH (and of its traversal stack).
+pub const MAX_BVH_DEPTH: usize = 64;
+/// Triangles per BVH leaf at most.
+pub const MAX_LEAF_TRIANGLES: usize = 4;
+/// Material groups in one scene.
+pub const MAX_GROUPS: usize = 1024;
+/// Light sources (each a set of emitting triangles) in one scene.
+pub const MAX_LIGHTS: usize = 256;
+/// Views in one panorama.
+pub const MAX_VIEWS: usize = 64;
+/// Pixels per side of one view.
+pub const MAX_VIEW_SIDE: u32 = 16384;
+/// Textures in one scene.
+pub const MAX_TEXTURES: usize = 1024;
+/// Texels of all textures together.
+pub const MAX_TEXELS: usize = 1 << 26;
+/// Path vertices a path tracer follows at most (Russian roulette ends most paths far sooner).
+pub const MAX_PATH_DEPTH: u32 = 64;

@@ -1,0 +1,38 @@
+//! relume-core: the allocation-free, `#![no_std]` heart of relume.
+//!
+//! Layers, bottom to top (a module only uses the ones above it in this list):
+//!
+//! - [`config`]: every capacity, named once.
+//! - [`math`], [`rng`]: the one math backend (libm) and seeded random streams.
+//! - [`geometry`]: rays, triangles, surfaces, views (pixel to ray, per the scene format).
+//! - [`bvh`]: SAH bounding volume hierarchy over lent buffers; closest-hit and any-hit.
+//! - [`material`]: the closed set of reflectance models (Ward isotropic/anisotropic, mirror,
+//!   textures) with `eval` / `sample` / `pdf` in a local shading frame.
+//! - [`scene`]: the assembled scene (triangles, BVH, materials, lights, textures), all lent
+//!   by the caller and checked against the capacities.
+//! - [`render`]: the path tracer (next-event estimation with multiple importance sampling).
+//!
+//! The core never allocates, never does I/O and never panics on user data: the host lends
+//! buffers, the seed and the data, and gets values or [`Error`]s back.
+#![no_std]
+#![deny(unused_crate_dependencies)]
+#![forbid(unsafe_code)]
+
+#[cfg(test)]
+extern crate std;
+
+// heapless is part of the core's toolbox for fixed-capacity containers; keep the
+// dependency declared and linked even where a module does not yet need it.
+use heapless as _;
+
+pub mod bvh;
+pub mod config;
+pub mod error;
+pub mod geometry;
+pub mod material;
+pub mod math;
+pub mod render;
+pub mod rng;
+pub mod scene;
+
+pub use error::Error;

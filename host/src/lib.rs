@@ -1,0 +1,26 @@
+//! relume, the host side: files, threads, clocks and the command line around
+//! `relume-core`. The core gets slices and seeds; everything that touches the outside world
+//! lives here.
+//!
+//! - [`error`]: the host's error, carrying file / line / pixel context; exit codes.
+//! - [`fsutil`]: atomic writes (temp file, then rename).
+//! - [`scene_file`], [`obj`], [`images`], [`materials_file`]: reading (and writing) the
+//!   formats of scene-format.md, validated into plain descriptions.
+//! - [`assemble`]: descriptions to the core's buffers (an owned scene the core borrows).
+//! - [`parallel`]: fixed tiles, results combined in a fixed order.
+//! - [`render_cmd`], [`compare`], [`bench`]: the subcommands; [`cli`] parses arguments.
+
+pub mod assemble;
+pub mod bench;
+pub mod cli;
+pub mod compare;
+pub mod error;
+pub mod fsutil;
+pub mod images;
+pub mod materials_file;
+pub mod obj;
+pub mod parallel;
+pub mod render_cmd;
+pub mod scene_file;
+
+pub use error::Error;
