@@ -1,1 +1,54 @@
-//! (in progress)
+//! Agreement with RADIANCE: the `-small` reference scenes rendered with their true
+//! materials must match RADIANCE's views group by group (mean radiance over pure pixels
+//! within 2%, the target of the foundation issue).
+
+#[path = "common/mod.rs"]
+mod common;
+
+use common::{path_str, relume_ok, shared};
+
+/// Renders `bench/<name>/scene-small.toml` with its truth and checks every group's mean.
+fn check_scene(name: &str, spp: &str) {
+    let bench = shared().join("bench").join(name);
+    let scene = bench.join("scene-small.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("render");
+    relume_ok(
+        tmp.path(),
+        &[
+            "render",
+            path_str(&scene),
+            "--materials",
+            path_str(&bench.join("truth.toml")),
+            "--out",
+            path_str(&out),
+            "--spp",
+            spp,
+        ],
+    );
+    let report = relume::compare::views_report(&scene, &bench.join("views-small"), &out, None).unwrap();
+    let mut bad = Vec::new();
+    for row in &report.groups {
+        println!(
+            "{name}/{:<14} {:>6} px  mean {:+.2}%  rel RMS {:.2}%",
+            row.name,
+            row.pixels,
+            100.0 * row.rel_mean_diff,
+            100.0 * row.rel_rms
+        );
+        if row.pixels == 0 || !(row.rel_mean_diff.abs() <= 0.02) {
+            bad.push(format!("{}: {:+.2}% over {} px", row.name, 100.0 * row.rel_mean_diff, row.pixels));
+        }
+    }
+    assert!(bad.is_empty(), "{name}: groups off RADIANCE by more than 2%: {bad:?}");
+}
+
+#[test]
+fn box_diffuse_small_agrees_with_radiance_within_2_percent() {
+    check_scene("box-diffuse", "256");
+}
+
+#[test]
+fn glossy_small_agrees_with_radiance_within_2_percent() {
+    check_scene("glossy", "256");
+}

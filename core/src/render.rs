@@ -1,1 +1,219 @@
-//! The path tracer. OWNER: lead.
+//! The path tracer: unidirectional paths from the camera with next-event estimation
+//! (light sampling) and multiple importance sampling (power heuristic) against BSDF
+//! sampling, Russian roulette, perfect mirrors (light reaching a diffuse surface by way of
+//! a mirror is found by BSDF sampling), and box-filtered pixels.
+//!
+//! Every sample draws from its own stream `(seed, view, pixel, sample)`, so a pixel's value
+//! does not depend on which thread renders it, or when.
+
+use crate::config;
+use crate::geometry::{Ray, Surface, View};
+use crate::material::Bsdf;
+use crate::math::{self, Vec3};
+use crate::rng::Sampler;
+use crate::scene::Scene;
+
+/// How a render samples.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderSettings {
+    /// Samples per pixel, spread uniformly over the pixel's square (a box filter).
+    pub spp: u32,
+    pub seed: u64,
+    /// Path vertices before Russian roulette may end a path.
+    pub rr_depth: u32,
+    /// Hard limit on path vertices (at most [`config::MAX_PATH_DEPTH`]).
+    pub max_depth: u32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings { spp: 64, seed: 1, rr_depth: 3, max_depth: config::MAX_PATH_DEPTH }
+    }
+}
+
+/// Relative offset of secondary ray origins from the surface, against self-intersection.
+const RAY_EPSILON: f32 = 1e-4;
+
+#[inline]
+fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
+    let scale = p.abs().max_element().max(1.0);
+    p + n * (RAY_EPSILON * scale)
+}
+
+/// The power heuristic (beta = 2) weight of the strategy with pdf `a` against `b`.
+#[inline]
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let a2 = a * a;
+    let b2 = b * b;
+    if a2 + b2 > 0.0 {
+        a2 / (a2 + b2)
+    } else {
+        0.0
+    }
+}
+
+/// The box-filtered radiance of pixel `(x, y)` of `view` (the `view_index`-th view).
+pub fn render_pixel(
+    scene: &Scene,
+    view: &View,
+    view_index: u32,
+    x: u32,
+    y: u32,
+    settings: &RenderSettings,
+) -> Vec3 {
+    let pixel = y * view.width + x;
+    let mut sum = Vec3::ZERO;
+    for s in 0..settings.spp {
+        let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, s);
+        let [jx, jy] = sampler.next_2d();
+        let ray = view.ray(x as f32 + jx, y as f32 + jy);
+        sum += radiance(scene, ray, &mut sampler, settings);
+    }
+    if settings.spp > 0 {
+        sum / settings.spp as f32
+    } else {
+        sum
+    }
+}
+
+/// Renders rows `rows` of a view into `out` (row-major, `width` pixels a row).
+pub fn render_rows(
+    scene: &Scene,
+    view: &View,
+    view_index: u32,
+    rows: core::ops::Range<u32>,
+    settings: &RenderSettings,
+    out: &mut [Vec3],
+) {
+    let width = view.width as usize;
+    for (row_offset, y) in rows.enumerate() {
+        let Some(line) = out.get_mut(row_offset * width..(row_offset + 1) * width) else {
+            return;
+        };
+        for (x, value) in line.iter_mut().enumerate() {
+            *value = render_pixel(scene, view, view_index, x as u32, y, settings);
+        }
+    }
+}
+
+/// Radiance arriving along `ray`, estimated with one path.
+pub fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut Sampler, settings: &RenderSettings) -> Vec3 {
+    let mut total = Vec3::ZERO;
+    let mut throughput = Vec3::ONE;
+    // The pdf of the BSDF sample that produced `ray`, and whether it was a Dirac sample
+    // (camera rays count as one: emission seen directly is not light-sampled).
+    let mut bsdf_pdf = 0.0f32;
+    let mut delta = true;
+    let max_depth = settings.max_depth.min(config::MAX_PATH_DEPTH);
+
+    for depth in 0..max_depth {
+        let Some(hit) = scene.intersect(&ray, f32::INFINITY) else { break };
+        let Some(tri) = scene.triangles.get(hit.triangle as usize) else { break };
+        let n_area2 = tri.normal_area2();
+        let area2 = n_area2.length();
+        if !(area2 > 0.0) {
+            break;
+        }
+        let ng = n_area2 / area2;
+        let cos_hit = -ng.dot(ray.direction);
+
+        let group = match tri.surface {
+            Surface::Light(light) => {
+                // Lights emit from their front side only and reflect nothing.
+                if cos_hit > 0.0 {
+                    let le = scene.light_radiance.get(light as usize).copied().unwrap_or(Vec3::ZERO);
+                    let weight = if delta {
+                        1.0
+                    } else {
+                        let pdf_light =
+                            scene.light_pdf_area(hit.triangle) * hit.t * hit.t / cos_hit;
+                        power_heuristic(bsdf_pdf, pdf_light)
+                    };
+                    total += throughput * le * weight;
+                }
+                break;
+            }
+            Surface::Group(g) => g,
+        };
+        let Some(surface) = scene.materials.get(group as usize) else { break };
+
+        let p = ray.at(hit.t);
+        let n = if cos_hit > 0.0 { ng } else { -ng };
+        let wo = -ray.direction;
+        let rho_d = surface
+            .diffuse_map
+            .map(|id| scene.textures.lookup(id, tri.uv_at(hit.b1, hit.b2)));
+        let bsdf = Bsdf::new(&surface.material, rho_d, n);
+        let origin = offset_origin(p, n);
+
+        // Next-event estimation: one point on one light.
+        let u_light = sampler.next_f32();
+        let u_point = sampler.next_2d();
+        if !bsdf.is_delta() {
+            if let Some(ls) = scene.sample_light(u_light, u_point) {
+                let to_light = ls.point - origin;
+                let dist2 = to_light.length_squared();
+                let dist = math::sqrt(dist2);
+                if dist > 0.0 {
+                    let wi = to_light / dist;
+                    let cos_light = -ls.normal.dot(wi);
+                    let cos_surface = n.dot(wi);
+                    if cos_light > 0.0 && cos_surface > 0.0 && ls.pdf_area > 0.0 {
+                        let f = bsdf.eval(wo, wi);
+                        if f.max_element() > 0.0
+                            && !scene.occluded(&Ray::new(origin, wi), dist * (1.0 - RAY_EPSILON))
+                        {
+                            let pdf_light = ls.pdf_area * dist2 / cos_light;
+                            let weight = power_heuristic(pdf_light, bsdf.pdf(wo, wi));
+                            total += throughput * f * ls.radiance * (cos_surface * weight / pdf_light);
+                        }
+                    }
+                }
+            }
+        }
+
+        // Continue the path by sampling the BSDF.
+        let u_lobe = sampler.next_f32();
+        let u_dir = sampler.next_2d();
+        let Some(sample) = bsdf.sample(wo, u_lobe, u_dir) else { break };
+        throughput *= sample.weight;
+        bsdf_pdf = sample.pdf;
+        delta = sample.delta;
+        if !math::is_finite(throughput) {
+            break;
+        }
+
+        if depth + 1 >= settings.rr_depth {
+            let survive = throughput.max_element().min(0.95);
+            if !(sampler.next_f32() < survive) {
+                break;
+            }
+            throughput /= survive;
+        }
+        ray = Ray::new(origin, sample.wi);
+    }
+    total
+}
+
+/// What the whole footprint of pixel `(x, y)` sees, tested with `n_sub x n_sub` rays on a
+/// grid over the pixel's square (edges included): `Some(surface)` when every ray hits the
+/// same group or light, `None` on silhouettes and where a ray escapes.
+pub fn pixel_surface(scene: &Scene, view: &View, x: u32, y: u32, n_sub: u32) -> Option<Surface> {
+    let n = n_sub.max(2);
+    let mut seen: Option<Surface> = None;
+    for j in 0..n {
+        for i in 0..n {
+            let fx = x as f32 + i as f32 / (n - 1) as f32;
+            let fy = y as f32 + j as f32 / (n - 1) as f32;
+            let ray = view.ray(fx, fy);
+            let hit = scene.intersect(&ray, f32::INFINITY)?;
+            let surface = scene.triangles.get(hit.triangle as usize)?.surface;
+            match seen {
+                None => seen = Some(surface),
+                Some(s) if s != surface => return None,
+                Some(_) => {}
+            }
+        }
+    }
+    seen
+}

@@ -1,1 +1,295 @@
-//! (in progress)
+//! From validated descriptions (scene.toml, OBJ, materials.toml) to the buffers the core
+//! borrows. [`OwnedScene`] owns every buffer; [`OwnedScene::build`] lends them to
+//! `relume_core::scene::Scene::build`.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3};
+use relume_core::bvh::{Bvh, BvhBuffers, BvhNode, PackedTriangle};
+use relume_core::geometry::{Surface, Triangle, View};
+use relume_core::material::{Kind, Material, Params, SurfaceMaterial, TextureId, TextureInfo, Textures};
+use relume_core::scene::{LightTriangle, Scene, SceneStorage};
+
+use crate::error::Error;
+use crate::images;
+use crate::materials_file::{MaterialsDesc, Model};
+use crate::obj::{self, ObjObject};
+use crate::scene_file::{self, GroupKind, SceneDesc};
+
+/// Where the materials of the groups come from.
+pub enum MaterialSource<'a> {
+    /// One or more materials files; every group must get exactly one material.
+    Files(&'a [MaterialsDesc]),
+    /// A neutral grey diffuse for every group: for work that needs geometry only
+    /// (ray benchmarks, pixel labels).
+    GeometryOnly,
+}
+
+/// A scene with all of its buffers, ready to lend to the core.
+pub struct OwnedScene {
+    pub desc: SceneDesc,
+    pub triangles: Vec<Triangle>,
+    /// Group names, indexed by `Surface::Group`.
+    pub group_names: Vec<String>,
+    /// Light object names, indexed by `Surface::Light`.
+    pub light_names: Vec<String>,
+    pub views: Vec<View>,
+    pub materials: Vec<SurfaceMaterial>,
+    pub light_radiance: Vec<Vec3>,
+    pub texture_infos: Vec<TextureInfo>,
+    pub texels: Vec<Vec3>,
+    bvh_nodes: Vec<BvhNode>,
+    bvh_packed: Vec<PackedTriangle>,
+    light_table: Vec<LightTriangle>,
+}
+
+/// Reads scene.toml and its OBJ files and checks that objects, groups and lights agree.
+pub fn load_scene(scene_path: &Path) -> Result<(SceneDesc, Vec<ObjObject>), Error> {
+    let desc = scene_file::load_scene(scene_path)?;
+    let mut objects = Vec::new();
+    for file in &desc.geometry {
+        objects.extend(obj::load_obj(file)?);
+    }
+    scene_file::check_objects(&desc, &objects)?;
+    Ok((desc, objects))
+}
+
+/// Reads a scene and assembles it with the given materials.
+pub fn load_and_assemble(scene_path: &Path, materials: MaterialSource) -> Result<OwnedScene, Error> {
+    let (desc, objects) = load_scene(scene_path)?;
+    assemble(desc, &objects, materials)
+}
+
+fn kind_of(desc: &SceneDesc, group: &str) -> Option<GroupKind> {
+    desc.groups.iter().find(|g| g.name == group).map(|g| g.kind)
+}
+
+/// Builds the buffers: triangles tagged with their group or light, views, materials and
+/// textures. Objects listed in `hide` are left out.
+pub fn assemble(desc: SceneDesc, objects: &[ObjObject], materials: MaterialSource) -> Result<OwnedScene, Error> {
+    let scene_path = desc.path.clone();
+    let core_err = |what: &str, e| Error::core(format!("{}: {what}", scene_path.display()), e);
+
+    let group_names: Vec<String> = desc.groups.iter().map(|g| g.name.clone()).collect();
+    let light_names: Vec<String> = desc.lights.iter().map(|l| l.object.clone()).collect();
+    let mut surface_of: HashMap<&str, Surface> = HashMap::new();
+    for (gi, g) in desc.groups.iter().enumerate() {
+        for o in &g.objects {
+            surface_of.insert(o.as_str(), Surface::Group(gi as u16));
+        }
+    }
+    for (li, l) in desc.lights.iter().enumerate() {
+        surface_of.insert(l.object.as_str(), Surface::Light(li as u16));
+    }
+    if group_names.len() > relume_core::config::MAX_GROUPS {
+        return Err(core_err(
+            "groups",
+            relume_core::Error::Capacity {
+                what: "MAX_GROUPS",
+                max: relume_core::config::MAX_GROUPS,
+                needed: group_names.len(),
+            },
+        ));
+    }
+
+    let mut triangles = Vec::new();
+    for object in objects {
+        if desc.hide.iter().any(|h| h == &object.name) {
+            continue;
+        }
+        let Some(&surface) = surface_of.get(object.name.as_str()) else {
+            return Err(Error::input(
+                &object.file,
+                format!("object '{}' is in no group, is no light and is not hidden", object.name),
+            ));
+        };
+        for (i, v) in object.triangles.iter().enumerate() {
+            let uv = match &object.uvs {
+                Some(uvs) => uvs[i].map(Vec2::from),
+                None => [Vec2::ZERO; 3],
+            };
+            triangles.push(Triangle { v: v.map(Vec3::from), uv, surface });
+        }
+    }
+    relume_core::error::check_capacity("MAX_TRIANGLES", relume_core::config::MAX_TRIANGLES, triangles.len())
+        .map_err(|e| core_err("triangles", e))?;
+
+    let mut views = Vec::with_capacity(desc.views.len());
+    for v in &desc.views {
+        let view = View::new(
+            Vec3::from(v.position),
+            Vec3::from(v.direction),
+            Vec3::from(v.up),
+            v.fov_deg,
+            v.size,
+        )
+        .map_err(|e| core_err(&format!("view '{}'", v.name), e))?;
+        views.push(view);
+    }
+
+    let light_radiance: Vec<Vec3> = desc.lights.iter().map(|l| Vec3::from(l.radiance)).collect();
+
+    let mut texture_infos = Vec::new();
+    let mut texels = Vec::new();
+    let materials = match materials {
+        MaterialSource::GeometryOnly => vec![
+            SurfaceMaterial {
+                material: Material::Diffuse { rho_d: Vec3::splat(0.5) },
+                diffuse_map: None
+            };
+            group_names.len()
+        ],
+        MaterialSource::Files(files) => {
+            resolve_materials(&desc, files, &mut texture_infos, &mut texels)?
+        }
+    };
+
+    let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
+    let n_light_tris = triangles.iter().filter(|t| matches!(t.surface, Surface::Light(_))).count();
+    Ok(OwnedScene {
+        desc,
+        triangles,
+        group_names,
+        light_names,
+        views,
+        materials,
+        light_radiance,
+        texture_infos,
+        texels,
+        bvh_nodes: vec![BvhNode::default(); n_nodes],
+        bvh_packed: vec![PackedTriangle::default(); n_packed],
+        light_table: vec![LightTriangle::default(); n_light_tris],
+    })
+}
+
+/// One material per group, from one or more files: an error names the group and the
+/// file(s) when a group has none or two, or when a file names a group the scene lacks.
+fn resolve_materials(
+    desc: &SceneDesc,
+    files: &[MaterialsDesc],
+    texture_infos: &mut Vec<TextureInfo>,
+    texels: &mut Vec<Vec3>,
+) -> Result<Vec<SurfaceMaterial>, Error> {
+    let mut found: Vec<Option<(PathBuf, usize, SurfaceMaterial)>> = vec![None; desc.groups.len()];
+    for file in files {
+        for m in &file.materials {
+            let Some(gi) = desc.groups.iter().position(|g| g.name == m.group) else {
+                return Err(Error::at_line(
+                    &file.path,
+                    m.line,
+                    format!("material for group '{}', which scene {} does not have", m.group, desc.path.display()),
+                ));
+            };
+            if let Some((other, other_line, _)) = &found[gi] {
+                return Err(Error::at_line(
+                    &file.path,
+                    m.line,
+                    format!(
+                        "group '{}' has two materials: here and at {}:{}",
+                        m.group,
+                        other.display(),
+                        other_line
+                    ),
+                ));
+            }
+            let kind = match kind_of(desc, &m.group) {
+                Some(GroupKind::Plastic) => Kind::Plastic,
+                Some(GroupKind::Metal) => Kind::Metal,
+                Some(GroupKind::Auto) | None => {
+                    if matches!(m.params(), Params::Diffuse | Params::Mirror) {
+                        Kind::Plastic
+                    } else {
+                        return Err(Error::at_line(
+                            &file.path,
+                            m.line,
+                            format!(
+                                "group '{}' has kind \"auto\" in {}: a specular material needs the kind (plastic or metal)",
+                                m.group,
+                                desc.path.display()
+                            ),
+                        ));
+                    }
+                }
+            };
+            let textured = matches!(
+                m.model,
+                Model::TexturedDiffuse | Model::TexturedIsotropic | Model::TexturedAnisotropic
+            );
+            let diffuse_map = if textured {
+                let Some(map) = &m.diffuse_map else {
+                    return Err(Error::at_line(&file.path, m.line, "textured material without diffuse_map"));
+                };
+                if kind == Kind::Metal {
+                    return Err(Error::at_line(
+                        &file.path,
+                        m.line,
+                        format!("group '{}' is metal: textured models apply to plastic groups", m.group),
+                    ));
+                }
+                let image = images::read_image(map, 1.0)?;
+                if texture_infos.len() >= relume_core::config::MAX_TEXTURES {
+                    return Err(Error::core(
+                        format!("{}: {}", file.path.display(), map.display()),
+                        relume_core::Error::Capacity {
+                            what: "MAX_TEXTURES",
+                            max: relume_core::config::MAX_TEXTURES,
+                            needed: texture_infos.len() + 1,
+                        },
+                    ));
+                }
+                let id = TextureId(texture_infos.len() as u16);
+                texture_infos.push(TextureInfo { width: image.width, height: image.height, offset: texels.len() });
+                texels.extend(image.pixels.iter().map(|p| Vec3::from(*p)));
+                Some(id)
+            } else {
+                None
+            };
+            let material = Material::from_params(kind, Vec3::from(m.color_or_white()), m.params())
+                .map_err(|e| Error::at_line(&file.path, m.line, format!("group '{}': {e}", m.group)))?;
+            found[gi] = Some((file.path.clone(), m.line, SurfaceMaterial { material, diffuse_map }));
+        }
+    }
+    let mut out = Vec::with_capacity(found.len());
+    for (gi, f) in found.into_iter().enumerate() {
+        match f {
+            Some((_, _, m)) => out.push(m),
+            None => {
+                let names: Vec<String> = files.iter().map(|f| f.path.display().to_string()).collect();
+                return Err(Error::input(
+                    &desc.path,
+                    format!("group '{}' has no material in {}", desc.groups[gi].name, names.join(", ")),
+                ));
+            }
+        }
+    }
+    Ok(out)
+}
+
+impl OwnedScene {
+    /// Lends the buffers to the core and builds the scene (BVH, light table).
+    pub fn build(&mut self) -> Result<Scene<'_>, Error> {
+        let path = self.desc.path.display().to_string();
+        let textures = Textures::new(&self.texture_infos, &self.texels)
+            .map_err(|e| Error::core(format!("{path}: textures"), e))?;
+        Scene::build(
+            &self.triangles,
+            &self.materials,
+            &self.light_radiance,
+            textures,
+            SceneStorage {
+                bvh: BvhBuffers { nodes: &mut self.bvh_nodes, packed: &mut self.bvh_packed },
+                light_table: &mut self.light_table,
+            },
+        )
+        .map_err(|e| Error::core(format!("{path}: building the scene"), e))
+    }
+
+    /// The name of a surface, for reports.
+    pub fn surface_name(&self, surface: Surface) -> &str {
+        match surface {
+            Surface::Group(g) => self.group_names.get(g as usize).map_or("?", |s| s.as_str()),
+            Surface::Light(l) => self.light_names.get(l as usize).map_or("?", |s| s.as_str()),
+        }
+    }
+}

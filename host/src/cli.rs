@@ -1,4 +1,154 @@
-//! (in progress)
+//! The command line: arguments are parsed by clap, each subcommand is one function, and
+//! [`main`] maps every error to an exit code in one place.
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+use crate::assemble::{self, MaterialSource};
+use crate::error::Error;
+use crate::{bench, compare, render_cmd};
+
+#[derive(Parser)]
+#[command(name = "relume", version, about = "Recover the materials of a scene from one panorama, and re-render it")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render every view of a scene with the given materials (one EXR and one PNG per view).
+    Render {
+        /// The scene.toml to render.
+        scene: PathBuf,
+        /// materials.toml file(s); every group must get exactly one material.
+        #[arg(long, required = true, num_args = 1..)]
+        materials: Vec<PathBuf>,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Samples per pixel.
+        #[arg(long, default_value_t = 64)]
+        spp: u32,
+        /// Random seed: the same seed gives the same bytes.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Worker threads (default: all cores); the result does not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Render only these views (by name).
+        #[arg(long = "view")]
+        views: Vec<String>,
+    },
+    /// Compare two sets of views, or two materials files.
+    #[command(subcommand)]
+    Compare(CompareCommand),
+    /// Benchmarks that print figures.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Subcommand)]
+enum CompareCommand {
+    /// Per group and per view: relative difference of mean radiance and relative RMS, over
+    /// the pixels whose whole footprint sees one group.
+    Views {
+        scene: PathBuf,
+        /// Folder of `<view>.exr` files: the reference (A).
+        dir_a: PathBuf,
+        /// Folder of `<view>.exr` files: compared against A.
+        dir_b: PathBuf,
+        /// Also write the table as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        #[arg(long)]
+        threads: Option<usize>,
+    },
+    /// Class per group and parameter errors of a materials file against the truth.
+    Materials {
+        truth: PathBuf,
+        materials: PathBuf,
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Trace a ray file (shared/bench/rays format): Mrays/s on 1 thread and on all threads.
+    Rays {
+        scene: PathBuf,
+        #[arg(long)]
+        rays: PathBuf,
+        /// Write the closest hits in the reference format.
+        #[arg(long)]
+        hits: Option<PathBuf>,
+        /// Write the figures as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Reference hits to check against (default: the .hits beside the .rays).
+        #[arg(long)]
+        reference: Option<PathBuf>,
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Timed runs (best is kept) after one warm-up.
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+    },
+}
+
+/// Runs the command line and returns the process exit code.
 pub fn main() -> i32 {
-    0
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { 2 } else { 0 };
+        }
+    };
+    match run(cli.command) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("relume: error: {e}");
+            e.exit_code()
+        }
+    }
+}
+
+fn run(command: Command) -> Result<(), Error> {
+    match command {
+        Command::Render { scene, materials, out, spp, seed, threads, views } => {
+            let args = render_cmd::RenderArgs { scene, materials, out, spp, seed, threads, views };
+            let summary = render_cmd::run(&args)?;
+            println!(
+                "rendered {} samples in {:.2} s: {:.3} Msamples/s; wrote {}",
+                summary.samples,
+                summary.seconds,
+                summary.samples as f64 / summary.seconds.max(1e-9) / 1e6,
+                args.out.display()
+            );
+            Ok(())
+        }
+        Command::Compare(CompareCommand::Views { scene, dir_a, dir_b, json, threads }) => {
+            compare::compare_views(&scene, &dir_a, &dir_b, json.as_deref(), threads)
+        }
+        Command::Compare(CompareCommand::Materials { truth, materials, json }) => {
+            compare::compare_materials(&truth, &materials, json.as_deref())
+        }
+        Command::Bench(BenchCommand::Rays { scene, rays, hits, json, reference, threads, repeats }) => {
+            let mut owned = assemble::load_and_assemble(&scene, MaterialSource::GeometryOnly)?;
+            let built = owned.build()?;
+            let args = bench::BenchRaysArgs {
+                scene,
+                rays,
+                hits_out: hits,
+                json_out: json,
+                reference_hits: reference,
+                threads,
+                repeats,
+            };
+            bench::bench_rays(&args, &built).map(|_| ())
+        }
+    }
 }

@@ -1,1 +1,284 @@
-//! (in progress)
+//! `relume compare`: how far a rendering is from a reference, group by group, and how far
+//! recovered materials are from the truth. These are the user's yardsticks (and ours).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use relume_core::geometry::Surface;
+use relume_core::render;
+use serde::Serialize;
+
+use crate::assemble::{self, MaterialSource};
+use crate::error::Error;
+use crate::images;
+use crate::materials_file::{self, MaterialDesc, Model};
+use crate::{fsutil, parallel};
+
+/// Sub-rays per pixel side used to decide that a pixel's whole footprint sees one group.
+pub const LABEL_RAYS_PER_SIDE: u32 = 4;
+
+/// Running sums over pixels (per-channel values pooled).
+#[derive(Default, Clone, Copy)]
+struct Sums {
+    pixels: u64,
+    sum_a: f64,
+    sum_b: f64,
+    sum_sq_diff: f64,
+}
+
+impl Sums {
+    fn add(&mut self, a: [f32; 3], b: [f32; 3]) {
+        self.pixels += 1;
+        for c in 0..3 {
+            let (a, b) = (a[c] as f64, b[c] as f64);
+            self.sum_a += a;
+            self.sum_b += b;
+            self.sum_sq_diff += (b - a) * (b - a);
+        }
+    }
+
+    fn row(&self, name: &str) -> ViewsRow {
+        let n = (self.pixels * 3).max(1) as f64;
+        let mean_a = self.sum_a / n;
+        let mean_b = self.sum_b / n;
+        ViewsRow {
+            name: name.to_string(),
+            pixels: self.pixels,
+            mean_a,
+            mean_b,
+            rel_mean_diff: if mean_a > 0.0 { (mean_b - mean_a) / mean_a } else { f64::NAN },
+            rel_rms: if mean_a > 0.0 { (self.sum_sq_diff / n).sqrt() / mean_a } else { f64::NAN },
+        }
+    }
+}
+
+/// One line of the views table: `rel_mean_diff = (mean B - mean A) / mean A`,
+/// `rel_rms = RMS(B - A) / mean A` (the reference READMEs' definitions).
+#[derive(Serialize, Clone, Debug)]
+pub struct ViewsRow {
+    pub name: String,
+    pub pixels: u64,
+    pub mean_a: f64,
+    pub mean_b: f64,
+    pub rel_mean_diff: f64,
+    pub rel_rms: f64,
+}
+
+#[derive(Serialize, Debug)]
+pub struct ViewsReport {
+    pub groups: Vec<ViewsRow>,
+    pub views: Vec<ViewsRow>,
+    pub all: ViewsRow,
+}
+
+/// Compares `dir_a/<view>.exr` with `dir_b/<view>.exr` for every view of the scene over
+/// pure pixels (whole footprint on one group; lights and silhouettes left out).
+pub fn views_report(scene_path: &Path, dir_a: &Path, dir_b: &Path, threads: Option<usize>) -> Result<ViewsReport, Error> {
+    let mut owned = assemble::load_and_assemble(scene_path, MaterialSource::GeometryOnly)?;
+    let pool = parallel::thread_pool(threads)?;
+    let descs = owned.desc.views.clone();
+    let views = owned.views.clone();
+    let group_names = owned.group_names.clone();
+    let scene = owned.build()?;
+
+    let mut groups = vec![Sums::default(); group_names.len()];
+    let mut per_view = Vec::new();
+    let mut all = Sums::default();
+    for (desc, view) in descs.iter().zip(&views) {
+        let file = format!("{}.exr", desc.name);
+        let a = images::read_view_image(&dir_a.join(&file), 1.0, desc.size)?;
+        let b = images::read_view_image(&dir_b.join(&file), 1.0, desc.size)?;
+        let labels = parallel::map_pixels(&pool, view, |x, y| {
+            render::pixel_surface(&scene, view, x, y, LABEL_RAYS_PER_SIDE)
+        });
+        let mut sums = Sums::default();
+        for (i, label) in labels.iter().enumerate() {
+            if let Some(Surface::Group(g)) = label {
+                groups[*g as usize].add(a.pixels[i], b.pixels[i]);
+                sums.add(a.pixels[i], b.pixels[i]);
+                all.add(a.pixels[i], b.pixels[i]);
+            }
+        }
+        per_view.push(sums.row(&desc.name));
+    }
+    Ok(ViewsReport {
+        groups: groups.iter().zip(&group_names).map(|(s, n)| s.row(n)).collect(),
+        views: per_view,
+        all: all.row("image"),
+    })
+}
+
+fn print_views_table(report: &ViewsReport) {
+    println!("{:<16} {:>8} {:>11} {:>11} {:>10} {:>9}", "group", "pixels", "mean A", "mean B", "rel mean", "rel RMS");
+    let line = |r: &ViewsRow| {
+        println!(
+            "{:<16} {:>8} {:>11.5} {:>11.5} {:>+9.2}% {:>8.2}%",
+            r.name,
+            r.pixels,
+            r.mean_a,
+            r.mean_b,
+            100.0 * r.rel_mean_diff,
+            100.0 * r.rel_rms
+        )
+    };
+    report.groups.iter().for_each(line);
+    println!("{:<16}", "-- views");
+    report.views.iter().for_each(line);
+    line(&report.all);
+}
+
+pub fn compare_views(
+    scene: &Path,
+    dir_a: &Path,
+    dir_b: &Path,
+    json: Option<&Path>,
+    threads: Option<usize>,
+) -> Result<(), Error> {
+    let report = views_report(scene, dir_a, dir_b, threads)?;
+    print_views_table(&report);
+    if let Some(path) = json {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| Error::Usage(e.to_string()))?;
+        fsutil::write_atomic(path, text.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// Errors of one recovered material against the truth; `None` where the parameter does not
+/// apply to both.
+#[derive(Serialize, Debug, Default)]
+pub struct MaterialRow {
+    pub group: String,
+    pub true_model: String,
+    pub model: Option<String>,
+    pub class_ok: bool,
+    /// Mean over channels of |rho_d - rho_d true| / rho_d true, with rho_d = color (1 - s).
+    pub diffuse_rel_err: Option<f64>,
+    pub specularity_rel_err: Option<f64>,
+    pub roughness_rel_err: Option<f64>,
+    pub roughness_u_rel_err: Option<f64>,
+    pub roughness_v_rel_err: Option<f64>,
+    /// Angle between the u directions, sign ignored (d and -d are the same material).
+    pub direction_err_deg: Option<f64>,
+    /// PSNR of the diffuse map over all texels, peak = the truth's maximum.
+    pub diffuse_map_psnr_db: Option<f64>,
+}
+
+fn model_name(m: Model) -> &'static str {
+    match m {
+        Model::Diffuse => "diffuse",
+        Model::Isotropic => "isotropic",
+        Model::Anisotropic => "anisotropic",
+        Model::Mirror => "mirror",
+        Model::TexturedDiffuse => "textured-diffuse",
+        Model::TexturedIsotropic => "textured-isotropic",
+        Model::TexturedAnisotropic => "textured-anisotropic",
+    }
+}
+
+fn rel(a: f64, truth: f64) -> f64 {
+    if truth != 0.0 {
+        (a - truth).abs() / truth.abs()
+    } else {
+        a.abs()
+    }
+}
+
+fn diffuse_of(m: &MaterialDesc) -> Option<[f64; 3]> {
+    let c = m.color?;
+    let s = m.specularity.unwrap_or(0.0) as f64;
+    match m.model {
+        Model::Mirror => None,
+        _ => Some(c.map(|c| c as f64 * (1.0 - s))),
+    }
+}
+
+fn psnr(truth: &Path, recovered: &Path) -> Result<Option<f64>, Error> {
+    let t = images::read_image(truth, 1.0)?;
+    let r = images::read_image(recovered, 1.0)?;
+    if (t.width, t.height) != (r.width, r.height) {
+        return Ok(None);
+    }
+    let peak = t.pixels.iter().flatten().fold(0.0f64, |m, &v| m.max(v as f64));
+    let mse = t
+        .pixels
+        .iter()
+        .zip(&r.pixels)
+        .flat_map(|(a, b)| (0..3).map(move |c| (a[c] as f64 - b[c] as f64).powi(2)))
+        .sum::<f64>()
+        / (3 * t.pixels.len()).max(1) as f64;
+    Ok(Some(if mse > 0.0 { 10.0 * (peak * peak / mse).log10() } else { f64::INFINITY }))
+}
+
+pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRow>, Error> {
+    let t = materials_file::load_materials(truth)?;
+    let m = materials_file::load_materials(materials)?;
+    let by_group: BTreeMap<&str, &MaterialDesc> = m.materials.iter().map(|d| (d.group.as_str(), d)).collect();
+    let mut rows = Vec::new();
+    for tm in &t.materials {
+        let mut row = MaterialRow {
+            group: tm.group.clone(),
+            true_model: model_name(tm.model).into(),
+            ..MaterialRow::default()
+        };
+        if let Some(rm) = by_group.get(tm.group.as_str()) {
+            row.model = Some(model_name(rm.model).into());
+            row.class_ok = rm.model == tm.model;
+            if let (Some(a), Some(b)) = (diffuse_of(rm), diffuse_of(tm)) {
+                row.diffuse_rel_err = Some((0..3).map(|c| rel(a[c], b[c])).sum::<f64>() / 3.0);
+            }
+            if tm.model == Model::Mirror {
+                if let (Some(a), Some(b)) = (rm.color, tm.color) {
+                    row.diffuse_rel_err = Some((0..3).map(|c| rel(a[c] as f64, b[c] as f64)).sum::<f64>() / 3.0);
+                }
+            }
+            let pair = |a: Option<f32>, b: Option<f32>| match (a, b) {
+                (Some(a), Some(b)) if b > 0.0 => Some(rel(a as f64, b as f64)),
+                _ => None,
+            };
+            row.specularity_rel_err = pair(rm.specularity, tm.specularity);
+            row.roughness_rel_err = pair(rm.roughness, tm.roughness);
+            row.roughness_u_rel_err = pair(rm.roughness_u, tm.roughness_u);
+            row.roughness_v_rel_err = pair(rm.roughness_v, tm.roughness_v);
+            if let (Some(a), Some(b)) = (rm.direction_u, tm.direction_u) {
+                let a = glam::DVec3::from(a.map(|x| x as f64)).normalize_or_zero();
+                let b = glam::DVec3::from(b.map(|x| x as f64)).normalize_or_zero();
+                row.direction_err_deg = Some(a.dot(b).abs().min(1.0).acos().to_degrees());
+            }
+            if let (Some(a), Some(b)) = (&rm.diffuse_map, &tm.diffuse_map) {
+                row.diffuse_map_psnr_db = psnr(b, a)?;
+            }
+        }
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) -> Result<(), Error> {
+    let rows = materials_report(truth, materials)?;
+    let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.2}%", 100.0 * v));
+    println!(
+        "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8}",
+        "group", "true model", "model", "class", "diffuse", "spec", "rough", "rough_u", "rough_v", "dir", "map PSNR"
+    );
+    for r in &rows {
+        println!(
+            "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8}",
+            r.group,
+            r.true_model,
+            r.model.as_deref().unwrap_or("(missing)"),
+            if r.class_ok { "ok" } else { "WRONG" },
+            pct(r.diffuse_rel_err),
+            pct(r.specularity_rel_err),
+            pct(r.roughness_rel_err),
+            pct(r.roughness_u_rel_err),
+            pct(r.roughness_v_rel_err),
+            r.direction_err_deg.map_or("-".to_string(), |d| format!("{d:.1}deg")),
+            r.diffuse_map_psnr_db.map_or("-".to_string(), |p| format!("{p:.1}dB")),
+        );
+    }
+    if let Some(path) = json {
+        let text = serde_json::to_string_pretty(&rows).map_err(|e| Error::Usage(e.to_string()))?;
+        fsutil::write_atomic(path, text.as_bytes())?;
+    }
+    Ok(())
+}

@@ -1,0 +1,51 @@
+//! Helpers shared by the integration tests: run the real binary, find the shared
+//! reference scenes, print both sides in full on failure.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The workspace root (this folder's parent).
+pub fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+/// The shared reference folder: `$RELUME_SHARED`, or `../shared` beside the workspace.
+/// A missing folder fails the test: CI always has it.
+pub fn shared() -> PathBuf {
+    let dir = std::env::var_os("RELUME_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| workspace().join("../shared"));
+    assert!(
+        dir.join("bench").is_dir(),
+        "reference scenes not found at {} (set RELUME_SHARED)",
+        dir.display()
+    );
+    dir
+}
+
+/// Runs `relume` with `args` in `cwd`.
+pub fn relume(cwd: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relume"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("the relume binary runs")
+}
+
+/// Runs `relume` and fails the test, printing stdout and stderr, unless it succeeds.
+pub fn relume_ok(cwd: &Path, args: &[&str]) -> Output {
+    let out = relume(cwd, args);
+    assert!(
+        out.status.success(),
+        "relume {args:?} failed ({:?})\n--- stdout\n{}\n--- stderr\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+pub fn path_str(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
