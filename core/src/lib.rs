@@ -11,6 +11,9 @@
 //! - [`scene`]: the assembled scene (triangles, BVH, materials, lights, textures), all lent
 //!   by the caller and checked against the capacities.
 //! - [`render`]: the path tracer (next-event estimation with multiple importance sampling).
+//! - [`fit`]: the fit error of a group and every threshold of the staged recovery.
+//! - [`anneal`]: seeded simulated annealing in ask/tell form.
+//! - [`stages`]: the stages of the recovery, as pure functions of measured fits.
 //!
 //! The core never allocates, never does I/O and never panics on user data: the host lends
 //! buffers, the seed and the data, and gets values or [`Error`]s back.
@@ -25,14 +28,17 @@ extern crate std;
 // dependency declared and linked even where a module does not yet need it.
 use heapless as _;
 
+pub mod anneal;
 pub mod bvh;
 pub mod config;
 pub mod error;
+pub mod fit;
 pub mod geometry;
 pub mod material;
 pub mod math;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod stages;
 
 pub use error::Error;

@@ -76,6 +76,38 @@ pub fn render_pixel(
     }
 }
 
+/// The box-filtered radiance of a pixel and the variance of that estimate (the sample
+/// variance of the per-sample luminance-weighted RGB divided by the sample count), which the
+/// fit uses to take render noise out of its error.
+pub fn render_pixel_with_variance(
+    scene: &Scene,
+    view: &View,
+    view_index: u32,
+    x: u32,
+    y: u32,
+    settings: &RenderSettings,
+) -> (Vec3, Vec3) {
+    let pixel = y * view.width + x;
+    let mut sum = Vec3::ZERO;
+    let mut sum_sq = Vec3::ZERO;
+    for s in 0..settings.spp {
+        let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, s);
+        let [jx, jy] = sampler.next_2d();
+        let ray = view.ray(x as f32 + jx, y as f32 + jy);
+        let l = radiance(scene, ray, &mut sampler, settings);
+        sum += l;
+        sum_sq += l * l;
+    }
+    let n = settings.spp.max(1) as f32;
+    let mean = sum / n;
+    let variance = if settings.spp > 1 {
+        ((sum_sq - sum * mean) / (n - 1.0)).max(Vec3::ZERO) / n
+    } else {
+        Vec3::ZERO
+    };
+    (mean, variance)
+}
+
 /// Renders rows `rows` of a view into `out` (row-major, `width` pixels a row).
 pub fn render_rows(
     scene: &Scene,

@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 
 use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
+use crate::recover_cmd::{self, Effort};
 use crate::{bench, compare, render_cmd};
 
 #[derive(Parser)]
@@ -40,6 +41,23 @@ enum Command {
         /// Render only these views (by name).
         #[arg(long = "view")]
         views: Vec<String>,
+    },
+    /// Recover every group's material from the panorama (the views' images).
+    Recover {
+        /// The scene.toml, whose views carry the panorama's images.
+        scene: PathBuf,
+        /// Output folder: materials.toml, materials.rad, report.json, views/, errors/.
+        #[arg(long)]
+        out: PathBuf,
+        /// Random seed: the same seed gives the same materials.toml bytes.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Worker threads (default: all cores); the result does not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// How much work to spend (samples per evaluation and in the final render).
+        #[arg(long, value_enum, default_value_t = Effort::Default)]
+        effort: Effort,
     },
     /// Compare two sets of views, or two materials files.
     #[command(subcommand)]
@@ -128,6 +146,24 @@ fn run(command: Command) -> Result<(), Error> {
                 summary.samples as f64 / summary.seconds.max(1e-9) / 1e6,
                 args.out.display()
             );
+            Ok(())
+        }
+        Command::Recover { scene, out, seed, threads, effort } => {
+            let args = recover_cmd::RecoverArgs { scene, out, seed, threads, effort };
+            let report = recover_cmd::run(&args)?;
+            for g in &report.groups {
+                println!(
+                    "{:<16} {:<10} error {:>7}  {}",
+                    g.group,
+                    g.model,
+                    g.final_error.map_or("-".into(), |e| format!("{:.2}%", 100.0 * e)),
+                    g.decision
+                );
+            }
+            for w in &report.warnings {
+                eprintln!("relume: warning: {w}");
+            }
+            println!("recovered in {:.1} s; wrote {}", report.seconds, args.out.display());
             Ok(())
         }
         Command::Compare(CompareCommand::Views { scene, dir_a, dir_b, json, threads }) => {

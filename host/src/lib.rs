@@ -24,6 +24,8 @@ pub mod materials_file;
 pub mod obj;
 pub mod parallel;
 #[cfg(any())] // TEMP: re-enabled once the I/O modules land
+pub mod recover_cmd;
+#[cfg(any())] // TEMP: re-enabled once the I/O modules land
 pub mod render_cmd;
 pub mod scene_file;
 
