@@ -11,6 +11,7 @@
 //! - [`scene`]: the assembled scene (triangles, BVH, materials, lights, textures), all lent
 //!   by the caller and checked against the capacities.
 //! - [`render`]: the path tracer (next-event estimation with multiple importance sampling).
+//! - [`transport`]: the light at each pixel sample's first vertex, cached for re-weighting.
 //! - [`fit`]: the fit error of a group and every threshold of the staged recovery.
 //! - [`anneal`]: seeded simulated annealing in ask/tell form.
 //! - [`stages`]: the stages of the recovery, as pure functions of measured fits.
@@ -40,5 +41,6 @@ pub mod render;
 pub mod rng;
 pub mod scene;
 pub mod stages;
+pub mod transport;
 
 pub use error::Error;

@@ -32,10 +32,11 @@ impl Default for RenderSettings {
 }
 
 /// Relative offset of secondary ray origins from the surface, against self-intersection.
-const RAY_EPSILON: f32 = 1e-4;
+pub const RAY_EPSILON: f32 = 1e-4;
 
+/// A secondary ray's origin: `p` moved off the surface along `n`.
 #[inline]
-fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
+pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
     let scale = p.abs().max_element().max(1.0);
     p + n * (RAY_EPSILON * scale)
 }

@@ -3,3 +3,4 @@
 //! parallel), returning a value the next stage consumes.
 
 pub mod diffuse;
+pub mod isotropic;

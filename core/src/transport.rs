@@ -1,0 +1,210 @@
+//! What recovery re-uses between evaluations: the light arriving at the first surface a
+//! pixel sample sees, traced once with full global illumination and fixed random numbers.
+//!
+//! A pixel sample's radiance is `integral f(wo, wi) L_in(wi) cos dwi` at its first vertex.
+//! We estimate that integral with two MIS-weighted samples (one on a light, one from a
+//! mixture of a cosine lobe and Ward lobes of several roughnesses) and store each as an
+//! [`IncidentSample`]: directions and `L_in cos w / pdf`. For *any* BRDF of the group the
+//! pixel's value is then `sum f(wo, wi) * weight`, unbiased while the mixture covers the
+//! BRDF. So a new material costs a few BRDF evaluations per sample, not a render; the cache
+//! is refreshed (re-traced) when the rest of the scene's materials change.
+
+use crate::geometry::{Surface, View};
+use crate::material::{Bsdf, Material};
+use crate::math::{self, Vec3, INV_PI};
+use crate::render::{self, RenderSettings};
+use crate::rng::Sampler;
+use crate::scene::Scene;
+
+/// Roughnesses of the Ward lobes in the sampling mixture (beside a cosine lobe): they span
+/// the roughness range that recovery searches, so every candidate lobe is well covered.
+pub const MIXTURE_ROUGHNESSES: [f32; 4] = [0.01, 0.03, 0.08, 0.2];
+/// Probability of the cosine lobe in the mixture; the rest is shared by the Ward lobes.
+pub const MIXTURE_COSINE: f32 = 0.2;
+
+/// Light arriving at a first vertex from one direction, already divided by its pdf.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct IncidentSample {
+    /// Unit direction towards the viewer.
+    pub wo: Vec3,
+    /// Unit normal, turned towards `wo`.
+    pub n: Vec3,
+    /// Unit direction towards where the light comes from.
+    pub wi: Vec3,
+    /// `L_in(wi) * cos(n, wi) * w_mis / pdf`; multiply by `f(wo, wi)` to get radiance.
+    pub weight: Vec3,
+    /// Texture coordinate of the first vertex (for diffuse maps).
+    pub uv: [f32; 2],
+}
+
+/// Samples per pixel sample: one light sample, one mixture sample.
+pub const INCIDENT_PER_SAMPLE: usize = 2;
+
+fn lobe(alpha: f32) -> Material {
+    Material::Ward { rho_d: Vec3::ZERO, rho_s: Vec3::ONE, alpha }
+}
+
+/// Solid-angle pdf of the sampling mixture at `wi`.
+fn mixture_pdf(n: Vec3, wo: Vec3, wi: Vec3) -> f32 {
+    let cos = n.dot(wi);
+    if !(cos > 0.0) {
+        return 0.0;
+    }
+    let p_lobe = (1.0 - MIXTURE_COSINE) / MIXTURE_ROUGHNESSES.len() as f32;
+    let mut pdf = MIXTURE_COSINE * cos * INV_PI;
+    for &a in &MIXTURE_ROUGHNESSES {
+        pdf += p_lobe * Bsdf::new(&lobe(a), None, n).pdf(wo, wi);
+    }
+    pdf
+}
+
+fn cosine_direction(n: Vec3, u: [f32; 2]) -> Vec3 {
+    let frame = math::Frame::from_normal(n);
+    let r = math::sqrt(u[0]);
+    let phi = 2.0 * math::PI * u[1];
+    let z = math::sqrt((1.0 - u[0]).max(0.0));
+    frame.to_world(Vec3::new(r * math::cos(phi), r * math::sin(phi), z))
+}
+
+#[inline]
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 {
+        a2 / (a2 + b2)
+    } else {
+        0.0
+    }
+}
+
+/// Traces one pixel sample of pixel `(x, y)` and writes its incident samples into `out`
+/// when the first hit is on `group`. Returns how many were written (0 when the sample sees
+/// something else, e.g. at the edge of a pure pixel by rounding).
+#[allow(clippy::too_many_arguments)]
+pub fn trace_pixel_sample(
+    scene: &Scene,
+    view: &View,
+    view_index: u32,
+    x: u32,
+    y: u32,
+    sample: u32,
+    group: u16,
+    settings: &RenderSettings,
+    out: &mut [IncidentSample; INCIDENT_PER_SAMPLE],
+) -> usize {
+    let pixel = y * view.width + x;
+    let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, sample);
+    let [jx, jy] = sampler.next_2d();
+    let ray = view.ray(x as f32 + jx, y as f32 + jy);
+    let Some(hit) = scene.intersect(&ray, f32::INFINITY) else { return 0 };
+    let Some(tri) = scene.triangles.get(hit.triangle as usize) else { return 0 };
+    if tri.surface != Surface::Group(group) {
+        return 0;
+    }
+    let n2 = tri.normal_area2();
+    let len = n2.length();
+    if !(len > 0.0) {
+        return 0;
+    }
+    let ng = n2 / len;
+    let n = if ng.dot(ray.direction) < 0.0 { ng } else { -ng };
+    let wo = -ray.direction;
+    let p = ray.at(hit.t);
+    let origin = render::offset_origin(p, n);
+    let uv = tri.uv_at(hit.b1, hit.b2).to_array();
+    let mut written = 0;
+
+    // 1. A point on a light.
+    let u_light = sampler.next_f32();
+    let u_point = sampler.next_2d();
+    let mut light_entry = IncidentSample { wo, n, wi: n, weight: Vec3::ZERO, uv };
+    if let Some(ls) = scene.sample_light(u_light, u_point) {
+        let to_light = ls.point - origin;
+        let dist2 = to_light.length_squared();
+        let dist = math::sqrt(dist2);
+        if dist > 0.0 {
+            let wi = to_light / dist;
+            let cos_light = -ls.normal.dot(wi);
+            let cos_surface = n.dot(wi);
+            if cos_light > 0.0 && cos_surface > 0.0 && ls.pdf_area > 0.0 {
+                light_entry.wi = wi;
+                if !scene.occluded(&crate::geometry::Ray::new(origin, wi), dist * (1.0 - render::RAY_EPSILON)) {
+                    let pdf_light = ls.pdf_area * dist2 / cos_light;
+                    let w = power_heuristic(pdf_light, mixture_pdf(n, wo, wi));
+                    light_entry.weight = ls.radiance * (cos_surface * w / pdf_light);
+                }
+            }
+        }
+    }
+    out[written] = light_entry;
+    written += 1;
+
+    // 2. A direction from the mixture, and the light arriving along it (full GI).
+    let u_pick = sampler.next_f32();
+    let u_dir = sampler.next_2d();
+    let wi = if u_pick < MIXTURE_COSINE {
+        Some(cosine_direction(n, u_dir))
+    } else {
+        let k = (((u_pick - MIXTURE_COSINE) / (1.0 - MIXTURE_COSINE)) * MIXTURE_ROUGHNESSES.len() as f32) as usize;
+        let a = MIXTURE_ROUGHNESSES[k.min(MIXTURE_ROUGHNESSES.len() - 1)];
+        Bsdf::new(&lobe(a), None, n).sample(wo, 1.0, u_dir).map(|s| s.wi)
+    };
+    let mut indirect = IncidentSample { wo, n, wi: n, weight: Vec3::ZERO, uv };
+    if let Some(wi) = wi {
+        let pdf = mixture_pdf(n, wo, wi);
+        let cos = n.dot(wi);
+        if pdf > 0.0 && cos > 0.0 {
+            indirect.wi = wi;
+            let next = crate::geometry::Ray::new(origin, wi);
+            if let Some(h2) = scene.intersect(&next, f32::INFINITY) {
+                if let Some(t2) = scene.triangles.get(h2.triangle as usize) {
+                    let l_in = match t2.surface {
+                        Surface::Light(l) => {
+                            let ln2 = t2.normal_area2();
+                            let cos_l = -ln2.dot(wi) / ln2.length().max(f32::MIN_POSITIVE);
+                            if cos_l > 0.0 {
+                                let le = scene.light_radiance.get(l as usize).copied().unwrap_or(Vec3::ZERO);
+                                let pdf_light = scene.light_pdf_area(h2.triangle) * h2.t * h2.t / cos_l;
+                                le * power_heuristic(pdf, pdf_light)
+                            } else {
+                                Vec3::ZERO
+                            }
+                        }
+                        Surface::Group(_) => render::radiance(scene, next, &mut sampler, settings),
+                    };
+                    indirect.weight = l_in * (cos / pdf);
+                }
+            }
+        }
+    }
+    out[written] = indirect;
+    written += 1;
+    written
+}
+
+/// The pixel value a material gives over a pixel's incident samples (`n_samples` pixel
+/// samples, whose incident samples are `entries`): `sum f(wo, wi) weight / n_samples`.
+pub fn shade(entries: &[IncidentSample], n_samples: u32, material: &Material, rho_d: Option<Vec3>) -> Vec3 {
+    let mut sum = Vec3::ZERO;
+    for e in entries {
+        let f = Bsdf::new(material, rho_d, e.n).eval(e.wo, e.wi);
+        sum += f * e.weight;
+    }
+    sum / n_samples.max(1) as f32
+}
+
+/// The two linear parts of a pixel under a Ward-type material: `diffuse` is the value for
+/// `rho_d = 1, S = 0` (irradiance / pi) and `specular` the value for `rho_d = 0, S = 1`, so
+/// that the pixel is `rho_d * diffuse + S * specular` (per channel).
+pub fn linear_parts(entries: &[IncidentSample], n_samples: u32, specular_lobe: &Material) -> (Vec3, Vec3) {
+    let mut diffuse = Vec3::ZERO;
+    let mut specular = Vec3::ZERO;
+    for e in entries {
+        if e.n.dot(e.wi) > 0.0 {
+            diffuse += e.weight * INV_PI;
+        }
+        let f = Bsdf::new(specular_lobe, None, e.n).eval(e.wo, e.wi);
+        specular += f * e.weight;
+    }
+    let k = 1.0 / n_samples.max(1) as f32;
+    (diffuse * k, specular * k)
+}
