@@ -1,1 +1,469 @@
-//! (in progress)
+//! Bad inputs through the real binary: `relume render` on a tiny scene broken in one place
+//! must exit with the input (3) or I/O (4) code, name the file and the line, pixel or object
+//! on stderr, never panic, and leave no output behind.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{path_str, relume};
+
+const SCENE: &str = r#"format = 1
+name = "tiny"
+geometry = ["geo.obj"]
+hide = []
+
+[[view]]
+name = "front"
+position = [0.5, -1.5, 0.5]
+direction = [0.0, 1.0, 0.0]
+up = [0.0, 0.0, 1.0]
+fov_deg = [90.0, 90.0]
+size = [4, 4]
+exposure = 1.0
+
+[[light]]
+object = "lamp"
+radiance = [10.0, 10.0, 10.0]
+
+[[group]]
+name = "floor"
+kind = "plastic"
+objects = ["quad"]
+"#;
+
+/// A unit quad (with texture coordinates) facing up, and a light triangle above it facing down.
+const OBJ: &str = "o quad
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+f 1/1 2/2 3/3 4/4
+o lamp
+v 0.2 0.2 1
+v 0.8 0.2 1
+v 0.5 0.8 1
+f 5 7 6
+";
+
+const MATERIALS: &str = "format = 1
+
+[[material]]
+group = \"floor\"
+model = \"diffuse\"
+color = [0.5, 0.5, 0.5]
+";
+
+/// A scene folder in a fresh temp dir: scene.toml, geo.obj, m.toml.
+struct Case {
+    dir: tempfile::TempDir,
+    scene: String,
+    obj: String,
+    materials: String,
+}
+
+impl Case {
+    fn new() -> Case {
+        Case {
+            dir: tempfile::tempdir().unwrap(),
+            scene: SCENE.into(),
+            obj: OBJ.into(),
+            materials: MATERIALS.into(),
+        }
+    }
+
+    fn scene(mut self, from: &str, to: &str) -> Case {
+        assert!(
+            self.scene.contains(from),
+            "test setup: {from:?} not in scene.toml"
+        );
+        self.scene = self.scene.replacen(from, to, 1);
+        self
+    }
+
+    fn obj(mut self, from: &str, to: &str) -> Case {
+        assert!(
+            self.obj.contains(from),
+            "test setup: {from:?} not in geo.obj"
+        );
+        self.obj = self.obj.replacen(from, to, 1);
+        self
+    }
+
+    fn materials(mut self, from: &str, to: &str) -> Case {
+        assert!(
+            self.materials.contains(from),
+            "test setup: {from:?} not in m.toml"
+        );
+        self.materials = self.materials.replacen(from, to, 1);
+        self
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    fn write(&self) {
+        std::fs::write(self.path("scene.toml"), &self.scene).unwrap();
+        std::fs::write(self.path("geo.obj"), &self.obj).unwrap();
+        std::fs::write(self.path("m.toml"), &self.materials).unwrap();
+    }
+
+    /// Runs `relume render scene.toml --materials m.toml --out out`; returns stderr after
+    /// checking the exit code, the absence of a panic and of any output.
+    fn fails(&self, code: i32, stderr_has: &[&str]) -> String {
+        self.write();
+        let before = files_in(self.dir.path());
+        let out = relume(
+            self.dir.path(),
+            &[
+                "render",
+                path_str(&self.path("scene.toml")),
+                "--materials",
+                path_str(&self.path("m.toml")),
+                "--out",
+                path_str(&self.path("out")),
+                "--spp",
+                "1",
+            ],
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        let show = format!(
+            "status {:?}\n--- stdout\n{}\n--- stderr\n{stderr}",
+            out.status,
+            String::from_utf8_lossy(&out.stdout)
+        );
+        assert_eq!(out.status.code(), Some(code), "exit code\n{show}");
+        assert!(!stderr.contains("panicked"), "a panic\n{show}");
+        for s in stderr_has {
+            assert!(stderr.contains(s), "expected {s:?} on stderr\n{show}");
+        }
+        let out_dir = self.path("out");
+        assert!(
+            !out_dir.exists() || files_in(&out_dir).is_empty(),
+            "output left behind: {:?}\n{show}",
+            files_in(&out_dir)
+        );
+        assert_eq!(
+            files_in(self.dir.path()),
+            before,
+            "files appeared beside the inputs\n{show}"
+        );
+        stderr
+    }
+}
+
+/// Every file under `dir` (recursively), sorted.
+fn files_in(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for e in entries.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                out.extend(files_in(&p));
+            } else {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+const INPUT: i32 = 3;
+const IO: i32 = 4;
+
+#[test]
+fn the_tiny_scene_itself_renders() {
+    let case = Case::new();
+    case.write();
+    let out = relume(
+        case.dir.path(),
+        &[
+            "render",
+            path_str(&case.path("scene.toml")),
+            "--materials",
+            path_str(&case.path("m.toml")),
+            "--out",
+            path_str(&case.path("out")),
+            "--spp",
+            "1",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "stderr:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(case.path("out/front.exr").is_file());
+}
+
+#[test]
+fn scene_unknown_key() {
+    Case::new()
+        .scene("exposure = 1.0", "exposure = 1.0\nexposre = 2.0")
+        .fails(INPUT, &["scene.toml:14", "unknown key `exposre`"]);
+}
+
+#[test]
+fn scene_wrong_format() {
+    Case::new()
+        .scene("format = 1", "format = 2")
+        .fails(INPUT, &["scene.toml:1", "format 2 is not supported"]);
+}
+
+#[test]
+fn scene_syntax_error() {
+    Case::new()
+        .scene("name = \"front\"", "name = \"front")
+        .fails(INPUT, &["scene.toml:7"]);
+}
+
+#[test]
+fn scene_missing_key() {
+    Case::new()
+        .scene("size = [4, 4]\n", "")
+        .fails(INPUT, &["scene.toml:6", "missing key `size`"]);
+}
+
+#[test]
+fn scene_negative_radiance() {
+    Case::new()
+        .scene(
+            "radiance = [10.0, 10.0, 10.0]",
+            "radiance = [10.0, -1.0, 10.0]",
+        )
+        .fails(
+            INPUT,
+            &["scene.toml:17", "light 'lamp'", "radiance must be >= 0"],
+        );
+}
+
+#[test]
+fn scene_non_finite_number() {
+    Case::new()
+        .scene("position = [0.5, -1.5, 0.5]", "position = [0.5, nan, 0.5]")
+        .fails(INPUT, &["scene.toml:8", "`position`", "finite"]);
+}
+
+#[test]
+fn scene_bad_fov_size_exposure() {
+    Case::new()
+        .scene("fov_deg = [90.0, 90.0]", "fov_deg = [90.0, 180.0]")
+        .fails(INPUT, &["scene.toml:11", "fov_deg"]);
+    Case::new()
+        .scene("size = [4, 4]", "size = [0, 4]")
+        .fails(INPUT, &["scene.toml:12", "size"]);
+    Case::new()
+        .scene("exposure = 1.0", "exposure = 0.0")
+        .fails(INPUT, &["scene.toml:13", "exposure must be > 0"]);
+}
+
+#[test]
+fn scene_duplicate_group() {
+    Case::new()
+        .scene("objects = [\"quad\"]\n", "objects = [\"quad\"]\n\n[[group]]\nname = \"floor\"\nkind = \"metal\"\nobjects = [\"x\"]\n")
+        .fails(INPUT, &["scene.toml:25", "duplicate group name 'floor'"]);
+}
+
+#[test]
+fn scene_object_in_a_group_and_a_light() {
+    Case::new()
+        .scene("objects = [\"quad\"]", "objects = [\"quad\", \"lamp\"]")
+        .fails(INPUT, &["scene.toml:22", "'lamp'", "also a light"]);
+}
+
+#[test]
+fn scene_object_not_in_the_geometry() {
+    Case::new()
+        .scene("objects = [\"quad\"]", "objects = [\"quad\", \"chair\"]")
+        .fails(
+            INPUT,
+            &["scene.toml:22", "object 'chair'", "not in the geometry"],
+        );
+}
+
+#[test]
+fn obj_object_in_no_group() {
+    Case::new()
+        .scene(
+            "[[light]]\nobject = \"lamp\"\nradiance = [10.0, 10.0, 10.0]\n",
+            "",
+        )
+        .fails(INPUT, &["geo.obj:11", "object 'lamp' is in no group"]);
+}
+
+#[test]
+fn obj_missing_file() {
+    Case::new()
+        .scene("geometry = [\"geo.obj\"]", "geometry = [\"absent.obj\"]")
+        .fails(INPUT, &["scene.toml:3", "absent.obj"]);
+}
+
+#[test]
+fn obj_bad_vertex() {
+    Case::new()
+        .obj("v 1 0 0\n", "v 1 0\n")
+        .fails(INPUT, &["geo.obj:3", "`v` needs 3 numbers"]);
+    Case::new()
+        .obj("v 1 0 0\n", "v 1 nan 0\n")
+        .fails(INPUT, &["geo.obj:3", "non-finite"]);
+}
+
+#[test]
+fn obj_bad_face() {
+    Case::new()
+        .obj("f 5 7 6", "f 5 7 9")
+        .fails(INPUT, &["geo.obj:15", "vertex index 9 is out of range"]);
+    Case::new()
+        .obj("f 5 7 6", "f 5 7")
+        .fails(INPUT, &["geo.obj:15", "at least 3 vertices"]);
+    Case::new()
+        .obj("o quad\n", "")
+        .fails(INPUT, &["geo.obj:9", "face outside any object"]);
+}
+
+#[test]
+fn obj_unknown_statement() {
+    Case::new()
+        .obj("o lamp\n", "o lamp\nbevel 1\n")
+        .fails(INPUT, &["geo.obj:12", "unknown OBJ statement 'bevel'"]);
+}
+
+#[test]
+fn obj_duplicate_object() {
+    Case::new()
+        .obj("o lamp", "o quad")
+        .fails(INPUT, &["geo.obj:11", "object 'quad' appears twice"]);
+}
+
+#[test]
+fn materials_unknown_model() {
+    Case::new()
+        .materials("model = \"diffuse\"", "model = \"velvet\"")
+        .fails(INPUT, &["m.toml:5", "unknown model 'velvet'"]);
+}
+
+#[test]
+fn materials_missing_and_forbidden_keys() {
+    Case::new()
+        .materials("color = [0.5, 0.5, 0.5]\n", "")
+        .fails(INPUT, &["m.toml:3", "needs `color`"]);
+    Case::new()
+        .materials(
+            "color = [0.5, 0.5, 0.5]\n",
+            "color = [0.5, 0.5, 0.5]\nroughness_u = 0.1\n",
+        )
+        .fails(INPUT, &["m.toml:7", "takes no `roughness_u`"]);
+}
+
+#[test]
+fn materials_out_of_range() {
+    Case::new()
+        .materials("color = [0.5, 0.5, 0.5]", "color = [0.5, 1.5, 0.5]")
+        .fails(INPUT, &["m.toml:6", "color components must be in [0, 1]"]);
+    Case::new()
+        .materials(
+            "model = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]",
+            "model = \"isotropic\"\ncolor = [0.5, 0.5, 0.5]\nspecularity = 0.1\nroughness = 0.0",
+        )
+        .fails(INPUT, &["m.toml:8", "roughness must be in (0, 1]"]);
+}
+
+#[test]
+fn materials_duplicate_group() {
+    let two = format!("{MATERIALS}\n[[material]]\ngroup = \"floor\"\nmodel = \"mirror\"\ncolor = [1.0, 1.0, 1.0]\n");
+    Case::new()
+        .materials(MATERIALS, &two)
+        .fails(INPUT, &["m.toml:9", "group 'floor' has a second material"]);
+}
+
+#[test]
+fn materials_for_a_group_the_scene_lacks() {
+    Case::new()
+        .materials("group = \"floor\"", "group = \"flor\"")
+        .fails(INPUT, &["m.toml", "flor"]);
+}
+
+#[test]
+fn materials_missing_file() {
+    let case = Case::new();
+    case.write();
+    std::fs::remove_file(case.path("m.toml")).unwrap();
+    let out = relume(
+        case.dir.path(),
+        &[
+            "render",
+            path_str(&case.path("scene.toml")),
+            "--materials",
+            path_str(&case.path("m.toml")),
+            "--out",
+            path_str(&case.path("out")),
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(IO), "{stderr}");
+    assert!(
+        stderr.contains("m.toml") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    assert!(!case.path("out").exists());
+}
+
+#[test]
+fn texture_with_a_nan_pixel() {
+    let case = Case::new().materials(
+        "model = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]",
+        "model = \"textured-diffuse\"\ndiffuse_map = \"tex.exr\"",
+    );
+    let pixels = vec![[0.5, 0.5, 0.5], [0.5, f32::NAN, 0.5], [0.5; 3], [0.5; 3]];
+    relume::images::write_exr(
+        &case.path("tex.exr"),
+        &relume::images::Image {
+            width: 2,
+            height: 2,
+            pixels,
+        },
+    )
+    .unwrap();
+    case.fails(INPUT, &["tex.exr", "pixel (x 1, y 0)", "channel G", "NaN"]);
+}
+
+#[test]
+fn texture_missing() {
+    Case::new()
+        .materials(
+            "model = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]",
+            "model = \"textured-diffuse\"\ndiffuse_map = \"none.exr\"",
+        )
+        .fails(INPUT, &["m.toml:6", "none.exr does not exist"]);
+}
+
+#[test]
+fn scene_file_missing() {
+    let case = Case::new();
+    case.write();
+    std::fs::remove_file(case.path("scene.toml")).unwrap();
+    let out = relume(
+        case.dir.path(),
+        &[
+            "render",
+            path_str(&case.path("scene.toml")),
+            "--materials",
+            path_str(&case.path("m.toml")),
+            "--out",
+            path_str(&case.path("out")),
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(IO), "{stderr}");
+    assert!(
+        stderr.contains("scene.toml") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+}

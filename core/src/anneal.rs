@@ -44,7 +44,9 @@ impl Schedule {
         if ok {
             Ok(())
         } else {
-            Err(Error::InvalidValue { what: "annealing schedule" })
+            Err(Error::InvalidValue {
+                what: "annealing schedule",
+            })
         }
     }
 }
@@ -79,17 +81,23 @@ impl<const D: usize> Annealer<D> {
         schedule.check()?;
         for d in 0..D {
             if !(lower[d].is_finite() && upper[d].is_finite() && lower[d] < upper[d]) {
-                return Err(Error::InvalidValue { what: "annealing bounds: need finite lower < upper" });
+                return Err(Error::InvalidValue {
+                    what: "annealing bounds: need finite lower < upper",
+                });
             }
         }
         let start = clamp_into(start, &lower, &upper);
-        let cost = if start_cost.is_nan() { f64::INFINITY } else { start_cost };
+        let cost = if start_cost.is_nan() {
+            f64::INFINITY
+        } else {
+            start_cost
+        };
         let step = core::array::from_fn(|d| schedule.initial_step * (upper[d] - lower[d]));
         Ok(Annealer {
             lower,
             upper,
             schedule,
-            rng: Sampler::from_key(crate::rng::stream_key(&[seed, 0xA22E_A1])),
+            rng: Sampler::from_key(crate::rng::stream_key(&[seed, 0x00A2_2EA1])),
             current: start,
             current_cost: cost,
             best: start,
@@ -113,10 +121,10 @@ impl<const D: usize> Annealer<D> {
             return p;
         }
         let mut p = self.current;
-        for d in 0..D {
+        for (x, step) in p.iter_mut().zip(self.step) {
             // Sum of two uniforms: a triangular step in (-step, step), mode 0.
             let u = self.rng.next_f32() as f64 + self.rng.next_f32() as f64 - 1.0;
-            p[d] += u * self.step[d];
+            *x += u * step;
         }
         let p = reflect_into(p, &self.lower, &self.upper);
         self.pending = Some(p);
@@ -143,7 +151,10 @@ impl<const D: usize> Annealer<D> {
             self.best_cost = cost;
         }
         self.steps_done += 1;
-        if self.steps_done % self.schedule.steps_per_level == 0 {
+        if self
+            .steps_done
+            .is_multiple_of(self.schedule.steps_per_level)
+        {
             self.end_level();
         }
     }
@@ -151,7 +162,11 @@ impl<const D: usize> Annealer<D> {
     fn end_level(&mut self) {
         let rate = self.accepted_in_level as f64 / self.schedule.steps_per_level as f64;
         // Widen the steps when too many are accepted, narrow them when too few.
-        let factor = if rate > TARGET_ACCEPTANCE { 1.0 + 2.0 * (rate - TARGET_ACCEPTANCE) / (1.0 - TARGET_ACCEPTANCE) } else { 1.0 / (1.0 + 2.0 * (TARGET_ACCEPTANCE - rate) / TARGET_ACCEPTANCE) };
+        let factor = if rate > TARGET_ACCEPTANCE {
+            1.0 + 2.0 * (rate - TARGET_ACCEPTANCE) / (1.0 - TARGET_ACCEPTANCE)
+        } else {
+            1.0 / (1.0 + 2.0 * (TARGET_ACCEPTANCE - rate) / TARGET_ACCEPTANCE)
+        };
         for d in 0..D {
             let range = self.upper[d] - self.lower[d];
             self.step[d] = (self.step[d] * factor).clamp(1e-6 * range, range);
@@ -174,7 +189,11 @@ impl<const D: usize> Annealer<D> {
 
 fn clamp_into<const D: usize>(mut p: [f64; D], lower: &[f64; D], upper: &[f64; D]) -> [f64; D] {
     for d in 0..D {
-        p[d] = if p[d].is_nan() { lower[d] } else { p[d].clamp(lower[d], upper[d]) };
+        p[d] = if p[d].is_nan() {
+            lower[d]
+        } else {
+            p[d].clamp(lower[d], upper[d])
+        };
     }
     p
 }
@@ -197,10 +216,22 @@ mod tests {
 
     fn schedule() -> Schedule {
         // Ends at T = 0.8^50 ~ 1e-5: below the cost resolution the tests ask for.
-        Schedule { initial_temperature: 1.0, cooling: 0.8, steps_per_level: 40, levels: 50, initial_step: 0.3 }
+        Schedule {
+            initial_temperature: 1.0,
+            cooling: 0.8,
+            steps_per_level: 40,
+            levels: 50,
+            initial_step: 0.3,
+        }
     }
 
-    fn run<const D: usize>(f: impl Fn(&[f64; D]) -> f64, lo: [f64; D], hi: [f64; D], start: [f64; D], seed: u64) -> ([f64; D], f64) {
+    fn run<const D: usize>(
+        f: impl Fn(&[f64; D]) -> f64,
+        lo: [f64; D],
+        hi: [f64; D],
+        start: [f64; D],
+        seed: u64,
+    ) -> ([f64; D], f64) {
         let mut a = Annealer::new(lo, hi, start, f(&start), schedule(), seed).unwrap();
         while !a.is_done() {
             let p = a.propose();
@@ -217,7 +248,11 @@ mod tests {
         };
         let (best, cost) = run(f, [-1.0; 3], [1.0; 3], [0.0; 3], 1);
         assert!(cost < 1e-4, "cost {cost} at {best:?}");
-        assert!((best[0] - 0.3).abs() < 0.01 && (best[1] + 0.2).abs() < 0.01 && (best[2] - 0.9).abs() < 0.01);
+        assert!(
+            (best[0] - 0.3).abs() < 0.01
+                && (best[1] + 0.2).abs() < 0.01
+                && (best[2] - 0.9).abs() < 0.01
+        );
     }
 
     #[test]
@@ -225,7 +260,8 @@ mod tests {
         // Two wells in 1D: a shallow one at -0.6 (start) and the deep one at 0.7.
         let f = |p: &[f64; 1]| {
             let x = p[0];
-            -0.3 * libm::exp(-((x + 0.6) * (x + 0.6)) / 0.01) - 1.0 * libm::exp(-((x - 0.7) * (x - 0.7)) / 0.01)
+            -0.3 * libm::exp(-((x + 0.6) * (x + 0.6)) / 0.01)
+                - 1.0 * libm::exp(-((x - 0.7) * (x - 0.7)) / 0.01)
         };
         let (best, _) = run(f, [-1.0], [1.0], [-0.6], 5);
         assert!((best[0] - 0.7).abs() < 0.02, "{best:?}");
@@ -237,7 +273,10 @@ mod tests {
         let (a, _) = run(f, [0.0, 0.0], [0.5, 2.0], [0.1, 0.1], 9);
         let (b, _) = run(f, [0.0, 0.0], [0.5, 2.0], [0.1, 0.1], 9);
         assert_eq!(a, b);
-        assert!(a[0] <= 0.5 && a[1] <= 2.0 && a[0] > 0.49 && a[1] > 1.98, "{a:?}");
+        assert!(
+            a[0] <= 0.5 && a[1] <= 2.0 && a[0] > 0.49 && a[1] > 1.98,
+            "{a:?}"
+        );
     }
 
     #[test]

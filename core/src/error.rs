@@ -6,13 +6,25 @@ use core::fmt;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Error {
     /// A fixed capacity would be exceeded: `what` names the constant of [`crate::config`].
-    Capacity { what: &'static str, max: usize, needed: usize },
+    Capacity {
+        what: &'static str,
+        max: usize,
+        needed: usize,
+    },
     /// A lent buffer is smaller than the work needs.
-    BufferTooSmall { what: &'static str, needed: usize, got: usize },
+    BufferTooSmall {
+        what: &'static str,
+        needed: usize,
+        got: usize,
+    },
     /// A value outside its valid range (NaN, negative, zero where positive is required...).
     InvalidValue { what: &'static str },
     /// An index (group, light, texture) that points past its table.
-    BadIndex { what: &'static str, index: usize, len: usize },
+    BadIndex {
+        what: &'static str,
+        index: usize,
+        len: usize,
+    },
 }
 
 impl fmt::Display for Error {

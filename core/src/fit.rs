@@ -38,7 +38,8 @@ impl GroupFit {
         }
         self.sum_sq_diff += d.dot(d) as f64;
         self.sum_sq_real += real.dot(real) as f64;
-        self.sum_render_variance += (render_variance.x + render_variance.y + render_variance.z) as f64;
+        self.sum_render_variance +=
+            (render_variance.x + render_variance.y + render_variance.z) as f64;
     }
 
     /// Merges the sums of another part of the same group (fixed order keeps bits stable).
@@ -81,6 +82,16 @@ pub const DIFFUSE_THRESHOLD: f64 = 0.05;
 pub const DIFFUSE_CONVERGED: f64 = 2e-4;
 /// The diffuse iteration stops after this many steps at the most.
 pub const DIFFUSE_MAX_STEPS: u32 = 30;
+/// A specular model is kept only when it removes more than this much relative error
+/// compared with the diffuse model (see `stages::isotropic::specular_gain`).
+pub const SPECULAR_GAIN_THRESHOLD: f64 = 0.01;
+/// A fitted isotropic metal whose specular part is above this fraction of its reflectance,
+/// with a roughness at most [`MIRROR_MAX_ROUGHNESS`], is tested as a mirror (the paper's 90%).
+pub const MIRROR_SPECULAR_FRACTION: f64 = 0.9;
+pub const MIRROR_MAX_ROUGHNESS: f64 = 0.02;
+/// Largest relative spread of the mirror's specular colour over the channels (the paper's
+/// "reflected colour close to the incident colour").
+pub const MIRROR_MAX_TINT: f64 = 0.1;
 /// Fewer pure pixels than this: the group is reported as barely seen, and its fit is not
 /// trusted to pick a more complex model.
 pub const MIN_PIXELS_FOR_MODEL_CHOICE: u32 = 16;
@@ -126,7 +137,11 @@ mod tests {
         }
         let raw = libm::sqrt(f.sum_sq_diff / f.sum_sq_real);
         assert!(raw > 0.15, "raw {raw}");
-        assert!(f.relative_error().unwrap() < 0.02, "{:?}", f.relative_error());
+        assert!(
+            f.relative_error().unwrap() < 0.02,
+            "{:?}",
+            f.relative_error()
+        );
     }
 
     #[test]

@@ -97,21 +97,29 @@ impl View {
         size: [u32; 2],
     ) -> Result<View, Error> {
         if !math::is_finite(position) || !math::is_finite(direction) || !math::is_finite(up) {
-            return Err(Error::InvalidValue { what: "view position, direction and up must be finite" });
+            return Err(Error::InvalidValue {
+                what: "view position, direction and up must be finite",
+            });
         }
         if !(direction.length_squared() > 0.0) {
-            return Err(Error::InvalidValue { what: "view direction must not be zero" });
+            return Err(Error::InvalidValue {
+                what: "view direction must not be zero",
+            });
         }
         let forward = direction.normalize();
         let right = direction.cross(up);
         if !(right.length_squared() > 1e-12 * direction.length_squared() * up.length_squared()) {
-            return Err(Error::InvalidValue { what: "view up must not be zero or parallel to the direction" });
+            return Err(Error::InvalidValue {
+                what: "view up must not be zero or parallel to the direction",
+            });
         }
         let right = right.normalize();
         let up_dir = right.cross(forward);
         for fov in fov_deg {
             if !(fov > 0.0 && fov < 180.0) {
-                return Err(Error::InvalidValue { what: "view fov_deg must be in (0, 180) degrees" });
+                return Err(Error::InvalidValue {
+                    what: "view fov_deg must be in (0, 180) degrees",
+                });
             }
         }
         for side in size {
@@ -158,14 +166,7 @@ mod tests {
 
     #[test]
     fn centre_pixel_looks_forward_and_corners_follow_rpict() {
-        let v = View::new(
-            Vec3::ZERO,
-            Vec3::X,
-            Vec3::Z,
-            [90.0, 90.0],
-            [2, 2],
-        )
-        .unwrap();
+        let v = View::new(Vec3::ZERO, Vec3::X, Vec3::Z, [90.0, 90.0], [2, 2]).unwrap();
         let c = v.ray(1.0, 1.0);
         assert!((c.direction - Vec3::X).length() < 1e-6);
         // Top-left corner of the image: right = X x Z = -Y, so left is +Y; top is +Z.

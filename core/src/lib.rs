@@ -21,6 +21,9 @@
 #![no_std]
 #![deny(unused_crate_dependencies)]
 #![forbid(unsafe_code)]
+// `!(x > 0.0)` is the core's idiom for "not a positive number, NaN included": the
+// negated comparison is the point, not an accident.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 #[cfg(test)]
 extern crate std;

@@ -27,7 +27,12 @@ pub struct RenderSettings {
 
 impl Default for RenderSettings {
     fn default() -> Self {
-        RenderSettings { spp: 64, seed: 1, rr_depth: 3, max_depth: config::MAX_PATH_DEPTH }
+        RenderSettings {
+            spp: 64,
+            seed: 1,
+            rr_depth: 3,
+            max_depth: config::MAX_PATH_DEPTH,
+        }
     }
 }
 
@@ -130,7 +135,12 @@ pub fn render_rows(
 }
 
 /// Radiance arriving along `ray`, estimated with one path.
-pub fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut Sampler, settings: &RenderSettings) -> Vec3 {
+pub fn radiance(
+    scene: &Scene,
+    mut ray: Ray,
+    sampler: &mut Sampler,
+    settings: &RenderSettings,
+) -> Vec3 {
     let mut total = Vec3::ZERO;
     let mut throughput = Vec3::ONE;
     // The pdf of the BSDF sample that produced `ray`, and whether it was a Dirac sample
@@ -140,8 +150,12 @@ pub fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut Sampler, settings: &R
     let max_depth = settings.max_depth.min(config::MAX_PATH_DEPTH);
 
     for depth in 0..max_depth {
-        let Some(hit) = scene.intersect(&ray, f32::INFINITY) else { break };
-        let Some(tri) = scene.triangles.get(hit.triangle as usize) else { break };
+        let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+            break;
+        };
+        let Some(tri) = scene.triangles.get(hit.triangle as usize) else {
+            break;
+        };
         let n_area2 = tri.normal_area2();
         let area2 = n_area2.length();
         if !(area2 > 0.0) {
@@ -154,7 +168,11 @@ pub fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut Sampler, settings: &R
             Surface::Light(light) => {
                 // Lights emit from their front side only and reflect nothing.
                 if cos_hit > 0.0 {
-                    let le = scene.light_radiance.get(light as usize).copied().unwrap_or(Vec3::ZERO);
+                    let le = scene
+                        .light_radiance
+                        .get(light as usize)
+                        .copied()
+                        .unwrap_or(Vec3::ZERO);
                     let weight = if delta {
                         1.0
                     } else {
@@ -168,7 +186,9 @@ pub fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut Sampler, settings: &R
             }
             Surface::Group(g) => g,
         };
-        let Some(surface) = scene.materials.get(group as usize) else { break };
+        let Some(surface) = scene.materials.get(group as usize) else {
+            break;
+        };
 
         let p = ray.at(hit.t);
         let n = if cos_hit > 0.0 { ng } else { -ng };
@@ -198,7 +218,8 @@ pub fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut Sampler, settings: &R
                         {
                             let pdf_light = ls.pdf_area * dist2 / cos_light;
                             let weight = power_heuristic(pdf_light, bsdf.pdf(wo, wi));
-                            total += throughput * f * ls.radiance * (cos_surface * weight / pdf_light);
+                            total +=
+                                throughput * f * ls.radiance * (cos_surface * weight / pdf_light);
                         }
                     }
                 }
@@ -208,7 +229,9 @@ pub fn radiance(scene: &Scene, mut ray: Ray, sampler: &mut Sampler, settings: &R
         // Continue the path by sampling the BSDF.
         let u_lobe = sampler.next_f32();
         let u_dir = sampler.next_2d();
-        let Some(sample) = bsdf.sample(wo, u_lobe, u_dir) else { break };
+        let Some(sample) = bsdf.sample(wo, u_lobe, u_dir) else {
+            break;
+        };
         throughput *= sample.weight;
         bsdf_pdf = sample.pdf;
         delta = sample.delta;

@@ -18,7 +18,7 @@ pub fn mix64(mut z: u64) -> u64 {
 /// Hash of a tuple of stream coordinates, chained so that (a, b) != (b, a).
 #[inline]
 pub fn stream_key(parts: &[u64]) -> u64 {
-    let mut h = 0x5EED_0F_2E_1A_u64;
+    let mut h = 0x005E_ED0F_2E1A_u64;
     for &p in parts {
         h = mix64(h ^ p);
     }
@@ -33,7 +33,12 @@ pub struct Sampler {
 impl Sampler {
     /// The stream of one pixel sample of one view.
     pub fn for_pixel_sample(seed: u64, view: u32, pixel: u32, sample: u32) -> Sampler {
-        Sampler::from_key(stream_key(&[seed, view as u64, pixel as u64, sample as u64]))
+        Sampler::from_key(stream_key(&[
+            seed,
+            view as u64,
+            pixel as u64,
+            sample as u64,
+        ]))
     }
 
     pub fn from_key(key: u64) -> Sampler {

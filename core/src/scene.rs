@@ -66,13 +66,19 @@ impl<'a> Scene<'a> {
         for m in materials {
             if let Some(id) = m.diffuse_map {
                 if id.0 as usize >= textures.len() {
-                    return Err(Error::BadIndex { what: "texture", index: id.0 as usize, len: textures.len() });
+                    return Err(Error::BadIndex {
+                        what: "texture",
+                        index: id.0 as usize,
+                        len: textures.len(),
+                    });
                 }
             }
         }
         for r in light_radiance {
             if !math::is_finite(*r) || r.min_element() < 0.0 {
-                return Err(Error::InvalidValue { what: "light radiance must be finite and >= 0" });
+                return Err(Error::InvalidValue {
+                    what: "light radiance must be finite and >= 0",
+                });
             }
         }
         let mut total_power = 0.0f64;
@@ -80,11 +86,19 @@ impl<'a> Scene<'a> {
         for (i, t) in triangles.iter().enumerate() {
             match t.surface {
                 Surface::Group(g) if g as usize >= materials.len() => {
-                    return Err(Error::BadIndex { what: "group", index: g as usize, len: materials.len() });
+                    return Err(Error::BadIndex {
+                        what: "group",
+                        index: g as usize,
+                        len: materials.len(),
+                    });
                 }
                 Surface::Light(l) => {
                     let Some(radiance) = light_radiance.get(l as usize) else {
-                        return Err(Error::BadIndex { what: "light", index: l as usize, len: light_radiance.len() });
+                        return Err(Error::BadIndex {
+                            what: "light",
+                            index: l as usize,
+                            len: light_radiance.len(),
+                        });
                     };
                     let power = t.area() * math::luminance(*radiance);
                     if power > 0.0 {
@@ -95,7 +109,11 @@ impl<'a> Scene<'a> {
                                 got: storage.light_table.len(),
                             });
                         };
-                        *slot = LightTriangle { triangle: i as u32, cdf: power, pick_pdf: 0.0 };
+                        *slot = LightTriangle {
+                            triangle: i as u32,
+                            cdf: power,
+                            pick_pdf: 0.0,
+                        };
                         n_emitting += 1;
                         total_power += power as f64;
                     }
@@ -115,7 +133,14 @@ impl<'a> Scene<'a> {
             last.cdf = 1.0;
         }
         let bvh = Bvh::build(triangles, storage.bvh)?;
-        Ok(Scene { triangles, materials, light_radiance, textures, bvh, light_table })
+        Ok(Scene {
+            triangles,
+            materials,
+            light_radiance,
+            textures,
+            bvh,
+            light_table,
+        })
     }
 
     #[inline]
@@ -146,7 +171,9 @@ impl<'a> Scene<'a> {
         let index = table.partition_point(|e| e.cdf <= u).min(table.len() - 1);
         let entry = table[index];
         let tri = self.triangles.get(entry.triangle as usize)?;
-        let Surface::Light(light) = tri.surface else { return None };
+        let Surface::Light(light) = tri.surface else {
+            return None;
+        };
         let radiance = *self.light_radiance.get(light as usize)?;
         // Uniform point on the triangle (square-root parametrisation).
         let su = math::sqrt(u2[0]);
@@ -167,15 +194,24 @@ impl<'a> Scene<'a> {
 
     /// Area pdf with which [`Scene::sample_light`] would pick a point on `triangle`.
     pub fn light_pdf_area(&self, triangle: u32) -> f32 {
-        let Some(tri) = self.triangles.get(triangle as usize) else { return 0.0 };
-        let Surface::Light(light) = tri.surface else { return 0.0 };
-        let Some(radiance) = self.light_radiance.get(light as usize) else { return 0.0 };
+        let Some(tri) = self.triangles.get(triangle as usize) else {
+            return 0.0;
+        };
+        let Surface::Light(light) = tri.surface else {
+            return 0.0;
+        };
+        let Some(radiance) = self.light_radiance.get(light as usize) else {
+            return 0.0;
+        };
         let area = tri.area();
         let power = area * math::luminance(*radiance);
         if !(power > 0.0) {
             return 0.0;
         }
-        match self.light_table.binary_search_by_key(&triangle, |e| e.triangle) {
+        match self
+            .light_table
+            .binary_search_by_key(&triangle, |e| e.triangle)
+        {
             Ok(i) => self.light_table[i].pick_pdf / area,
             Err(_) => 0.0,
         }

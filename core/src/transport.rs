@@ -41,7 +41,11 @@ pub struct IncidentSample {
 pub const INCIDENT_PER_SAMPLE: usize = 2;
 
 fn lobe(alpha: f32) -> Material {
-    Material::Ward { rho_d: Vec3::ZERO, rho_s: Vec3::ONE, alpha }
+    Material::Ward {
+        rho_d: Vec3::ZERO,
+        rho_s: Vec3::ONE,
+        alpha,
+    }
 }
 
 /// Solid-angle pdf of the sampling mixture at `wi`.
@@ -95,8 +99,12 @@ pub fn trace_pixel_sample(
     let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, sample);
     let [jx, jy] = sampler.next_2d();
     let ray = view.ray(x as f32 + jx, y as f32 + jy);
-    let Some(hit) = scene.intersect(&ray, f32::INFINITY) else { return 0 };
-    let Some(tri) = scene.triangles.get(hit.triangle as usize) else { return 0 };
+    let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+        return 0;
+    };
+    let Some(tri) = scene.triangles.get(hit.triangle as usize) else {
+        return 0;
+    };
     if tri.surface != Surface::Group(group) {
         return 0;
     }
@@ -116,7 +124,13 @@ pub fn trace_pixel_sample(
     // 1. A point on a light.
     let u_light = sampler.next_f32();
     let u_point = sampler.next_2d();
-    let mut light_entry = IncidentSample { wo, n, wi: n, weight: Vec3::ZERO, uv };
+    let mut light_entry = IncidentSample {
+        wo,
+        n,
+        wi: n,
+        weight: Vec3::ZERO,
+        uv,
+    };
     if let Some(ls) = scene.sample_light(u_light, u_point) {
         let to_light = ls.point - origin;
         let dist2 = to_light.length_squared();
@@ -127,7 +141,10 @@ pub fn trace_pixel_sample(
             let cos_surface = n.dot(wi);
             if cos_light > 0.0 && cos_surface > 0.0 && ls.pdf_area > 0.0 {
                 light_entry.wi = wi;
-                if !scene.occluded(&crate::geometry::Ray::new(origin, wi), dist * (1.0 - render::RAY_EPSILON)) {
+                if !scene.occluded(
+                    &crate::geometry::Ray::new(origin, wi),
+                    dist * (1.0 - render::RAY_EPSILON),
+                ) {
                     let pdf_light = ls.pdf_area * dist2 / cos_light;
                     let w = power_heuristic(pdf_light, mixture_pdf(n, wo, wi));
                     light_entry.weight = ls.radiance * (cos_surface * w / pdf_light);
@@ -144,11 +161,20 @@ pub fn trace_pixel_sample(
     let wi = if u_pick < MIXTURE_COSINE {
         Some(cosine_direction(n, u_dir))
     } else {
-        let k = (((u_pick - MIXTURE_COSINE) / (1.0 - MIXTURE_COSINE)) * MIXTURE_ROUGHNESSES.len() as f32) as usize;
+        let k = (((u_pick - MIXTURE_COSINE) / (1.0 - MIXTURE_COSINE))
+            * MIXTURE_ROUGHNESSES.len() as f32) as usize;
         let a = MIXTURE_ROUGHNESSES[k.min(MIXTURE_ROUGHNESSES.len() - 1)];
-        Bsdf::new(&lobe(a), None, n).sample(wo, 1.0, u_dir).map(|s| s.wi)
+        Bsdf::new(&lobe(a), None, n)
+            .sample(wo, 1.0, u_dir)
+            .map(|s| s.wi)
     };
-    let mut indirect = IncidentSample { wo, n, wi: n, weight: Vec3::ZERO, uv };
+    let mut indirect = IncidentSample {
+        wo,
+        n,
+        wi: n,
+        weight: Vec3::ZERO,
+        uv,
+    };
     if let Some(wi) = wi {
         let pdf = mixture_pdf(n, wo, wi);
         let cos = n.dot(wi);
@@ -162,8 +188,13 @@ pub fn trace_pixel_sample(
                             let ln2 = t2.normal_area2();
                             let cos_l = -ln2.dot(wi) / ln2.length().max(f32::MIN_POSITIVE);
                             if cos_l > 0.0 {
-                                let le = scene.light_radiance.get(l as usize).copied().unwrap_or(Vec3::ZERO);
-                                let pdf_light = scene.light_pdf_area(h2.triangle) * h2.t * h2.t / cos_l;
+                                let le = scene
+                                    .light_radiance
+                                    .get(l as usize)
+                                    .copied()
+                                    .unwrap_or(Vec3::ZERO);
+                                let pdf_light =
+                                    scene.light_pdf_area(h2.triangle) * h2.t * h2.t / cos_l;
                                 le * power_heuristic(pdf, pdf_light)
                             } else {
                                 Vec3::ZERO
@@ -183,7 +214,12 @@ pub fn trace_pixel_sample(
 
 /// The pixel value a material gives over a pixel's incident samples (`n_samples` pixel
 /// samples, whose incident samples are `entries`): `sum f(wo, wi) weight / n_samples`.
-pub fn shade(entries: &[IncidentSample], n_samples: u32, material: &Material, rho_d: Option<Vec3>) -> Vec3 {
+pub fn shade(
+    entries: &[IncidentSample],
+    n_samples: u32,
+    material: &Material,
+    rho_d: Option<Vec3>,
+) -> Vec3 {
     let mut sum = Vec3::ZERO;
     for e in entries {
         let f = Bsdf::new(material, rho_d, e.n).eval(e.wo, e.wi);
@@ -195,7 +231,11 @@ pub fn shade(entries: &[IncidentSample], n_samples: u32, material: &Material, rh
 /// The two linear parts of a pixel under a Ward-type material: `diffuse` is the value for
 /// `rho_d = 1, S = 0` (irradiance / pi) and `specular` the value for `rho_d = 0, S = 1`, so
 /// that the pixel is `rho_d * diffuse + S * specular` (per channel).
-pub fn linear_parts(entries: &[IncidentSample], n_samples: u32, specular_lobe: &Material) -> (Vec3, Vec3) {
+pub fn linear_parts(
+    entries: &[IncidentSample],
+    n_samples: u32,
+    specular_lobe: &Material,
+) -> (Vec3, Vec3) {
     let mut diffuse = Vec3::ZERO;
     let mut specular = Vec3::ZERO;
     for e in entries {

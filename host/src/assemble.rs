@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3};
 use relume_core::bvh::{Bvh, BvhBuffers, BvhNode, PackedTriangle};
 use relume_core::geometry::{Surface, Triangle, View};
-use relume_core::material::{Kind, Material, Params, SurfaceMaterial, TextureId, TextureInfo, Textures};
+use relume_core::material::{
+    Kind, Material, Params, SurfaceMaterial, TextureId, TextureInfo, Textures,
+};
 use relume_core::scene::{LightTriangle, Scene, SceneStorage};
 
 use crate::error::Error;
@@ -56,7 +58,10 @@ pub fn load_scene(scene_path: &Path) -> Result<(SceneDesc, Vec<ObjObject>), Erro
 }
 
 /// Reads a scene and assembles it with the given materials.
-pub fn load_and_assemble(scene_path: &Path, materials: MaterialSource) -> Result<OwnedScene, Error> {
+pub fn load_and_assemble(
+    scene_path: &Path,
+    materials: MaterialSource,
+) -> Result<OwnedScene, Error> {
     let (desc, objects) = load_scene(scene_path)?;
     assemble(desc, &objects, materials)
 }
@@ -67,7 +72,11 @@ fn kind_of(desc: &SceneDesc, group: &str) -> Option<GroupKind> {
 
 /// Builds the buffers: triangles tagged with their group or light, views, materials and
 /// textures. Objects listed in `hide` are left out.
-pub fn assemble(desc: SceneDesc, objects: &[ObjObject], materials: MaterialSource) -> Result<OwnedScene, Error> {
+pub fn assemble(
+    desc: SceneDesc,
+    objects: &[ObjObject],
+    materials: MaterialSource,
+) -> Result<OwnedScene, Error> {
     let scene_path = desc.path.clone();
     let core_err = |what: &str, e| Error::core(format!("{}: {what}", scene_path.display()), e);
 
@@ -101,7 +110,10 @@ pub fn assemble(desc: SceneDesc, objects: &[ObjObject], materials: MaterialSourc
         let Some(&surface) = surface_of.get(object.name.as_str()) else {
             return Err(Error::input(
                 &object.file,
-                format!("object '{}' is in no group, is no light and is not hidden", object.name),
+                format!(
+                    "object '{}' is in no group, is no light and is not hidden",
+                    object.name
+                ),
             ));
         };
         for (i, v) in object.triangles.iter().enumerate() {
@@ -109,11 +121,19 @@ pub fn assemble(desc: SceneDesc, objects: &[ObjObject], materials: MaterialSourc
                 Some(uvs) => uvs[i].map(Vec2::from),
                 None => [Vec2::ZERO; 3],
             };
-            triangles.push(Triangle { v: v.map(Vec3::from), uv, surface });
+            triangles.push(Triangle {
+                v: v.map(Vec3::from),
+                uv,
+                surface,
+            });
         }
     }
-    relume_core::error::check_capacity("MAX_TRIANGLES", relume_core::config::MAX_TRIANGLES, triangles.len())
-        .map_err(|e| core_err("triangles", e))?;
+    relume_core::error::check_capacity(
+        "MAX_TRIANGLES",
+        relume_core::config::MAX_TRIANGLES,
+        triangles.len(),
+    )
+    .map_err(|e| core_err("triangles", e))?;
 
     let mut views = Vec::with_capacity(desc.views.len());
     for v in &desc.views {
@@ -135,7 +155,9 @@ pub fn assemble(desc: SceneDesc, objects: &[ObjObject], materials: MaterialSourc
     let materials = match materials {
         MaterialSource::GeometryOnly => vec![
             SurfaceMaterial {
-                material: Material::Diffuse { rho_d: Vec3::splat(0.5) },
+                material: Material::Diffuse {
+                    rho_d: Vec3::splat(0.5)
+                },
                 diffuse_map: None
             };
             group_names.len()
@@ -146,7 +168,10 @@ pub fn assemble(desc: SceneDesc, objects: &[ObjObject], materials: MaterialSourc
     };
 
     let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
-    let n_light_tris = triangles.iter().filter(|t| matches!(t.surface, Surface::Light(_))).count();
+    let n_light_tris = triangles
+        .iter()
+        .filter(|t| matches!(t.surface, Surface::Light(_)))
+        .count();
     Ok(OwnedScene {
         desc,
         triangles,
@@ -178,7 +203,11 @@ fn resolve_materials(
                 return Err(Error::at_line(
                     &file.path,
                     m.line,
-                    format!("material for group '{}', which scene {} does not have", m.group, desc.path.display()),
+                    format!(
+                        "material for group '{}', which scene {} does not have",
+                        m.group,
+                        desc.path.display()
+                    ),
                 ));
             };
             if let Some((other, other_line, _)) = &found[gi] {
@@ -218,13 +247,20 @@ fn resolve_materials(
             );
             let diffuse_map = if textured {
                 let Some(map) = &m.diffuse_map else {
-                    return Err(Error::at_line(&file.path, m.line, "textured material without diffuse_map"));
+                    return Err(Error::at_line(
+                        &file.path,
+                        m.line,
+                        "textured material without diffuse_map",
+                    ));
                 };
                 if kind == Kind::Metal {
                     return Err(Error::at_line(
                         &file.path,
                         m.line,
-                        format!("group '{}' is metal: textured models apply to plastic groups", m.group),
+                        format!(
+                            "group '{}' is metal: textured models apply to plastic groups",
+                            m.group
+                        ),
                     ));
                 }
                 let image = images::read_image(map, 1.0)?;
@@ -239,15 +275,28 @@ fn resolve_materials(
                     ));
                 }
                 let id = TextureId(texture_infos.len() as u16);
-                texture_infos.push(TextureInfo { width: image.width, height: image.height, offset: texels.len() });
+                texture_infos.push(TextureInfo {
+                    width: image.width,
+                    height: image.height,
+                    offset: texels.len(),
+                });
                 texels.extend(image.pixels.iter().map(|p| Vec3::from(*p)));
                 Some(id)
             } else {
                 None
             };
             let material = Material::from_params(kind, Vec3::from(m.color_or_white()), m.params())
-                .map_err(|e| Error::at_line(&file.path, m.line, format!("group '{}': {e}", m.group)))?;
-            found[gi] = Some((file.path.clone(), m.line, SurfaceMaterial { material, diffuse_map }));
+                .map_err(|e| {
+                    Error::at_line(&file.path, m.line, format!("group '{}': {e}", m.group))
+                })?;
+            found[gi] = Some((
+                file.path.clone(),
+                m.line,
+                SurfaceMaterial {
+                    material,
+                    diffuse_map,
+                },
+            ));
         }
     }
     let mut out = Vec::with_capacity(found.len());
@@ -255,10 +304,15 @@ fn resolve_materials(
         match f {
             Some((_, _, m)) => out.push(m),
             None => {
-                let names: Vec<String> = files.iter().map(|f| f.path.display().to_string()).collect();
+                let names: Vec<String> =
+                    files.iter().map(|f| f.path.display().to_string()).collect();
                 return Err(Error::input(
                     &desc.path,
-                    format!("group '{}' has no material in {}", desc.groups[gi].name, names.join(", ")),
+                    format!(
+                        "group '{}' has no material in {}",
+                        desc.groups[gi].name,
+                        names.join(", ")
+                    ),
                 ));
             }
         }
@@ -278,7 +332,10 @@ impl OwnedScene {
             &self.light_radiance,
             textures,
             SceneStorage {
-                bvh: BvhBuffers { nodes: &mut self.bvh_nodes, packed: &mut self.bvh_packed },
+                bvh: BvhBuffers {
+                    nodes: &mut self.bvh_nodes,
+                    packed: &mut self.bvh_packed,
+                },
                 light_table: &mut self.light_table,
             },
         )

@@ -7,11 +7,15 @@ use clap::{Parser, Subcommand};
 
 use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
-use crate::recover_cmd::{self, Effort};
+use crate::recover::{self as recover_cmd, Effort};
 use crate::{bench, compare, render_cmd};
 
 #[derive(Parser)]
-#[command(name = "relume", version, about = "Recover the materials of a scene from one panorama, and re-render it")]
+#[command(
+    name = "relume",
+    version,
+    about = "Recover the materials of a scene from one panorama, and re-render it"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -136,8 +140,24 @@ pub fn main() -> i32 {
 
 fn run(command: Command) -> Result<(), Error> {
     match command {
-        Command::Render { scene, materials, out, spp, seed, threads, views } => {
-            let args = render_cmd::RenderArgs { scene, materials, out, spp, seed, threads, views };
+        Command::Render {
+            scene,
+            materials,
+            out,
+            spp,
+            seed,
+            threads,
+            views,
+        } => {
+            let args = render_cmd::RenderArgs {
+                scene,
+                materials,
+                out,
+                spp,
+                seed,
+                threads,
+                views,
+            };
             let summary = render_cmd::run(&args)?;
             println!(
                 "rendered {} samples in {:.2} s: {:.3} Msamples/s; wrote {}",
@@ -148,31 +168,62 @@ fn run(command: Command) -> Result<(), Error> {
             );
             Ok(())
         }
-        Command::Recover { scene, out, seed, threads, effort } => {
-            let args = recover_cmd::RecoverArgs { scene, out, seed, threads, effort };
+        Command::Recover {
+            scene,
+            out,
+            seed,
+            threads,
+            effort,
+        } => {
+            let args = recover_cmd::RecoverArgs {
+                scene,
+                out,
+                seed,
+                threads,
+                effort,
+            };
             let report = recover_cmd::run(&args)?;
             for g in &report.groups {
                 println!(
                     "{:<16} {:<10} error {:>7}  {}",
                     g.group,
                     g.model,
-                    g.final_error.map_or("-".into(), |e| format!("{:.2}%", 100.0 * e)),
-                    g.decision
+                    g.error_final
+                        .map_or("-".into(), |e| format!("{:.2}%", 100.0 * e)),
+                    g.decisions.last().map_or("", |d| d.as_str())
                 );
             }
             for w in &report.warnings {
                 eprintln!("relume: warning: {w}");
             }
-            println!("recovered in {:.1} s; wrote {}", report.seconds, args.out.display());
+            println!(
+                "recovered in {:.1} s; wrote {}",
+                report.seconds,
+                args.out.display()
+            );
             Ok(())
         }
-        Command::Compare(CompareCommand::Views { scene, dir_a, dir_b, json, threads }) => {
-            compare::compare_views(&scene, &dir_a, &dir_b, json.as_deref(), threads)
-        }
-        Command::Compare(CompareCommand::Materials { truth, materials, json }) => {
-            compare::compare_materials(&truth, &materials, json.as_deref())
-        }
-        Command::Bench(BenchCommand::Rays { scene, rays, hits, json, reference, threads, repeats }) => {
+        Command::Compare(CompareCommand::Views {
+            scene,
+            dir_a,
+            dir_b,
+            json,
+            threads,
+        }) => compare::compare_views(&scene, &dir_a, &dir_b, json.as_deref(), threads),
+        Command::Compare(CompareCommand::Materials {
+            truth,
+            materials,
+            json,
+        }) => compare::compare_materials(&truth, &materials, json.as_deref()),
+        Command::Bench(BenchCommand::Rays {
+            scene,
+            rays,
+            hits,
+            json,
+            reference,
+            threads,
+            repeats,
+        }) => {
             let mut owned = assemble::load_and_assemble(&scene, MaterialSource::GeometryOnly)?;
             let built = owned.build()?;
             let args = bench::BenchRaysArgs {

@@ -46,8 +46,16 @@ impl Sums {
             pixels: self.pixels,
             mean_a,
             mean_b,
-            rel_mean_diff: if mean_a > 0.0 { (mean_b - mean_a) / mean_a } else { f64::NAN },
-            rel_rms: if mean_a > 0.0 { (self.sum_sq_diff / n).sqrt() / mean_a } else { f64::NAN },
+            rel_mean_diff: if mean_a > 0.0 {
+                (mean_b - mean_a) / mean_a
+            } else {
+                f64::NAN
+            },
+            rel_rms: if mean_a > 0.0 {
+                (self.sum_sq_diff / n).sqrt() / mean_a
+            } else {
+                f64::NAN
+            },
         }
     }
 }
@@ -73,7 +81,12 @@ pub struct ViewsReport {
 
 /// Compares `dir_a/<view>.exr` with `dir_b/<view>.exr` for every view of the scene over
 /// pure pixels (whole footprint on one group; lights and silhouettes left out).
-pub fn views_report(scene_path: &Path, dir_a: &Path, dir_b: &Path, threads: Option<usize>) -> Result<ViewsReport, Error> {
+pub fn views_report(
+    scene_path: &Path,
+    dir_a: &Path,
+    dir_b: &Path,
+    threads: Option<usize>,
+) -> Result<ViewsReport, Error> {
     let mut owned = assemble::load_and_assemble(scene_path, MaterialSource::GeometryOnly)?;
     let pool = parallel::thread_pool(threads)?;
     let descs = owned.desc.views.clone();
@@ -102,14 +115,21 @@ pub fn views_report(scene_path: &Path, dir_a: &Path, dir_b: &Path, threads: Opti
         per_view.push(sums.row(&desc.name));
     }
     Ok(ViewsReport {
-        groups: groups.iter().zip(&group_names).map(|(s, n)| s.row(n)).collect(),
+        groups: groups
+            .iter()
+            .zip(&group_names)
+            .map(|(s, n)| s.row(n))
+            .collect(),
         views: per_view,
         all: all.row("image"),
     })
 }
 
 fn print_views_table(report: &ViewsReport) {
-    println!("{:<16} {:>8} {:>11} {:>11} {:>10} {:>9}", "group", "pixels", "mean A", "mean B", "rel mean", "rel RMS");
+    println!(
+        "{:<16} {:>8} {:>11} {:>11} {:>10} {:>9}",
+        "group", "pixels", "mean A", "mean B", "rel mean", "rel RMS"
+    );
     let line = |r: &ViewsRow| {
         println!(
             "{:<16} {:>8} {:>11.5} {:>11.5} {:>+9.2}% {:>8.2}%",
@@ -137,7 +157,8 @@ pub fn compare_views(
     let report = views_report(scene, dir_a, dir_b, threads)?;
     print_views_table(&report);
     if let Some(path) = json {
-        let text = serde_json::to_string_pretty(&report).map_err(|e| Error::Usage(e.to_string()))?;
+        let text =
+            serde_json::to_string_pretty(&report).map_err(|e| Error::Usage(e.to_string()))?;
         fsutil::write_atomic(path, text.as_bytes())?;
     }
     Ok(())
@@ -198,7 +219,11 @@ fn psnr(truth: &Path, recovered: &Path) -> Result<Option<f64>, Error> {
     if (t.width, t.height) != (r.width, r.height) {
         return Ok(None);
     }
-    let peak = t.pixels.iter().flatten().fold(0.0f64, |m, &v| m.max(v as f64));
+    let peak = t
+        .pixels
+        .iter()
+        .flatten()
+        .fold(0.0f64, |m, &v| m.max(v as f64));
     let mse = t
         .pixels
         .iter()
@@ -206,13 +231,18 @@ fn psnr(truth: &Path, recovered: &Path) -> Result<Option<f64>, Error> {
         .flat_map(|(a, b)| (0..3).map(move |c| (a[c] as f64 - b[c] as f64).powi(2)))
         .sum::<f64>()
         / (3 * t.pixels.len()).max(1) as f64;
-    Ok(Some(if mse > 0.0 { 10.0 * (peak * peak / mse).log10() } else { f64::INFINITY }))
+    Ok(Some(if mse > 0.0 {
+        10.0 * (peak * peak / mse).log10()
+    } else {
+        f64::INFINITY
+    }))
 }
 
 pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRow>, Error> {
     let t = materials_file::load_materials(truth)?;
     let m = materials_file::load_materials(materials)?;
-    let by_group: BTreeMap<&str, &MaterialDesc> = m.materials.iter().map(|d| (d.group.as_str(), d)).collect();
+    let by_group: BTreeMap<&str, &MaterialDesc> =
+        m.materials.iter().map(|d| (d.group.as_str(), d)).collect();
     let mut rows = Vec::new();
     for tm in &t.materials {
         let mut row = MaterialRow {
@@ -228,7 +258,8 @@ pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRo
             }
             if tm.model == Model::Mirror {
                 if let (Some(a), Some(b)) = (rm.color, tm.color) {
-                    row.diffuse_rel_err = Some((0..3).map(|c| rel(a[c] as f64, b[c] as f64)).sum::<f64>() / 3.0);
+                    row.diffuse_rel_err =
+                        Some((0..3).map(|c| rel(a[c] as f64, b[c] as f64)).sum::<f64>() / 3.0);
                 }
             }
             let pair = |a: Option<f32>, b: Option<f32>| match (a, b) {
@@ -240,9 +271,7 @@ pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRo
             row.roughness_u_rel_err = pair(rm.roughness_u, tm.roughness_u);
             row.roughness_v_rel_err = pair(rm.roughness_v, tm.roughness_v);
             if let (Some(a), Some(b)) = (rm.direction_u, tm.direction_u) {
-                let a = glam::DVec3::from(a.map(|x| x as f64)).normalize_or_zero();
-                let b = glam::DVec3::from(b.map(|x| x as f64)).normalize_or_zero();
-                row.direction_err_deg = Some(a.dot(b).abs().min(1.0).acos().to_degrees());
+                row.direction_err_deg = Some(angle_between_axes_deg(a, b));
             }
             if let (Some(a), Some(b)) = (&rm.diffuse_map, &tm.diffuse_map) {
                 row.diffuse_map_psnr_db = psnr(b, a)?;
@@ -253,12 +282,30 @@ pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRo
     Ok(rows)
 }
 
+/// The angle between two axes (a direction and its opposite are the same axis), degrees.
+fn angle_between_axes_deg(a: [f32; 3], b: [f32; 3]) -> f64 {
+    let dot: f64 = (0..3).map(|i| a[i] as f64 * b[i] as f64).sum();
+    let norm = |v: [f32; 3]| v.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt();
+    let cos = dot.abs() / (norm(a) * norm(b)).max(f64::MIN_POSITIVE);
+    cos.min(1.0).acos().to_degrees()
+}
+
 pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) -> Result<(), Error> {
     let rows = materials_report(truth, materials)?;
     let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.2}%", 100.0 * v));
     println!(
         "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8}",
-        "group", "true model", "model", "class", "diffuse", "spec", "rough", "rough_u", "rough_v", "dir", "map PSNR"
+        "group",
+        "true model",
+        "model",
+        "class",
+        "diffuse",
+        "spec",
+        "rough",
+        "rough_u",
+        "rough_v",
+        "dir",
+        "map PSNR"
     );
     for r in &rows {
         println!(
@@ -272,8 +319,10 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
             pct(r.roughness_rel_err),
             pct(r.roughness_u_rel_err),
             pct(r.roughness_v_rel_err),
-            r.direction_err_deg.map_or("-".to_string(), |d| format!("{d:.1}deg")),
-            r.diffuse_map_psnr_db.map_or("-".to_string(), |p| format!("{p:.1}dB")),
+            r.direction_err_deg
+                .map_or("-".to_string(), |d| format!("{d:.1}deg")),
+            r.diffuse_map_psnr_db
+                .map_or("-".to_string(), |p| format!("{p:.1}dB")),
         );
     }
     if let Some(path) = json {

@@ -13,9 +13,15 @@ pub enum Error {
         message: String,
     },
     /// A file could not be read or written.
-    Io { file: PathBuf, source: std::io::Error },
+    Io {
+        file: PathBuf,
+        source: std::io::Error,
+    },
     /// The core refused the data (capacity, invalid value), with what we were doing.
-    Core { context: String, source: relume_core::Error },
+    Core {
+        context: String,
+        source: relume_core::Error,
+    },
     /// Bad command-line usage that clap could not catch.
     Usage(String),
 }
@@ -31,7 +37,11 @@ pub enum Location {
 
 impl Error {
     pub fn input(file: impl AsRef<Path>, message: impl Into<String>) -> Error {
-        Error::Input { file: file.as_ref().to_path_buf(), location: None, message: message.into() }
+        Error::Input {
+            file: file.as_ref().to_path_buf(),
+            location: None,
+            message: message.into(),
+        }
     }
 
     pub fn at_line(file: impl AsRef<Path>, line: usize, message: impl Into<String>) -> Error {
@@ -51,11 +61,17 @@ impl Error {
     }
 
     pub fn io(file: impl AsRef<Path>, source: std::io::Error) -> Error {
-        Error::Io { file: file.as_ref().to_path_buf(), source }
+        Error::Io {
+            file: file.as_ref().to_path_buf(),
+            source,
+        }
     }
 
     pub fn core(context: impl Into<String>, source: relume_core::Error) -> Error {
-        Error::Core { context: context.into(), source }
+        Error::Core {
+            context: context.into(),
+            source,
+        }
     }
 
     /// The process exit code: 2 usage, 3 bad input, 4 I/O, 5 refused by the core.
@@ -72,10 +88,17 @@ impl Error {
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Error::Input { file, location, message } => {
+            Error::Input {
+                file,
+                location,
+                message,
+            } => {
                 write!(f, "{}", file.display())?;
                 match location {
-                    Some(Location::Line { line, column: Some(c) }) => write!(f, ":{line}:{c}")?,
+                    Some(Location::Line {
+                        line,
+                        column: Some(c),
+                    }) => write!(f, ":{line}:{c}")?,
                     Some(Location::Line { line, column: None }) => write!(f, ":{line}")?,
                     Some(Location::Pixel { x, y }) => write!(f, ": pixel (x {x}, y {y})")?,
                     None => {}

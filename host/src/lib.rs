@@ -10,12 +10,9 @@
 //! - [`parallel`]: fixed tiles, results combined in a fixed order.
 //! - [`render_cmd`], [`compare`], [`bench`]: the subcommands; [`cli`] parses arguments.
 
-#[cfg(any())] // TEMP: re-enabled once the I/O modules land
 pub mod assemble;
 pub mod bench;
-#[cfg(any())] // TEMP: re-enabled once the I/O modules land
 pub mod cli;
-#[cfg(any())] // TEMP: re-enabled once the I/O modules land
 pub mod compare;
 pub mod error;
 pub mod fsutil;
@@ -23,17 +20,8 @@ pub mod images;
 pub mod materials_file;
 pub mod obj;
 pub mod parallel;
-#[cfg(any())] // TEMP: re-enabled once the I/O modules land
-pub mod recover_cmd;
-#[cfg(any())] // TEMP: re-enabled once the I/O modules land
+pub mod recover;
 pub mod render_cmd;
 pub mod scene_file;
 
 pub use error::Error;
-
-#[cfg(not(any()))]
-pub mod cli {
-    pub fn main() -> i32 {
-        0
-    }
-}

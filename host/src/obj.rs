@@ -1,1 +1,667 @@
-//! (in progress)
+//! Wavefront OBJ geometry (scene-format.md): named objects of fan-triangulated faces.
+//!
+//! Reading is two passes. Our own pass over the text checks every statement and reports
+//! `file:line` errors (tobj gives no positions), decides the object names, and writes a
+//! normalised copy (`o`, `v`, `vt` and `f` with absolute indices, nothing else); tobj then
+//! loads that copy. Triangles keep the file's order: objects in file order, faces in file
+//! order, polygons fanned from their first vertex, matching the "one global triangle index in
+//! file order" of the ray benchmarks.
+//!
+//! Rules (format 1):
+//! - An object is an `o` name; in a file without `o` lines, a `g` name (and `g` lines are
+//!   ignored in a file that has `o` lines). A name is the rest of its line, trimmed.
+//! - A face before any `o`/`g` is an error ("face outside any object"): the scene must be able
+//!   to name every face. An object name used twice in one file is an error (names must be
+//!   unique; see `scene_file::check_objects` across files). An object without faces is left out.
+//! - `v`: 3 finite numbers (6 with a vertex colour, ignored); `vt`: 2 or 3 finite numbers;
+//!   `f`: at least 3 vertices `v`, `v/vt`, `v//vn` or `v/vt/vn`, indices 1-based or negative
+//!   (relative), referring to vertices already read; a face uses texture coordinates on all of
+//!   its vertices or on none.
+//! - Ignored: comments, `vn` (flat shading), `s`, `mtllib`, `usemtl` (materials come from
+//!   materials.toml), `l` and `p` (lines and points have no area). Any other statement
+//!   (free-form curves, typos) is an error.
+//! - An object's `uvs` are present only when all of its faces have texture coordinates.
+
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use crate::error::Error;
+
+/// One named object of an OBJ file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjObject {
+    pub name: String,
+    /// The OBJ file it comes from.
+    pub file: PathBuf,
+    /// Triangles in file order, counter-clockwise as in the file.
+    pub triangles: Vec<[[f32; 3]; 3]>,
+    /// Texture coordinates per triangle corner, when every face has them.
+    pub uvs: Option<Vec<[[f32; 2]; 3]>>,
+}
+
+/// What the checking pass learns about one object.
+struct ObjectInfo {
+    name: String,
+    line: usize,
+    n_triangles: usize,
+    all_uv: bool,
+}
+
+/// The checking pass: per-object facts and the normalised text for tobj.
+struct Checked {
+    objects: Vec<ObjectInfo>,
+    text: String,
+}
+
+/// Reads one OBJ file into its objects.
+pub fn load_obj(path: &Path) -> Result<Vec<ObjObject>, Error> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let checked = check_text(path, &text)?;
+    let with_faces: Vec<&ObjectInfo> = checked
+        .objects
+        .iter()
+        .filter(|o| o.n_triangles > 0)
+        .collect();
+    if with_faces.is_empty() {
+        return Err(Error::input(path, "the file has no faces"));
+    }
+    let options = tobj::LoadOptions {
+        single_index: false,
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let mut reader = Cursor::new(checked.text.as_bytes());
+    let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })
+    .map_err(|e| {
+        Error::input(
+            path,
+            format!("OBJ loader (tobj) failed after checking: {e}"),
+        )
+    })?;
+    let disagree = |what: String| {
+        Error::input(
+            path,
+            format!("internal: the OBJ loader disagrees with the checker: {what}"),
+        )
+    };
+    if models.len() != with_faces.len() {
+        return Err(disagree(format!(
+            "{} objects, expected {}",
+            models.len(),
+            with_faces.len()
+        )));
+    }
+    let mut out = Vec::with_capacity(models.len());
+    for (model, info) in models.iter().zip(with_faces) {
+        let m = &model.mesh;
+        if model.name != info.name || m.indices.len() != 3 * info.n_triangles {
+            return Err(disagree(format!(
+                "object '{}' (line {}): {} corners, expected {}",
+                info.name,
+                info.line,
+                m.indices.len(),
+                3 * info.n_triangles
+            )));
+        }
+        let position = |i: u32| -> Option<[f32; 3]> {
+            let i = i as usize * 3;
+            Some([
+                *m.positions.get(i)?,
+                *m.positions.get(i + 1)?,
+                *m.positions.get(i + 2)?,
+            ])
+        };
+        let texcoord = |i: u32| -> Option<[f32; 2]> {
+            let i = i as usize * 2;
+            Some([*m.texcoords.get(i)?, *m.texcoords.get(i + 1)?])
+        };
+        let mut triangles = Vec::with_capacity(info.n_triangles);
+        for c in m.indices.chunks_exact(3) {
+            match (position(c[0]), position(c[1]), position(c[2])) {
+                (Some(a), Some(b), Some(c)) => triangles.push([a, b, c]),
+                _ => {
+                    return Err(disagree(format!(
+                        "object '{}': vertex index out of range",
+                        info.name
+                    )))
+                }
+            }
+        }
+        let uvs = if info.all_uv {
+            if m.texcoord_indices.len() != m.indices.len() {
+                return Err(disagree(format!(
+                    "object '{}': texture coordinates missing",
+                    info.name
+                )));
+            }
+            let mut uvs = Vec::with_capacity(info.n_triangles);
+            for c in m.texcoord_indices.chunks_exact(3) {
+                match (texcoord(c[0]), texcoord(c[1]), texcoord(c[2])) {
+                    (Some(a), Some(b), Some(c)) => uvs.push([a, b, c]),
+                    _ => {
+                        return Err(disagree(format!(
+                            "object '{}': vt index out of range",
+                            info.name
+                        )))
+                    }
+                }
+            }
+            Some(uvs)
+        } else {
+            None
+        };
+        out.push(ObjObject {
+            name: info.name.clone(),
+            file: path.to_path_buf(),
+            triangles,
+            uvs,
+        });
+    }
+    Ok(out)
+}
+
+/// The line (1-based) where object `name` starts in an OBJ file, for error messages.
+pub fn object_line(path: &Path, name: &str) -> Option<usize> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let has_o = text.lines().any(|l| keyword(l) == Some("o"));
+    let naming = if has_o { "o" } else { "g" };
+    text.lines()
+        .position(|l| keyword(l) == Some(naming) && rest_after_keyword(l) == name)
+        .map(|i| i + 1)
+}
+
+fn keyword(line: &str) -> Option<&str> {
+    line.split_whitespace().next()
+}
+
+/// The text after the first token, trimmed (an `o`/`g` name may contain spaces).
+fn rest_after_keyword(line: &str) -> &str {
+    let t = line.trim_start();
+    let end = t.find(char::is_whitespace).unwrap_or(t.len());
+    t[end..].trim()
+}
+
+fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
+    let has_o = text.lines().any(|l| keyword(l) == Some("o"));
+    let naming = if has_o { "o" } else { "g" };
+    let mut objects: Vec<ObjectInfo> = Vec::new();
+    let mut out = String::with_capacity(text.len());
+    let (mut n_v, mut n_vt) = (0usize, 0usize);
+    for (i, raw_line) in text.lines().enumerate() {
+        let line_no = i + 1;
+        let err = |msg: String| Error::at_line(path, line_no, msg);
+        let mut tokens = raw_line.split_whitespace();
+        let Some(key) = tokens.next() else { continue };
+        let args: Vec<&str> = tokens.collect();
+        match key {
+            k if k.starts_with('#') => {}
+            "v" => {
+                let xs = numbers(&args, "v", &err)?;
+                if xs.len() != 3 && xs.len() != 6 {
+                    return Err(err(format!(
+                        "`v` needs 3 numbers (x y z, or 6 with a vertex colour), found {}",
+                        xs.len()
+                    )));
+                }
+                out.push_str(&format!("v {} {} {}\n", args[0], args[1], args[2]));
+                n_v += 1;
+            }
+            "vt" => {
+                let xs = numbers(&args, "vt", &err)?;
+                if xs.len() != 2 && xs.len() != 3 {
+                    return Err(err(format!(
+                        "`vt` needs 2 numbers (u v), found {}",
+                        xs.len()
+                    )));
+                }
+                out.push_str(&format!("vt {} {}\n", args[0], args[1]));
+                n_vt += 1;
+            }
+            "f" => {
+                let Some(current) = objects.last_mut() else {
+                    return Err(err(format!(
+                        "face outside any object: add a `{naming} <name>` line before it"
+                    )));
+                };
+                if args.len() < 3 {
+                    return Err(err(format!(
+                        "a face needs at least 3 vertices, found {}",
+                        args.len()
+                    )));
+                }
+                let mut with_uv = 0;
+                let mut face = String::from("f");
+                for a in &args {
+                    let (v, vt) = face_vertex(a, n_v, n_vt)
+                        .map_err(|m| err(format!("face vertex '{a}': {m}")))?;
+                    match vt {
+                        Some(t) => {
+                            with_uv += 1;
+                            face.push_str(&format!(" {v}/{t}"));
+                        }
+                        None => face.push_str(&format!(" {v}")),
+                    }
+                }
+                if with_uv != 0 && with_uv != args.len() {
+                    return Err(err(
+                        "the face gives texture coordinates for some vertices but not all"
+                            .to_string(),
+                    ));
+                }
+                current.n_triangles += args.len() - 2;
+                current.all_uv &= with_uv == args.len();
+                face.push('\n');
+                out.push_str(&face);
+            }
+            "o" | "g" if key == naming => {
+                let name = rest_after_keyword(raw_line);
+                if name.is_empty() {
+                    return Err(err(format!("`{key}` without a name")));
+                }
+                if let Some(first) = objects.iter().find(|o| o.name == name) {
+                    return Err(err(format!(
+                        "object '{name}' appears twice in the file (first at line {}): names must be unique",
+                        first.line
+                    )));
+                }
+                objects.push(ObjectInfo {
+                    name: name.to_string(),
+                    line: line_no,
+                    n_triangles: 0,
+                    all_uv: true,
+                });
+                out.push_str(&format!("o {name}\n"));
+            }
+            "g" | "vn" | "s" | "mtllib" | "usemtl" | "l" | "p" => {}
+            other => return Err(err(format!("unknown OBJ statement '{other}'"))),
+        }
+    }
+    Ok(Checked { objects, text: out })
+}
+
+/// Parses all arguments as finite numbers.
+fn numbers(args: &[&str], key: &str, err: &dyn Fn(String) -> Error) -> Result<Vec<f32>, Error> {
+    let mut xs = Vec::with_capacity(args.len());
+    for a in args {
+        match a.parse::<f32>() {
+            Ok(x) if x.is_finite() => xs.push(x),
+            Ok(x) => return Err(err(format!("`{key}` has a non-finite number '{a}' ({x})"))),
+            Err(_) => return Err(err(format!("`{key}`: '{a}' is not a number"))),
+        }
+    }
+    Ok(xs)
+}
+
+/// One `v[/vt[/vn]]` reference, as absolute 1-based indices (the normal is checked for
+/// syntax only).
+fn face_vertex(token: &str, n_v: usize, n_vt: usize) -> Result<(usize, Option<usize>), String> {
+    let parts: Vec<&str> = token.split('/').collect();
+    if parts.len() > 3 {
+        return Err("expected v, v/vt, v//vn or v/vt/vn".into());
+    }
+    let v = resolve_index(parts[0], n_v, "vertex")?;
+    let vt = match parts.get(1) {
+        None | Some(&"") => None,
+        Some(t) => Some(resolve_index(t, n_vt, "texture coordinate")?),
+    };
+    if let Some(n) = parts.get(2) {
+        if n.parse::<i64>().is_err() {
+            return Err(format!("normal index '{n}' is not an integer"));
+        }
+    }
+    Ok((v, vt))
+}
+
+fn resolve_index(s: &str, n: usize, what: &str) -> Result<usize, String> {
+    let i: i64 = s
+        .parse()
+        .map_err(|_| format!("{what} index '{s}' is not an integer"))?;
+    let n_i = n as i64;
+    let abs = if i > 0 { i } else { n_i + i + 1 };
+    if i == 0 || abs < 1 || abs > n_i {
+        return Err(format!(
+            "{what} index {i} is out of range ({n} defined so far)"
+        ));
+    }
+    Ok(abs as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(text: &str) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("geo.obj");
+        std::fs::write(&path, text).unwrap();
+        (dir, path)
+    }
+
+    fn load(text: &str) -> Vec<ObjObject> {
+        let (_dir, path) = write(text);
+        load_obj(&path).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// Loading must fail naming geo.obj, `line` and every one of `what`.
+    fn bad(text: &str, line: usize, what: &[&str]) {
+        let (_dir, path) = write(text);
+        let e = load_obj(&path)
+            .expect_err("the OBJ should be refused")
+            .to_string();
+        eprintln!("{e}");
+        assert!(
+            e.contains(&format!("geo.obj:{line}:")),
+            "expected geo.obj:{line} in: {e}"
+        );
+        for w in what {
+            assert!(e.contains(w), "expected {w:?} in: {e}");
+        }
+    }
+
+    const QUAD: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+
+    #[test]
+    fn objects_and_fan_triangles_in_file_order() {
+        let objs = load(&format!(
+            "# c\no a\n{QUAD}f 1 2 3 4\no b\nv 0 0 1\nf 1 2 5\nf 5 2 3\n"
+        ));
+        assert_eq!(objs.len(), 2);
+        assert_eq!(objs[0].name, "a");
+        assert!(objs[0].file.ends_with("geo.obj"));
+        let v = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        assert_eq!(
+            objs[0].triangles,
+            vec![[v[0], v[1], v[2]], [v[0], v[2], v[3]]]
+        );
+        assert_eq!(
+            objs[1].triangles,
+            vec![[v[0], v[1], v[4]], [v[4], v[1], v[2]]]
+        );
+        assert_eq!(objs[0].uvs, None);
+    }
+
+    #[test]
+    fn polygons_are_fanned_from_their_first_vertex() {
+        let objs = load("o p\nv 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nf 1 2 3 4 5\n");
+        let t: Vec<[f32; 3]> = objs[0]
+            .triangles
+            .iter()
+            .map(|t| [t[0][0], t[1][0], t[2][0]])
+            .collect();
+        assert_eq!(t, vec![[0.0, 1.0, 2.0], [0.0, 2.0, 1.0], [0.0, 1.0, 0.0]]);
+    }
+
+    #[test]
+    fn negative_indices_are_relative() {
+        let objs = load(&format!("o a\n{QUAD}f -4 -3 -2\n"));
+        assert_eq!(
+            objs[0].triangles,
+            vec![[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]]]
+        );
+    }
+
+    #[test]
+    fn g_names_objects_only_in_files_without_o() {
+        let objs = load(&format!("g a\n{QUAD}f 1 2 3\ng b\nf 1 3 4\n"));
+        assert_eq!(
+            objs.iter().map(|o| o.name.as_str()).collect::<Vec<_>>(),
+            ["a", "b"]
+        );
+        let objs = load(&format!("o a\ng part1\n{QUAD}f 1 2 3\ng part2\nf 1 3 4\n"));
+        assert_eq!(objs.len(), 1);
+        assert_eq!(objs[0].triangles.len(), 2);
+    }
+
+    #[test]
+    fn names_may_contain_spaces() {
+        let objs = load(&format!("o  big lamp  \n{QUAD}f 1 2 3\n"));
+        assert_eq!(objs[0].name, "big lamp");
+    }
+
+    #[test]
+    fn texture_coordinates_when_every_face_has_them() {
+        let text = format!(
+            "o t\n{QUAD}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1 0\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\n\
+                            o u\nf 1/1 2/2 3/3\nf 1//1 3//1 4//1\n"
+        );
+        let objs = load(&text);
+        let uv = objs[0].uvs.as_ref().unwrap();
+        assert_eq!(
+            uv,
+            &vec![
+                [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]],
+                [[0.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+            ]
+        );
+        assert_eq!(objs[1].uvs, None);
+        assert_eq!(objs[1].triangles.len(), 2);
+    }
+
+    #[test]
+    fn ignored_statements() {
+        let objs = load(&format!(
+            "mtllib x.mtl\no a\nusemtl red\ns 1\n{QUAD}vn 0 0 1\nf 1 2 3\nusemtl blue\nf 1 3 4\nl 1 2 3\np 1\n"
+        ));
+        assert_eq!(objs.len(), 1);
+        assert_eq!(objs[0].triangles.len(), 2);
+    }
+
+    #[test]
+    fn objects_without_faces_are_left_out() {
+        let objs = load(&format!("o empty\no a\n{QUAD}f 1 2 3\n"));
+        assert_eq!(objs.len(), 1);
+        assert_eq!(objs[0].name, "a");
+    }
+
+    #[test]
+    fn bad_vertices() {
+        bad("o a\nv 1 2\n", 2, &["`v` needs 3 numbers", "found 2"]);
+        bad("o a\nv 1 2 3 4\n", 2, &["`v` needs 3 numbers"]);
+        bad("o a\nv 1 x 3\n", 2, &["'x' is not a number"]);
+        bad("o a\nv 1 nan 3\n", 2, &["non-finite number 'nan'"]);
+        bad("o a\nv 1 inf 3\n", 2, &["non-finite"]);
+        bad("o a\nv 1 2 1e39\n", 2, &["non-finite"]);
+    }
+
+    #[test]
+    fn bad_texture_coordinates() {
+        bad("o a\nvt 0.5\n", 2, &["`vt` needs 2 numbers", "found 1"]);
+        bad("o a\nvt 0.5 y\n", 2, &["'y' is not a number"]);
+        bad("o a\nvt 0.5 nan\n", 2, &["non-finite"]);
+    }
+
+    #[test]
+    fn bad_faces() {
+        bad(
+            &format!("o a\n{QUAD}f 1 2\n"),
+            6,
+            &["at least 3 vertices, found 2"],
+        );
+        bad(
+            &format!("o a\n{QUAD}f 1 2 5\n"),
+            6,
+            &["vertex index 5 is out of range (4 defined so far"],
+        );
+        bad(
+            &format!("o a\n{QUAD}f 1 2 -5\n"),
+            6,
+            &["vertex index -5 is out of range"],
+        );
+        bad(
+            &format!("o a\n{QUAD}f 0 1 2\n"),
+            6,
+            &["vertex index 0 is out of range"],
+        );
+        bad(
+            &format!("o a\n{QUAD}f 1 2 x\n"),
+            6,
+            &["face vertex 'x'", "not an integer"],
+        );
+        bad(
+            &format!("o a\n{QUAD}f 1/1 2/1 3/1\n"),
+            6,
+            &["texture coordinate index 1 is out of range (0"],
+        );
+        bad(
+            &format!("o a\n{QUAD}vt 0 0\nf 1/1 2/1 3\n"),
+            7,
+            &["some vertices but not all"],
+        );
+        bad(
+            &format!("o a\n{QUAD}f 1//z 2 3\n"),
+            6,
+            &["normal index 'z'"],
+        );
+        bad(
+            &format!("o a\n{QUAD}f 1/1/1/1 2 3\n"),
+            6,
+            &["expected v, v/vt"],
+        );
+        // A vertex defined after the face is not yet available.
+        bad(
+            "o a\nv 0 0 0\nv 1 0 0\nf 1 2 3\nv 1 1 0\n",
+            4,
+            &["vertex index 3 is out of range"],
+        );
+    }
+
+    #[test]
+    fn a_face_outside_any_object_is_an_error() {
+        bad(
+            &format!("{QUAD}f 1 2 3\no a\nf 1 3 4\n"),
+            5,
+            &["face outside any object", "add a `o <name>` line"],
+        );
+        bad(
+            &format!("{QUAD}f 1 2 3\n"),
+            5,
+            &["face outside any object", "`g <name>`"],
+        );
+    }
+
+    #[test]
+    fn unknown_statements_are_errors() {
+        bad("o a\ncurv 0 1 1 2\n", 2, &["unknown OBJ statement 'curv'"]);
+        bad("o a\nvp 0.5\n", 2, &["unknown OBJ statement 'vp'"]);
+    }
+
+    #[test]
+    fn duplicate_and_empty_object_names_are_errors() {
+        bad(
+            &format!("o a\n{QUAD}f 1 2 3\no b\nf 1 3 4\no a\nf 2 3 4\n"),
+            9,
+            &["object 'a' appears twice", "first at line 1"],
+        );
+        bad(
+            &format!("g a\n{QUAD}f 1 2 3\ng a\nf 1 3 4\n"),
+            7,
+            &["object 'a' appears twice"],
+        );
+        bad("o\n", 1, &["`o` without a name"]);
+    }
+
+    #[test]
+    fn a_file_without_faces_is_an_error() {
+        let (_dir, path) = write(&format!("o a\n{QUAD}"));
+        let e = load_obj(&path).unwrap_err().to_string();
+        assert!(e.contains("geo.obj") && e.contains("no faces"), "{e}");
+    }
+
+    #[test]
+    fn a_missing_file_is_an_io_error_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = load_obj(&dir.path().join("absent.obj")).unwrap_err();
+        assert!(matches!(e, Error::Io { .. }));
+        assert!(e.to_string().contains("absent.obj"), "{e}");
+    }
+
+    #[test]
+    fn object_line_finds_the_naming_line() {
+        let (_dir, path) = write(&format!("o a\n{QUAD}f 1 2 3\no b c\nf 1 3 4\n"));
+        assert_eq!(object_line(&path, "b c"), Some(7));
+        assert_eq!(object_line(&path, "zz"), None);
+    }
+
+    /// Triangles of an OBJ by the most naive reading of the text (every `o` starts an object,
+    /// faces fanned from the first vertex), to compare the loader with.
+    fn naive(text: &str) -> Vec<(String, [[f32; 3]; 3])> {
+        let mut v: Vec<[f32; 3]> = Vec::new();
+        let mut name = String::new();
+        let mut out = Vec::new();
+        for line in text.lines() {
+            let t: Vec<&str> = line.split_whitespace().collect();
+            match t.first() {
+                Some(&"o") => name = t[1].to_string(),
+                Some(&"v") => v.push([
+                    t[1].parse().unwrap(),
+                    t[2].parse().unwrap(),
+                    t[3].parse().unwrap(),
+                ]),
+                Some(&"f") => {
+                    let idx: Vec<usize> = t[1..]
+                        .iter()
+                        .map(|s| s.split('/').next().unwrap().parse::<usize>().unwrap() - 1)
+                        .collect();
+                    for k in 2..idx.len() {
+                        out.push((name.clone(), [v[idx[0]], v[idx[k - 1]], v[idx[k]]]));
+                    }
+                }
+                _ => {}
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn bench_geometry_loads_in_file_order() {
+        let Some(bench) = crate::scene_file::tests::bench() else {
+            return;
+        };
+        for (scene, n_objects, n_triangles) in [
+            ("box-diffuse", 9, 38),
+            ("living-room", 26, 2374),
+            ("glossy", 14, 2162),
+            ("textured", 15, 736),
+        ] {
+            let path = bench.join(scene).join("geometry.obj");
+            let objs = load_obj(&path).unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!(objs.len(), n_objects, "{scene}");
+            let flat: Vec<(String, [[f32; 3]; 3])> = objs
+                .iter()
+                .flat_map(|o| o.triangles.iter().map(|t| (o.name.clone(), *t)))
+                .collect();
+            assert_eq!(flat.len(), n_triangles, "{scene}");
+            assert_eq!(
+                flat,
+                naive(&std::fs::read_to_string(&path).unwrap()),
+                "{scene}"
+            );
+        }
+    }
+
+    #[test]
+    fn textured_bench_pictures_have_uvs() {
+        let Some(bench) = crate::scene_file::tests::bench() else {
+            return;
+        };
+        let objs = load_obj(&bench.join("textured/geometry.obj")).unwrap();
+        let with_uv: Vec<&str> = objs
+            .iter()
+            .filter(|o| o.uvs.is_some())
+            .map(|o| o.name.as_str())
+            .collect();
+        assert!(!with_uv.is_empty());
+        for o in objs.iter().filter(|o| o.uvs.is_some()) {
+            assert_eq!(o.uvs.as_ref().unwrap().len(), o.triangles.len());
+        }
+    }
+}

@@ -43,14 +43,21 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::Files(&files))?;
     for name in &args.views {
         if !owned.desc.views.iter().any(|v| &v.name == name) {
-            return Err(Error::Usage(format!("--view {name}: {} has no such view", args.scene.display())));
+            return Err(Error::Usage(format!(
+                "--view {name}: {} has no such view",
+                args.scene.display()
+            )));
         }
     }
     let pool = parallel::thread_pool(args.threads)?;
     let view_descs = owned.desc.views.clone();
     let views = owned.views.clone();
     let scene = owned.build()?;
-    let settings = RenderSettings { spp: args.spp, seed: args.seed, ..RenderSettings::default() };
+    let settings = RenderSettings {
+        spp: args.spp,
+        seed: args.seed,
+        ..RenderSettings::default()
+    };
 
     let selected: Vec<usize> = (0..views.len())
         .filter(|&i| args.views.is_empty() || args.views.contains(&view_descs[i].name))
@@ -65,7 +72,8 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     let mut samples = 0u64;
     for &i in &selected {
         progress.set_message(view_descs[i].name.clone());
-        let pixels = parallel::render_view(&pool, &scene, &views[i], i as u32, &settings, &progress);
+        let pixels =
+            parallel::render_view(&pool, &scene, &views[i], i as u32, &settings, &progress);
         samples += views[i].n_pixels() as u64 * settings.spp as u64;
         rendered.push((i, pixels));
     }

@@ -1,1 +1,1297 @@
-//! (in progress)
+//! scene.toml (scene-format.md), read and validated into a [`SceneDesc`].
+//!
+//! Every problem is an [`Error`] naming the file and the line (and column) of the offending
+//! value: unknown keys, missing keys, wrong types, out-of-range numbers, duplicate names, an
+//! object in two places. Paths are resolved against the scene file's folder. Whether the
+//! named objects exist in the OBJ files is checked afterwards by [`check_objects`].
+//!
+//! Choices beyond the spec (documented here, each tested):
+//! - `hide`, `[[light]]` and `[[group]]` may be absent (empty); at least one `[[view]]` is
+//!   required, as is a non-empty `geometry` list.
+//! - A hidden object may also be in a group or be a light (hiding removes it from the scene
+//!   without editing the groups); listing it twice in `hide` is an error.
+//! - A view's `size` is at most [`MAX_VIEW_SIDE`] pixels per side; `direction` must not be
+//!   zero and `up` must not be parallel to it.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::error::Error;
+use crate::obj::ObjObject;
+
+pub use toml_src::TomlFile;
+
+/// Largest width or height of a view, in pixels.
+pub const MAX_VIEW_SIDE: i64 = 65536;
+
+/// The material type of a group, assigned in preprocessing (`kind`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GroupKind {
+    Plastic,
+    Metal,
+    /// Let recovery decide between plastic and metal.
+    Auto,
+}
+
+/// One calibrated view of the panorama.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewDesc {
+    pub name: String,
+    /// The view's image, resolved against the scene file's folder (input of `recover`).
+    pub image: Option<PathBuf>,
+    pub position: [f32; 3],
+    pub direction: [f32; 3],
+    pub up: [f32; 3],
+    /// Full horizontal and vertical angles, in degrees.
+    pub fov_deg: [f32; 2],
+    /// Width, height in pixels.
+    pub size: [u32; 2],
+    /// File value * exposure = radiance (default 1).
+    pub exposure: f32,
+}
+
+/// An OBJ object whose faces emit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightDesc {
+    pub object: String,
+    pub radiance: [f32; 3],
+}
+
+/// Objects that share one material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroupDesc {
+    pub name: String,
+    pub kind: GroupKind,
+    pub objects: Vec<String>,
+}
+
+/// A validated scene.toml.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneDesc {
+    /// The scene file itself.
+    pub path: PathBuf,
+    pub name: String,
+    /// OBJ files, resolved against the scene file's folder.
+    pub geometry: Vec<PathBuf>,
+    pub hide: Vec<String>,
+    pub views: Vec<ViewDesc>,
+    pub lights: Vec<LightDesc>,
+    pub groups: Vec<GroupDesc>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    #[allow(dead_code)] // checked first, by TomlFile::check_format
+    format: toml::Value,
+    name: Spanned<String>,
+    geometry: Spanned<Vec<Spanned<String>>>,
+    #[serde(default)]
+    hide: Vec<Spanned<String>>,
+    #[serde(default, rename = "view")]
+    views: Vec<Spanned<RawView>>,
+    #[serde(default, rename = "light")]
+    lights: Vec<Spanned<RawLight>>,
+    #[serde(default, rename = "group")]
+    groups: Vec<Spanned<RawGroup>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawView {
+    name: Spanned<String>,
+    image: Option<Spanned<String>>,
+    position: Spanned<Vec<f64>>,
+    direction: Spanned<Vec<f64>>,
+    up: Spanned<Vec<f64>>,
+    fov_deg: Spanned<Vec<f64>>,
+    size: Spanned<Vec<i64>>,
+    exposure: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLight {
+    object: Spanned<String>,
+    radiance: Spanned<Vec<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGroup {
+    name: Spanned<String>,
+    kind: Spanned<String>,
+    objects: Spanned<Vec<Spanned<String>>>,
+}
+
+/// Reads and validates a scene.toml.
+pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
+    let file = TomlFile::read(path)?;
+    file.check_format()?;
+    let raw: RawScene = file.parse()?;
+
+    let name = file.name(&raw.name, "name")?;
+    if raw.geometry.get_ref().is_empty() {
+        return Err(file.at(raw.geometry.span(), "`geometry` lists no OBJ file"));
+    }
+    let mut geometry: Vec<PathBuf> = Vec::new();
+    for g in raw.geometry.get_ref() {
+        let p = file.resolve(&file.name(g, "geometry file")?);
+        if geometry.contains(&p) {
+            return Err(file.at(
+                g.span(),
+                format!("geometry file '{}' is listed twice", g.get_ref()),
+            ));
+        }
+        if !p.is_file() {
+            return Err(file.at(
+                g.span(),
+                format!("geometry file {} does not exist", p.display()),
+            ));
+        }
+        geometry.push(p);
+    }
+
+    let mut hide = Vec::new();
+    for h in &raw.hide {
+        let n = file.name(h, "hidden object")?;
+        if hide.contains(&n) {
+            return Err(file.at(h.span(), format!("object '{n}' is listed twice in `hide`")));
+        }
+        hide.push(n);
+    }
+
+    if raw.views.is_empty() {
+        return Err(Error::input(
+            path,
+            "no [[view]]: a scene needs at least one view",
+        ));
+    }
+    let mut views: Vec<ViewDesc> = Vec::new();
+    let mut view_lines: HashMap<String, usize> = HashMap::new();
+    for v in &raw.views {
+        let view = check_view(&file, v.get_ref())?;
+        if let Some(first) = view_lines.get(&view.name) {
+            return Err(file.at(
+                v.get_ref().name.span(),
+                format!(
+                    "duplicate view name '{}' (first at line {first})",
+                    view.name
+                ),
+            ));
+        }
+        view_lines.insert(
+            view.name.clone(),
+            file.line_of(v.get_ref().name.span().start),
+        );
+        views.push(view);
+    }
+
+    // Where each object is used: "group 'g'" or "a light", with its line.
+    let mut used: HashMap<String, (String, usize)> = HashMap::new();
+    let mut lights = Vec::new();
+    for l in &raw.lights {
+        let l = l.get_ref();
+        let object = file.name(&l.object, "light object")?;
+        let line = file.line_of(l.object.span().start);
+        if let Some((_, first)) = used.get(&object) {
+            return Err(file.at(
+                l.object.span(),
+                format!("light object '{object}' is listed twice (first at line {first})"),
+            ));
+        }
+        let radiance: [f32; 3] = file.vector(&l.radiance, "radiance")?;
+        if radiance.iter().any(|&c| c < 0.0) {
+            return Err(file.at(
+                l.radiance.span(),
+                format!("light '{object}': radiance must be >= 0, got {radiance:?}"),
+            ));
+        }
+        used.insert(object.clone(), ("a light".to_string(), line));
+        lights.push(LightDesc { object, radiance });
+    }
+
+    let mut groups: Vec<GroupDesc> = Vec::new();
+    let mut group_lines: HashMap<String, usize> = HashMap::new();
+    for g in &raw.groups {
+        let g = g.get_ref();
+        let name = file.name(&g.name, "group name")?;
+        if let Some(first) = group_lines.get(&name) {
+            return Err(file.at(
+                g.name.span(),
+                format!("duplicate group name '{name}' (first at line {first})"),
+            ));
+        }
+        group_lines.insert(name.clone(), file.line_of(g.name.span().start));
+        let kind = match g.kind.get_ref().as_str() {
+            "plastic" => GroupKind::Plastic,
+            "metal" => GroupKind::Metal,
+            "auto" => GroupKind::Auto,
+            other => {
+                return Err(file.at(
+                    g.kind.span(),
+                    format!(
+                        "group '{name}': unknown kind '{other}' (expected plastic, metal or auto)"
+                    ),
+                ))
+            }
+        };
+        if g.objects.get_ref().is_empty() {
+            return Err(file.at(g.objects.span(), format!("group '{name}' lists no objects")));
+        }
+        let mut objects = Vec::new();
+        for o in g.objects.get_ref() {
+            let object = file.name(o, "object")?;
+            let line = file.line_of(o.span().start);
+            if let Some((where_, first)) = used.get(&object) {
+                let msg = if where_ == &format!("group '{name}'") {
+                    format!("object '{object}' is listed twice in group '{name}'")
+                } else {
+                    format!(
+                        "object '{object}' is in group '{name}' and also {where_} (line {first}): \
+                         an object belongs to exactly one group or light"
+                    )
+                };
+                return Err(file.at(o.span(), msg));
+            }
+            used.insert(object.clone(), (format!("group '{name}'"), line));
+            objects.push(object);
+        }
+        groups.push(GroupDesc {
+            name,
+            kind,
+            objects,
+        });
+    }
+
+    Ok(SceneDesc {
+        path: path.to_path_buf(),
+        name,
+        geometry,
+        hide,
+        views,
+        lights,
+        groups,
+    })
+}
+
+fn check_view(file: &TomlFile, v: &RawView) -> Result<ViewDesc, Error> {
+    let name = file.name(&v.name, "view name")?;
+    let image = match &v.image {
+        Some(i) => Some(file.resolve(&file.name(i, "image")?)),
+        None => None,
+    };
+    let position: [f32; 3] = file.vector(&v.position, "position")?;
+    let direction: [f32; 3] = file.vector(&v.direction, "direction")?;
+    let up: [f32; 3] = file.vector(&v.up, "up")?;
+    let fov_deg: [f32; 2] = file.vector(&v.fov_deg, "fov_deg")?;
+    let d = direction.map(f64::from);
+    let u = up.map(f64::from);
+    let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    if dd == 0.0 {
+        return Err(file.at(
+            v.direction.span(),
+            format!("view '{name}': direction is zero"),
+        ));
+    }
+    let c = [
+        d[1] * u[2] - d[2] * u[1],
+        d[2] * u[0] - d[0] * u[2],
+        d[0] * u[1] - d[1] * u[0],
+    ];
+    if c[0] * c[0] + c[1] * c[1] + c[2] * c[2] <= 1e-12 * dd * uu {
+        return Err(file.at(
+            v.up.span(),
+            format!("view '{name}': up {up:?} is zero or parallel to direction {direction:?}"),
+        ));
+    }
+    if fov_deg.iter().any(|&f| !(f > 0.0 && f < 180.0)) {
+        return Err(file.at(
+            v.fov_deg.span(),
+            format!("view '{name}': fov_deg must be in (0, 180) degrees, got {fov_deg:?}"),
+        ));
+    }
+    let s = v.size.get_ref();
+    if s.len() != 2 {
+        return Err(file.at(
+            v.size.span(),
+            format!(
+                "view '{name}': size must have 2 integers (width, height), found {}",
+                s.len()
+            ),
+        ));
+    }
+    if s.iter().any(|&x| !(1..=MAX_VIEW_SIDE).contains(&x)) {
+        return Err(file.at(
+            v.size.span(),
+            format!("view '{name}': size must be between 1 and {MAX_VIEW_SIDE} pixels, got {s:?}"),
+        ));
+    }
+    let size = [s[0] as u32, s[1] as u32];
+    let exposure = match &v.exposure {
+        Some(e) => {
+            let x = file.number(e, "exposure")?;
+            if x <= 0.0 {
+                return Err(file.at(
+                    e.span(),
+                    format!("view '{name}': exposure must be > 0, got {x}"),
+                ));
+            }
+            x
+        }
+        None => 1.0,
+    };
+    Ok(ViewDesc {
+        name,
+        image,
+        position,
+        direction,
+        up,
+        fov_deg,
+        size,
+        exposure,
+    })
+}
+
+/// Checks the scene's object names against the objects of its OBJ files: no object is defined
+/// twice; every object named in a group, a light or `hide` exists; every OBJ object is in a
+/// group, is a light, or is hidden.
+pub fn check_objects(desc: &SceneDesc, objects: &[ObjObject]) -> Result<(), Error> {
+    let mut defined: HashMap<&str, &Path> = HashMap::new();
+    for o in objects {
+        if let Some(first) = defined.get(o.name.as_str()) {
+            return Err(Error::input(
+                &o.file,
+                format!(
+                    "object '{}' is defined twice: in {} and in {}",
+                    o.name,
+                    first.display(),
+                    o.file.display()
+                ),
+            ));
+        }
+        defined.insert(&o.name, &o.file);
+    }
+    let files = desc
+        .geometry
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
+    let lines = SceneLines::read(&desc.path);
+    let missing = |object: &str, role: String, line: Option<usize>| {
+        let msg = format!("object '{object}' ({role}) is not in the geometry ({files})");
+        match line {
+            Some(l) => Error::at_line(&desc.path, l, msg),
+            None => Error::input(&desc.path, msg),
+        }
+    };
+    for (gi, g) in desc.groups.iter().enumerate() {
+        for (oi, o) in g.objects.iter().enumerate() {
+            if !defined.contains_key(o.as_str()) {
+                return Err(missing(
+                    o,
+                    format!("in group '{}'", g.name),
+                    lines.group_object(gi, oi),
+                ));
+            }
+        }
+    }
+    for (li, l) in desc.lights.iter().enumerate() {
+        if !defined.contains_key(l.object.as_str()) {
+            return Err(missing(&l.object, "a light".into(), lines.light(li)));
+        }
+    }
+    for (hi, h) in desc.hide.iter().enumerate() {
+        if !defined.contains_key(h.as_str()) {
+            return Err(missing(h, "in `hide`".into(), lines.hide(hi)));
+        }
+    }
+    for o in objects {
+        let assigned = desc.hide.contains(&o.name)
+            || desc.lights.iter().any(|l| l.object == o.name)
+            || desc.groups.iter().any(|g| g.objects.contains(&o.name));
+        if !assigned {
+            let msg = format!(
+                "object '{}' is in no group, is no light and is not hidden in {}",
+                o.name,
+                desc.path.display()
+            );
+            return Err(match crate::obj::object_line(&o.file, &o.name) {
+                Some(l) => Error::at_line(&o.file, l, msg),
+                None => Error::input(&o.file, msg),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Lines of names in a scene file, found by parsing it again (for errors found after
+/// loading). Empty when the file can no longer be read.
+struct SceneLines {
+    file: Option<TomlFile>,
+    raw: Option<RawScene>,
+}
+
+impl SceneLines {
+    fn read(path: &Path) -> SceneLines {
+        let file = TomlFile::read(path).ok();
+        let raw = file.as_ref().and_then(|f| f.parse::<RawScene>().ok());
+        SceneLines { file, raw }
+    }
+    fn line<T>(&self, s: Option<&Spanned<T>>) -> Option<usize> {
+        Some(self.file.as_ref()?.line_of(s?.span().start))
+    }
+    fn group_object(&self, g: usize, o: usize) -> Option<usize> {
+        let raw = self.raw.as_ref()?;
+        self.line(raw.groups.get(g)?.get_ref().objects.get_ref().get(o))
+    }
+    fn light(&self, l: usize) -> Option<usize> {
+        self.line(
+            self.raw
+                .as_ref()?
+                .lights
+                .get(l)
+                .map(|l| &l.get_ref().object),
+        )
+    }
+    fn hide(&self, h: usize) -> Option<usize> {
+        self.line(self.raw.as_ref()?.hide.get(h))
+    }
+}
+
+/// Reading TOML with positions, shared by scene.toml and materials.toml: byte spans to
+/// 1-based lines and columns, numbers checked finite and within f32, fixed-length vectors.
+pub mod toml_src {
+    use std::ops::Range;
+    use std::path::{Path, PathBuf};
+
+    use serde::de::DeserializeOwned;
+    use serde::Deserialize;
+    use toml::Spanned;
+
+    use crate::error::{Error, Location};
+
+    /// The text of one TOML file and its path.
+    pub struct TomlFile {
+        pub path: PathBuf,
+        pub text: String,
+    }
+
+    #[derive(Deserialize)]
+    struct FormatOnly {
+        format: Option<Spanned<toml::Value>>,
+    }
+
+    impl TomlFile {
+        /// Reads the file (an I/O error names it).
+        pub fn read(path: &Path) -> Result<TomlFile, Error> {
+            let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+            Ok(TomlFile {
+                path: path.to_path_buf(),
+                text,
+            })
+        }
+
+        /// 1-based line and column (in characters) of a byte offset.
+        pub fn line_col(&self, offset: usize) -> (usize, usize) {
+            let offset = offset.min(self.text.len());
+            let before = self.text.get(..offset).unwrap_or(&self.text);
+            let line = before.matches('\n').count() + 1;
+            let start = before.rfind('\n').map_or(0, |i| i + 1);
+            (line, before[start..].chars().count() + 1)
+        }
+
+        pub fn line_of(&self, offset: usize) -> usize {
+            self.line_col(offset).0
+        }
+
+        /// An input error at the start of `span`.
+        pub fn at(&self, span: Range<usize>, message: impl Into<String>) -> Error {
+            let (line, column) = self.line_col(span.start);
+            Error::Input {
+                file: self.path.clone(),
+                location: Some(Location::Line {
+                    line,
+                    column: Some(column),
+                }),
+                message: message.into(),
+            }
+        }
+
+        /// Parses the whole file (syntax, types, missing and unknown keys).
+        pub fn parse<T: DeserializeOwned>(&self) -> Result<T, Error> {
+            toml::from_str(&self.text).map_err(|e| self.de_error(&e))
+        }
+
+        fn de_error(&self, e: &toml::de::Error) -> Error {
+            let message = e
+                .message()
+                .replace("missing field", "missing key")
+                .replace("unknown field", "unknown key")
+                .replace("expected one of", "expected one of the keys")
+                .replace("expected f64", "expected a number")
+                .replace("expected i64", "expected an integer");
+            match e.span() {
+                Some(span) => self.at(span, message),
+                None => Error::input(&self.path, message),
+            }
+        }
+
+        /// `format` must be present and be the integer 1; checked before anything else so a
+        /// newer file gets that error rather than one about its new keys.
+        pub fn check_format(&self) -> Result<(), Error> {
+            let f: FormatOnly = self.parse()?;
+            match f.format {
+                None => Err(Error::input(
+                    &self.path,
+                    "missing key `format` (this tool reads format = 1)",
+                )),
+                Some(v) => match v.get_ref() {
+                    toml::Value::Integer(1) => Ok(()),
+                    other => Err(self.at(
+                        v.span(),
+                        format!("format {other} is not supported: this tool reads format = 1"),
+                    )),
+                },
+            }
+        }
+
+        /// A non-empty string.
+        pub fn name(&self, s: &Spanned<String>, what: &str) -> Result<String, Error> {
+            if s.get_ref().trim().is_empty() {
+                return Err(self.at(s.span(), format!("{what} is empty")));
+            }
+            Ok(s.get_ref().clone())
+        }
+
+        /// A path relative to this file's folder (absolute paths stay as they are).
+        pub fn resolve(&self, rel: &str) -> PathBuf {
+            match self.path.parent() {
+                Some(dir) => dir.join(rel),
+                None => PathBuf::from(rel),
+            }
+        }
+
+        /// A finite number that fits an f32.
+        pub fn number(&self, v: &Spanned<f64>, what: &str) -> Result<f32, Error> {
+            to_f32(*v.get_ref()).map_err(|m| self.at(v.span(), format!("`{what}` {m}")))
+        }
+
+        /// Exactly `N` finite numbers that fit an f32.
+        pub fn vector<const N: usize>(
+            &self,
+            v: &Spanned<Vec<f64>>,
+            what: &str,
+        ) -> Result<[f32; N], Error> {
+            let xs = v.get_ref();
+            if xs.len() != N {
+                return Err(self.at(
+                    v.span(),
+                    format!("`{what}` must have {N} numbers, found {}", xs.len()),
+                ));
+            }
+            let mut out = [0.0f32; N];
+            for (o, &x) in out.iter_mut().zip(xs) {
+                *o = to_f32(x).map_err(|m| self.at(v.span(), format!("`{what}` {m}")))?;
+            }
+            Ok(out)
+        }
+    }
+
+    fn to_f32(x: f64) -> Result<f32, String> {
+        if !x.is_finite() {
+            return Err(format!("must be a finite number, got {x}"));
+        }
+        let y = x as f32;
+        if !y.is_finite() {
+            return Err(format!("is out of range for a 32-bit float: {x:e}"));
+        }
+        Ok(y)
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::obj::load_obj;
+
+    pub(crate) const SCENE: &str = r#"format = 1
+name = "t"
+geometry = ["geo.obj"]
+hide = []
+
+[[view]]
+name = "front"
+image = "views/front.exr"
+position = [0.0, -2.0, 0.5]
+direction = [0.0, 1.0, 0.0]
+up = [0.0, 0.0, 1.0]
+fov_deg = [60.0, 60.0]
+size = [8, 8]
+exposure = 1.0
+
+[[light]]
+object = "lamp"
+radiance = [5.0, 5.0, 5.0]
+
+[[group]]
+name = "floor"
+kind = "plastic"
+objects = ["quad"]
+"#;
+
+    pub(crate) const OBJ: &str = "o quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n\
+                                  o lamp\nv 0 0 2\nv 1 0 2\nv 1 1 2\nf 5 7 6\n";
+
+    /// The shared reference scenes, or None (with a note) when they are not here.
+    pub(crate) fn bench() -> Option<PathBuf> {
+        let dir = std::env::var_os("RELUME_SHARED")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared"))
+            .join("bench");
+        if dir.is_dir() {
+            Some(dir)
+        } else {
+            eprintln!(
+                "note: {} not found, skipping the reference-scene checks",
+                dir.display()
+            );
+            None
+        }
+    }
+
+    /// Writes scene.toml (SCENE with `from` replaced by `to`) and geo.obj into a fresh temp dir.
+    fn write(from: &str, to: &str) -> (tempfile::TempDir, PathBuf) {
+        assert!(
+            from.is_empty() || SCENE.contains(from),
+            "test setup: {from:?} not in SCENE"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let text = if from.is_empty() {
+            SCENE.to_string()
+        } else {
+            SCENE.replacen(from, to, 1)
+        };
+        let path = dir.path().join("scene.toml");
+        std::fs::write(&path, text).unwrap();
+        std::fs::write(dir.path().join("geo.obj"), OBJ).unwrap();
+        (dir, path)
+    }
+
+    /// The error of loading SCENE with one replacement; checks that it names the file and
+    /// `line` and contains every one of `what`.
+    fn bad(from: &str, to: &str, line: usize, what: &[&str]) -> String {
+        let (_dir, path) = write(from, to);
+        let e = load_scene(&path)
+            .expect_err("the scene should be refused")
+            .to_string();
+        eprintln!("{e}");
+        assert!(
+            e.contains(&format!("scene.toml:{line}")),
+            "expected scene.toml:{line} in: {e}"
+        );
+        for w in what {
+            assert!(e.contains(w), "expected {w:?} in: {e}");
+        }
+        e
+    }
+
+    fn objects_of(desc: &SceneDesc) -> Vec<ObjObject> {
+        desc.geometry
+            .iter()
+            .flat_map(|g| load_obj(g).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn good_scene_loads_with_resolved_paths() {
+        let (dir, path) = write("", "");
+        let d = load_scene(&path).unwrap();
+        assert_eq!(d.name, "t");
+        assert_eq!(d.geometry, vec![dir.path().join("geo.obj")]);
+        assert_eq!(d.views[0].image, Some(dir.path().join("views/front.exr")));
+        assert_eq!(d.views[0].size, [8, 8]);
+        assert_eq!(d.views[0].fov_deg, [60.0, 60.0]);
+        assert_eq!(
+            d.lights,
+            vec![LightDesc {
+                object: "lamp".into(),
+                radiance: [5.0; 3]
+            }]
+        );
+        assert_eq!(d.groups[0].kind, GroupKind::Plastic);
+        check_objects(&d, &objects_of(&d)).unwrap();
+    }
+
+    #[test]
+    fn optional_keys_take_their_defaults() {
+        let (_dir, path) = write("exposure = 1.0\n", "");
+        let d = load_scene(&path).unwrap();
+        assert_eq!(d.views[0].exposure, 1.0);
+        let (_dir, path) = write("image = \"views/front.exr\"\n", "");
+        assert_eq!(load_scene(&path).unwrap().views[0].image, None);
+        let (_dir, path) = write("hide = []\n", "");
+        assert!(load_scene(&path).unwrap().hide.is_empty());
+    }
+
+    #[test]
+    fn kinds_metal_and_auto() {
+        let (_dir, path) = write("kind = \"plastic\"", "kind = \"metal\"");
+        assert_eq!(load_scene(&path).unwrap().groups[0].kind, GroupKind::Metal);
+        let (_dir, path) = write("kind = \"plastic\"", "kind = \"auto\"");
+        assert_eq!(load_scene(&path).unwrap().groups[0].kind, GroupKind::Auto);
+    }
+
+    #[test]
+    fn format_must_be_1() {
+        bad(
+            "format = 1",
+            "format = 2",
+            1,
+            &["format 2 is not supported", "format = 1"],
+        );
+        bad("format = 1", "format = \"1\"", 1, &["is not supported"]);
+        bad("format = 1", "format = 1.0", 1, &["is not supported"]);
+        // A newer format is reported as such, not as its unknown keys.
+        let (_dir, path) = write("format = 1", "format = 2\nshiny = true");
+        let e = load_scene(&path).unwrap_err().to_string();
+        assert!(e.contains("format 2"), "{e}");
+    }
+
+    #[test]
+    fn missing_format_is_an_error() {
+        let (_dir, path) = write("format = 1\n", "");
+        let e = load_scene(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("scene.toml") && e.contains("missing key `format`"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn syntax_errors_give_the_line() {
+        bad("name = \"front\"", "name = \"front", 7, &["scene.toml:7:"]);
+    }
+
+    #[test]
+    fn unknown_keys_are_errors() {
+        bad(
+            "hide = []",
+            "hide = []\nnmae = \"x\"",
+            5,
+            &["unknown key `nmae`"],
+        );
+        bad(
+            "exposure = 1.0",
+            "exposure = 1.0\nexposre = 2.0",
+            15,
+            &["unknown key `exposre`"],
+        );
+        bad(
+            "radiance = [5.0, 5.0, 5.0]",
+            "radiance = [5.0, 5.0, 5.0]\ncolor = 1",
+            19,
+            &["unknown key `color`"],
+        );
+        bad(
+            "objects = [\"quad\"]",
+            "objects = [\"quad\"]\nobject = \"x\"",
+            24,
+            &["unknown key `object`"],
+        );
+    }
+
+    #[test]
+    fn missing_keys_are_errors() {
+        bad("size = [8, 8]\n", "", 6, &["missing key `size`"]);
+        bad(
+            "position = [0.0, -2.0, 0.5]\n",
+            "",
+            6,
+            &["missing key `position`"],
+        );
+        bad(
+            "radiance = [5.0, 5.0, 5.0]\n",
+            "",
+            16,
+            &["missing key `radiance`"],
+        );
+        bad("kind = \"plastic\"\n", "", 20, &["missing key `kind`"]);
+        let (_dir, path) = write("name = \"t\"\n", "");
+        let e = load_scene(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("scene.toml") && e.contains("missing key `name`"),
+            "{e}"
+        );
+        let (_dir, path) = write("geometry = [\"geo.obj\"]\n", "");
+        let e = load_scene(&path).unwrap_err().to_string();
+        assert!(e.contains("missing key `geometry`"), "{e}");
+    }
+
+    #[test]
+    fn wrong_types_are_errors() {
+        bad(
+            "size = [8, 8]",
+            "size = [8.5, 8]",
+            13,
+            &["expected an integer"],
+        );
+        bad(
+            "exposure = 1.0",
+            "exposure = \"bright\"",
+            14,
+            &["invalid type", "expected a number"],
+        );
+        bad(
+            "objects = [\"quad\"]",
+            "objects = \"quad\"",
+            23,
+            &["invalid type"],
+        );
+    }
+
+    #[test]
+    fn numbers_must_be_finite() {
+        bad(
+            "position = [0.0, -2.0, 0.5]",
+            "position = [0.0, nan, 0.5]",
+            9,
+            &["`position`", "finite"],
+        );
+        bad(
+            "direction = [0.0, 1.0, 0.0]",
+            "direction = [0.0, inf, 0.0]",
+            10,
+            &["`direction`", "finite"],
+        );
+        bad(
+            "exposure = 1.0",
+            "exposure = -inf",
+            14,
+            &["`exposure`", "finite"],
+        );
+        bad(
+            "radiance = [5.0, 5.0, 5.0]",
+            "radiance = [5.0, nan, 5.0]",
+            18,
+            &["`radiance`", "finite"],
+        );
+        bad(
+            "position = [0.0, -2.0, 0.5]",
+            "position = [0.0, 1e40, 0.5]",
+            9,
+            &["out of range for a 32-bit float: 1e40"],
+        );
+    }
+
+    #[test]
+    fn vectors_must_have_the_right_length() {
+        bad(
+            "position = [0.0, -2.0, 0.5]",
+            "position = [0.0, -2.0]",
+            9,
+            &["`position` must have 3 numbers, found 2"],
+        );
+        bad(
+            "up = [0.0, 0.0, 1.0]",
+            "up = [0.0, 0.0, 1.0, 0.0]",
+            11,
+            &["`up` must have 3 numbers, found 4"],
+        );
+        bad(
+            "fov_deg = [60.0, 60.0]",
+            "fov_deg = [60.0]",
+            12,
+            &["`fov_deg` must have 2 numbers"],
+        );
+        bad(
+            "size = [8, 8]",
+            "size = [8, 8, 8]",
+            13,
+            &["size must have 2 integers"],
+        );
+        bad(
+            "radiance = [5.0, 5.0, 5.0]",
+            "radiance = [5.0]",
+            18,
+            &["`radiance` must have 3"],
+        );
+    }
+
+    #[test]
+    fn radiance_must_not_be_negative() {
+        bad(
+            "radiance = [5.0, 5.0, 5.0]",
+            "radiance = [5.0, -0.1, 5.0]",
+            18,
+            &["light 'lamp'", "radiance must be >= 0"],
+        );
+        // Zero is a switched-off light.
+        let (_dir, path) = write("radiance = [5.0, 5.0, 5.0]", "radiance = [0.0, 0.0, 0.0]");
+        assert_eq!(load_scene(&path).unwrap().lights[0].radiance, [0.0; 3]);
+    }
+
+    #[test]
+    fn exposure_must_be_positive() {
+        bad(
+            "exposure = 1.0",
+            "exposure = 0.0",
+            14,
+            &["view 'front'", "exposure must be > 0"],
+        );
+        bad(
+            "exposure = 1.0",
+            "exposure = -2",
+            14,
+            &["exposure must be > 0"],
+        );
+    }
+
+    #[test]
+    fn size_must_be_at_least_1() {
+        bad(
+            "size = [8, 8]",
+            "size = [0, 8]",
+            13,
+            &["view 'front'", "size must be between 1 and"],
+        );
+        bad(
+            "size = [8, 8]",
+            "size = [8, -1]",
+            13,
+            &["size must be between 1 and"],
+        );
+        bad(
+            "size = [8, 8]",
+            "size = [8, 100000]",
+            13,
+            &["size must be between 1 and 65536"],
+        );
+    }
+
+    #[test]
+    fn fov_must_be_in_0_180() {
+        for fov in [
+            "[0.0, 60.0]",
+            "[60.0, 180.0]",
+            "[-10.0, 60.0]",
+            "[60.0, 200.0]",
+        ] {
+            bad(
+                "fov_deg = [60.0, 60.0]",
+                &format!("fov_deg = {fov}"),
+                12,
+                &["fov_deg must be in (0, 180)"],
+            );
+        }
+    }
+
+    #[test]
+    fn direction_and_up_must_make_a_frame() {
+        bad(
+            "direction = [0.0, 1.0, 0.0]",
+            "direction = [0.0, 0.0, 0.0]",
+            10,
+            &["direction is zero"],
+        );
+        bad(
+            "up = [0.0, 0.0, 1.0]",
+            "up = [0.0, 2.0, 0.0]",
+            11,
+            &["parallel to direction"],
+        );
+        bad(
+            "up = [0.0, 0.0, 1.0]",
+            "up = [0.0, 0.0, 0.0]",
+            11,
+            &["zero or parallel"],
+        );
+    }
+
+    #[test]
+    fn duplicate_view_names_are_errors() {
+        let second = "[[light]]";
+        let view =
+            "[[view]]\nname = \"front\"\nposition = [0.0, 0.0, 0.0]\ndirection = [1.0, 0.0, 0.0]\n\
+                    up = [0.0, 0.0, 1.0]\nfov_deg = [90.0, 90.0]\nsize = [4, 4]\n\n[[light]]";
+        bad(
+            second,
+            view,
+            17,
+            &["duplicate view name 'front'", "first at line 7"],
+        );
+    }
+
+    #[test]
+    fn a_scene_needs_a_view() {
+        let (_dir, path) = write("", "");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let start = text.find("[[view]]").unwrap();
+        let end = text.find("[[light]]").unwrap();
+        std::fs::write(&path, format!("{}{}", &text[..start], &text[end..])).unwrap();
+        let e = load_scene(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("scene.toml") && e.contains("at least one view"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn duplicate_group_names_are_errors() {
+        let extra = "objects = [\"quad\"]\n\n[[group]]\nname = \"floor\"\nkind = \"metal\"\nobjects = [\"other\"]\n";
+        bad(
+            "objects = [\"quad\"]\n",
+            extra,
+            26,
+            &["duplicate group name 'floor'", "first at line 21"],
+        );
+    }
+
+    #[test]
+    fn an_object_in_two_groups_is_an_error() {
+        let extra = "objects = [\"quad\"]\n\n[[group]]\nname = \"rug\"\nkind = \"plastic\"\nobjects = [\"quad\"]\n";
+        bad(
+            "objects = [\"quad\"]\n",
+            extra,
+            28,
+            &["object 'quad' is in group 'rug' and also group 'floor' (line 23)"],
+        );
+    }
+
+    #[test]
+    fn an_object_twice_in_one_group_is_an_error() {
+        bad(
+            "objects = [\"quad\"]",
+            "objects = [\"quad\", \"quad\"]",
+            23,
+            &["'quad' is listed twice in group 'floor'"],
+        );
+    }
+
+    #[test]
+    fn an_object_in_a_group_and_a_light_is_an_error() {
+        bad(
+            "objects = [\"quad\"]",
+            "objects = [\"quad\", \"lamp\"]",
+            23,
+            &["'lamp' is in group 'floor' and also a light (line 17)"],
+        );
+    }
+
+    #[test]
+    fn a_light_listed_twice_is_an_error() {
+        let extra = "radiance = [5.0, 5.0, 5.0]\n\n[[light]]\nobject = \"lamp\"\nradiance = [1.0, 1.0, 1.0]\n";
+        bad(
+            "radiance = [5.0, 5.0, 5.0]\n",
+            extra,
+            21,
+            &["light object 'lamp' is listed twice (first at line 17)"],
+        );
+    }
+
+    #[test]
+    fn unknown_group_kind_is_an_error() {
+        bad(
+            "kind = \"plastic\"",
+            "kind = \"glass\"",
+            22,
+            &["group 'floor'", "unknown kind 'glass'"],
+        );
+    }
+
+    #[test]
+    fn empty_names_and_lists_are_errors() {
+        bad(
+            "name = \"front\"",
+            "name = \"\"",
+            7,
+            &["view name is empty"],
+        );
+        bad(
+            "objects = [\"quad\"]",
+            "objects = []",
+            23,
+            &["group 'floor' lists no objects"],
+        );
+        bad(
+            "objects = [\"quad\"]",
+            "objects = [\" \"]",
+            23,
+            &["object is empty"],
+        );
+        bad(
+            "geometry = [\"geo.obj\"]",
+            "geometry = []",
+            3,
+            &["lists no OBJ file"],
+        );
+    }
+
+    #[test]
+    fn geometry_files_must_exist_once() {
+        bad(
+            "geometry = [\"geo.obj\"]",
+            "geometry = [\"nope.obj\"]",
+            3,
+            &["nope.obj does not exist"],
+        );
+        bad(
+            "geometry = [\"geo.obj\"]",
+            "geometry = [\"geo.obj\", \"./geo.obj\"]",
+            3,
+            &["is listed twice"],
+        );
+    }
+
+    #[test]
+    fn hiding_an_object_twice_is_an_error() {
+        bad(
+            "hide = []",
+            "hide = [\"quad\", \"quad\"]",
+            4,
+            &["object 'quad' is listed twice in `hide`"],
+        );
+    }
+
+    #[test]
+    fn a_missing_scene_file_is_an_io_error_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = load_scene(&dir.path().join("absent.toml")).unwrap_err();
+        assert!(matches!(e, Error::Io { .. }));
+        assert!(e.to_string().contains("absent.toml"), "{e}");
+    }
+
+    fn check_err(from: &str, to: &str) -> String {
+        let (_dir, path) = write(from, to);
+        let d = load_scene(&path).unwrap();
+        check_objects(&d, &objects_of(&d))
+            .expect_err("check_objects should refuse")
+            .to_string()
+    }
+
+    #[test]
+    fn named_objects_must_exist_in_the_geometry() {
+        let e = check_err("objects = [\"quad\"]", "objects = [\"quad\", \"chair\"]");
+        assert!(
+            e.contains("scene.toml:23")
+                && e.contains("object 'chair' (in group 'floor') is not in the geometry"),
+            "{e}"
+        );
+        assert!(e.contains("geo.obj"), "{e}");
+        let e = check_err("object = \"lamp\"", "object = \"lampe\"");
+        assert!(
+            e.contains("scene.toml:17") && e.contains("'lampe' (a light) is not in the geometry"),
+            "{e}"
+        );
+        let e = check_err("hide = []", "hide = [\"ghost\"]");
+        assert!(
+            e.contains("scene.toml:4") && e.contains("'ghost' (in `hide`) is not in the geometry"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn every_obj_object_must_be_assigned() {
+        let e = check_err(
+            "[[light]]\nobject = \"lamp\"\nradiance = [5.0, 5.0, 5.0]\n",
+            "",
+        );
+        assert!(e.contains("geo.obj:7"), "{e}");
+        assert!(
+            e.contains("object 'lamp' is in no group, is no light and is not hidden in"),
+            "{e}"
+        );
+        assert!(e.contains("scene.toml"), "{e}");
+    }
+
+    #[test]
+    fn hidden_objects_need_no_group_and_may_keep_one() {
+        let (_dir, path) = write("hide = []", "hide = [\"lamp\", \"quad\"]");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let start = text.find("[[light]]").unwrap();
+        let end = text.find("[[group]]").unwrap();
+        std::fs::write(&path, format!("{}{}", &text[..start], &text[end..])).unwrap();
+        let d = load_scene(&path).unwrap();
+        check_objects(&d, &objects_of(&d)).unwrap();
+    }
+
+    #[test]
+    fn an_object_defined_in_two_files_is_an_error_naming_both() {
+        let (dir, path) = write(
+            "geometry = [\"geo.obj\"]",
+            "geometry = [\"geo.obj\", \"more.obj\"]",
+        );
+        std::fs::write(
+            dir.path().join("more.obj"),
+            "o quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        let d = load_scene(&path).unwrap();
+        let e = check_objects(&d, &objects_of(&d)).unwrap_err().to_string();
+        assert!(
+            e.contains("object 'quad' is defined twice")
+                && e.contains("geo.obj")
+                && e.contains("more.obj"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn box_diffuse_scene_loads() {
+        let Some(bench) = bench() else { return };
+        let d = load_scene(&bench.join("box-diffuse/scene.toml")).unwrap();
+        assert_eq!(d.name, "box-diffuse");
+        assert_eq!(d.views.len(), 6);
+        assert_eq!(d.groups.len(), 6);
+        assert_eq!(d.lights.len(), 1);
+        assert_eq!(d.lights[0].radiance, [60.0, 55.0, 48.0]);
+        assert_eq!(d.views[4].up, [0.0, -1.0, 0.0]);
+        assert!(d
+            .views
+            .iter()
+            .all(|v| v.size == [256, 256] && v.exposure == 1.0));
+        assert!(d
+            .views
+            .iter()
+            .all(|v| v.image.as_ref().is_some_and(|p| p.is_file())));
+        let objects = objects_of(&d);
+        assert_eq!(objects.len(), 9);
+        assert_eq!(objects.iter().map(|o| o.triangles.len()).sum::<usize>(), 38);
+    }
+
+    #[test]
+    fn every_bench_scene_passes_check_objects() {
+        let Some(bench) = bench() else { return };
+        let mut n = 0;
+        for entry in std::fs::read_dir(&bench).unwrap() {
+            let dir = entry.unwrap().path();
+            for name in ["scene.toml", "scene-small.toml"] {
+                let p = dir.join(name);
+                if p.is_file() {
+                    let d = load_scene(&p).unwrap_or_else(|e| panic!("{e}"));
+                    check_objects(&d, &objects_of(&d)).unwrap_or_else(|e| panic!("{e}"));
+                    n += 1;
+                }
+            }
+        }
+        assert!(n >= 8, "found only {n} scene files");
+    }
+
+    #[test]
+    fn line_and_column_of_offsets() {
+        let f = TomlFile {
+            path: "x.toml".into(),
+            text: "ab\ncdé\nf".into(),
+        };
+        assert_eq!(f.line_col(0), (1, 1));
+        assert_eq!(f.line_col(3), (2, 1));
+        assert_eq!(f.line_col(7), (2, 4));
+        assert_eq!(f.line_col(8), (3, 1));
+        assert_eq!(f.line_col(1000), (3, 2));
+    }
+}

@@ -7,7 +7,10 @@ use std::process::{Command, Output};
 
 /// The workspace root (this folder's parent).
 pub fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
 }
 
 /// The shared reference folder: `$RELUME_SHARED`, or `../shared` beside the workspace.

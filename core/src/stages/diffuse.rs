@@ -98,7 +98,10 @@ mod tests {
     #[test]
     fn verdicts_follow_the_threshold_and_pixel_counts() {
         assert_eq!(verdict(&fit_of(1.0, 1.01, 100)), DiffuseVerdict::Diffuse);
-        assert_eq!(verdict(&fit_of(1.0, 1.2, 100)), DiffuseVerdict::NeedsSpecular);
+        assert_eq!(
+            verdict(&fit_of(1.0, 1.2, 100)),
+            DiffuseVerdict::NeedsSpecular
+        );
         assert_eq!(verdict(&fit_of(1.0, 1.2, 3)), DiffuseVerdict::BarelySeen);
         assert_eq!(verdict(&GroupFit::default()), DiffuseVerdict::Unseen);
     }

@@ -44,6 +44,18 @@ impl LinearSums {
         }
     }
 
+    /// Adds the sums of another part of the same group (in a fixed order).
+    pub fn merge(&mut self, other: &LinearSums) {
+        for c in 0..3 {
+            self.dd[c] += other.dd[c];
+            self.db[c] += other.db[c];
+            self.bb[c] += other.bb[c];
+            self.dt[c] += other.dt[c];
+            self.bt[c] += other.bt[c];
+            self.tt[c] += other.tt[c];
+        }
+    }
+
     /// Sum of squared residuals of `T ~ r D + S B` per channel.
     fn sse(&self, r: [f64; 3], s: [f64; 3]) -> f64 {
         (0..3)
@@ -105,7 +117,11 @@ pub fn solve_plastic(sums: &LinearSums) -> WardFit {
             den -= sums.db[c] * sums.db[c] / sums.dd[c];
         }
     }
-    let s = if den > 0.0 { (num / den).clamp(0.0, 1.0) } else { 0.0 };
+    let s = if den > 0.0 {
+        (num / den).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let rho_d: [f64; 3] = core::array::from_fn(|c| {
         if sums.dd[c] > 0.0 {
             ((sums.dt[c] - s * sums.db[c]) / sums.dd[c]).clamp(0.0, (1.0 - s).max(0.0))
@@ -113,8 +129,37 @@ pub fn solve_plastic(sums: &LinearSums) -> WardFit {
             0.0
         }
     });
-    let color = core::array::from_fn(|c| if s < 1.0 { (rho_d[c] / (1.0 - s)).min(1.0) } else { 0.0 });
+    let color = core::array::from_fn(|c| {
+        if s < 1.0 {
+            (rho_d[c] / (1.0 - s)).min(1.0)
+        } else {
+            0.0
+        }
+    });
     finish(sums, rho_d, [s; 3], color, s)
+}
+
+/// Diffuse only (`S = 0`): the stage-1 model on the same pixels, for a like-for-like
+/// comparison with the Ward fits.
+pub fn solve_diffuse(sums: &LinearSums) -> WardFit {
+    let rho_d: [f64; 3] = core::array::from_fn(|c| {
+        if sums.dd[c] > 0.0 {
+            (sums.dt[c] / sums.dd[c]).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    });
+    finish(sums, rho_d, [0.0; 3], rho_d, 0.0)
+}
+
+/// Whether a specular fit explains the group measurably better than the diffuse one on the
+/// same cached pixels: the error it removes, `sqrt(e_diffuse^2 - e_specular^2)`, must exceed
+/// [`crate::fit::SPECULAR_GAIN_THRESHOLD`] (the paper's 1% that keeps weak speculars out of
+/// diffuse). The cache's own noise adds equally to both errors and cancels in the difference.
+pub fn specular_gain(diffuse: &WardFit, specular: &WardFit) -> f64 {
+    let e2 = diffuse.relative_error * diffuse.relative_error
+        - specular.relative_error * specular.relative_error;
+    libm::sqrt(e2.max(0.0))
 }
 
 /// Metal: minimise over colour `c` (3) and `s`, `rho_d = c (1 - s)`, `S = c s`. For a given
@@ -123,7 +168,9 @@ pub fn solve_plastic(sums: &LinearSums) -> WardFit {
 pub fn solve_metal(sums: &LinearSums) -> WardFit {
     let colors_for = |s: f64| -> [f64; 3] {
         core::array::from_fn(|c| {
-            let gg = (1.0 - s) * (1.0 - s) * sums.dd[c] + 2.0 * s * (1.0 - s) * sums.db[c] + s * s * sums.bb[c];
+            let gg = (1.0 - s) * (1.0 - s) * sums.dd[c]
+                + 2.0 * s * (1.0 - s) * sums.db[c]
+                + s * s * sums.bb[c];
             let gt = (1.0 - s) * sums.dt[c] + s * sums.bt[c];
             if gg > 0.0 {
                 (gt / gg).clamp(0.0, 1.0)
@@ -134,7 +181,10 @@ pub fn solve_metal(sums: &LinearSums) -> WardFit {
     };
     let sse_for = |s: f64| {
         let c = colors_for(s);
-        sums.sse(core::array::from_fn(|k| c[k] * (1.0 - s)), core::array::from_fn(|k| c[k] * s))
+        sums.sse(
+            core::array::from_fn(|k| c[k] * (1.0 - s)),
+            core::array::from_fn(|k| c[k] * s),
+        )
     };
     let (s, _) = minimise_1d(sse_for, 0.0, 1.0, 101, 30, false);
     let c = colors_for(s);
@@ -149,7 +199,14 @@ pub fn solve_metal(sums: &LinearSums) -> WardFit {
 
 /// Global minimum of `f` on `[lo, hi]`: `n_grid` grid points (log-spaced when `log`), then
 /// golden-section search in the bracket around the best one. Returns `(x, f(x))`.
-pub fn minimise_1d(mut f: impl FnMut(f64) -> f64, lo: f64, hi: f64, n_grid: usize, refine_steps: usize, log: bool) -> (f64, f64) {
+pub fn minimise_1d(
+    mut f: impl FnMut(f64) -> f64,
+    lo: f64,
+    hi: f64,
+    n_grid: usize,
+    refine_steps: usize,
+    log: bool,
+) -> (f64, f64) {
     let n = n_grid.max(2);
     let at = |i: usize| -> f64 {
         let t = i as f64 / (n - 1) as f64;
@@ -212,7 +269,8 @@ mod tests {
             let d = [0.2 + x, 0.3 + 0.5 * x, 0.25 + 0.2 * x];
             let bump = libm::expf(-((x - 0.5) * (x - 0.5)) / 0.01) * 3.0 + 0.05;
             let b = [bump, bump * 0.9, bump * 1.1];
-            let t: [f32; 3] = core::array::from_fn(|c| (rho_d[c] * d[c] as f64 + rho_s[c] * b[c] as f64) as f32);
+            let t: [f32; 3] =
+                core::array::from_fn(|c| (rho_d[c] * d[c] as f64 + rho_s[c] * b[c] as f64) as f32);
             s.add(d, b, t);
         }
         s
@@ -251,7 +309,14 @@ mod tests {
             let d = libm::log(a / target);
             d * d - 0.5 * libm::exp(-d * d / 0.01)
         };
-        let (x, _) = minimise_1d(f, ROUGHNESS_MIN, ROUGHNESS_MAX, ROUGHNESS_GRID, ROUGHNESS_REFINE_STEPS, true);
+        let (x, _) = minimise_1d(
+            f,
+            ROUGHNESS_MIN,
+            ROUGHNESS_MAX,
+            ROUGHNESS_GRID,
+            ROUGHNESS_REFINE_STEPS,
+            true,
+        );
         assert!((x / target - 1.0).abs() < 1e-3, "{x}");
     }
 }

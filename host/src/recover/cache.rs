@@ -1,0 +1,101 @@
+//! The transport cache of one group, built in parallel: for each of its pure pixels,
+//! `samples` pixel samples' incident light (`relume_core::transport`), in pixel order.
+
+use glam::Vec3;
+use rayon::prelude::*;
+use relume_core::geometry::View;
+use relume_core::material::Material;
+use relume_core::render::RenderSettings;
+use relume_core::scene::Scene;
+use relume_core::stages::isotropic::LinearSums;
+use relume_core::transport::{self, IncidentSample, INCIDENT_PER_SAMPLE};
+
+use super::pixels::{real_value, PurePixel, CHUNK};
+use crate::images::Image;
+
+/// The cached incident light of one group's pure pixels.
+pub struct GroupCache {
+    /// The pixels, in the order of `entries`.
+    pub pixels: Vec<PurePixel>,
+    /// The panorama's values of `pixels`.
+    pub real: Vec<Vec3>,
+    /// `per_pixel` entries per pixel (zero weights where a sample saw another surface).
+    pub entries: Vec<IncidentSample>,
+    pub samples: u32,
+}
+
+impl GroupCache {
+    pub fn per_pixel(&self) -> usize {
+        self.samples as usize * INCIDENT_PER_SAMPLE
+    }
+
+    /// The entries of pixel `i`.
+    pub fn pixel_entries(&self, i: usize) -> &[IncidentSample] {
+        let n = self.per_pixel();
+        &self.entries[i * n..(i + 1) * n]
+    }
+}
+
+/// Traces the cache of `group` (its pure pixels among `pure`).
+pub fn build(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    views: &[View],
+    pure: &[PurePixel],
+    real: &[Image],
+    group: u16,
+    settings: &RenderSettings,
+) -> GroupCache {
+    let pixels: Vec<PurePixel> = pure.iter().copied().filter(|p| p.group == group).collect();
+    let per_pixel = settings.spp as usize * INCIDENT_PER_SAMPLE;
+    let mut entries = vec![IncidentSample::default(); pixels.len() * per_pixel];
+    pool.install(|| {
+        entries
+            .par_chunks_mut(per_pixel * CHUNK)
+            .zip(pixels.par_chunks(CHUNK))
+            .for_each(|(out, chunk)| {
+                for (p, slot) in chunk.iter().zip(out.chunks_mut(per_pixel)) {
+                    let view = &views[p.view as usize];
+                    for s in 0..settings.spp {
+                        let mut buf = [IncidentSample::default(); INCIDENT_PER_SAMPLE];
+                        let n = transport::trace_pixel_sample(
+                            scene, view, p.view, p.x, p.y, s, group, settings, &mut buf,
+                        );
+                        let at = s as usize * INCIDENT_PER_SAMPLE;
+                        slot[at..at + n].copy_from_slice(&buf[..n]);
+                    }
+                }
+            });
+    });
+    let real = pixels.iter().map(|p| real_value(real, views, p)).collect();
+    GroupCache {
+        pixels,
+        real,
+        entries,
+        samples: settings.spp,
+    }
+}
+
+/// The normal-equation sums of the group's pixels for a unit specular `lobe`.
+pub fn linear_sums(pool: &rayon::ThreadPool, cache: &GroupCache, lobe: &Material) -> LinearSums {
+    let parts: Vec<LinearSums> = pool.install(|| {
+        (0..cache.pixels.len())
+            .collect::<Vec<_>>()
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let mut sums = LinearSums::default();
+                for &i in chunk {
+                    let (d, b) =
+                        transport::linear_parts(cache.pixel_entries(i), cache.samples, lobe);
+                    sums.add(d.to_array(), b.to_array(), cache.real[i].to_array());
+                }
+                sums
+            })
+            .collect()
+    });
+    let mut total = LinearSums::default();
+    for p in &parts {
+        total.merge(p);
+    }
+    total
+}

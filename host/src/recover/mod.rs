@@ -1,0 +1,557 @@
+//! `relume recover`: the staged recovery of every group's material from the panorama.
+//!
+//! The host's part: read the scene and the panorama, find each group's pure pixels, run
+//! the renders and caches each stage asks for (in parallel, in a fixed partition, so results
+//! do not depend on the thread count) and write the results atomically. The decisions and
+//! the math are the core's (`relume_core::stages`, `relume_core::fit`).
+//!
+//! 1. Diffuse: every group diffuse, `rho_d <- rho_d mean(real) / mean(rendered)`.
+//! 2. Isotropic: groups in decreasing order of their diffuse error (mirrors first, so that
+//!    a mirror is found before it corrupts the others), each fitted on its transport cache;
+//!    kept only when it removes measurably more error than the diffuse model; mirror test.
+//! 3. Diffuse groups are refined again under the specular materials found.
+
+mod cache;
+mod model;
+mod output;
+mod pixels;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use relume_core::fit::{self, GroupFit};
+use relume_core::geometry::View;
+use relume_core::material::{Kind, Material};
+use relume_core::render::RenderSettings;
+use relume_core::stages::diffuse::{self, DiffuseVerdict};
+use relume_core::stages::isotropic::{self, WardFit};
+use serde::Serialize;
+
+use crate::assemble::{self, MaterialSource, OwnedScene};
+use crate::error::Error;
+use crate::images::{self, Image};
+use crate::parallel;
+use crate::scene_file::GroupKind;
+pub use model::GroupModel;
+use pixels::PurePixel;
+
+/// How much work the recovery may spend: samples per pixel of the renders and caches in
+/// the loop, and of the final render that the report's errors come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Effort {
+    Fast,
+    Default,
+    Thorough,
+}
+
+impl Effort {
+    fn loop_spp(self) -> u32 {
+        match self {
+            Effort::Fast => 8,
+            Effort::Default => 32,
+            Effort::Thorough => 128,
+        }
+    }
+
+    fn cache_spp(self) -> u32 {
+        match self {
+            Effort::Fast => 16,
+            Effort::Default => 64,
+            Effort::Thorough => 256,
+        }
+    }
+
+    fn final_spp(self) -> u32 {
+        match self {
+            Effort::Fast => 32,
+            Effort::Default => 128,
+            Effort::Thorough => 512,
+        }
+    }
+}
+
+pub struct RecoverArgs {
+    pub scene: PathBuf,
+    pub out: PathBuf,
+    pub seed: u64,
+    pub threads: Option<usize>,
+    pub effort: Effort,
+}
+
+/// What the report says of one group.
+#[derive(Serialize, Clone, Debug)]
+pub struct GroupReport {
+    pub group: String,
+    pub kind: String,
+    pub pure_pixels: u32,
+    pub model: String,
+    /// Every decision taken for the group, in order, with the threshold and statistic.
+    pub decisions: Vec<String>,
+    /// Error of the first all-diffuse render.
+    pub error_initial: Option<f64>,
+    /// Error after stage 1 (diffuse).
+    pub error_diffuse: Option<f64>,
+    /// Relative error of the diffuse and the Ward fit on the group's transport cache.
+    pub cache_error_diffuse: Option<f64>,
+    pub cache_error_specular: Option<f64>,
+    /// Error of the final render of the recovered model.
+    pub error_final: Option<f64>,
+}
+
+#[derive(Serialize, Debug)]
+pub struct StageReport {
+    pub stage: String,
+    pub evaluations: u32,
+    pub samples_per_pixel: u32,
+    pub seconds: f64,
+    pub notes: Vec<String>,
+}
+
+#[derive(Serialize, Debug)]
+pub struct RecoverReport {
+    pub scene: String,
+    pub seed: u64,
+    pub effort: String,
+    pub error_definition: &'static str,
+    pub thresholds: serde_json::Value,
+    pub stages: Vec<StageReport>,
+    pub groups: Vec<GroupReport>,
+    pub warnings: Vec<String>,
+    pub seconds: f64,
+}
+
+/// The state of a recovery between stages.
+struct Recovery {
+    owned: OwnedScene,
+    views: Vec<View>,
+    real: Vec<Image>,
+    pure: Vec<PurePixel>,
+    models: Vec<GroupModel>,
+    pool: rayon::ThreadPool,
+    seed: u64,
+}
+
+impl Recovery {
+    fn n_groups(&self) -> usize {
+        self.models.len()
+    }
+
+    fn apply_models(&mut self) {
+        for (m, model) in self.owned.materials.iter_mut().zip(&self.models) {
+            *m = model.surface_material();
+        }
+    }
+
+    /// Renders the pure pixels of the groups `wanted` with the current models.
+    fn evaluate(
+        &mut self,
+        spp: u32,
+        seed: u64,
+        wanted: &(dyn Fn(u16) -> bool + Sync),
+    ) -> Result<Vec<GroupFit>, Error> {
+        self.apply_models();
+        let n = self.n_groups();
+        let settings = RenderSettings {
+            spp,
+            seed,
+            ..RenderSettings::default()
+        };
+        let scene = self.owned.build()?;
+        Ok(pixels::evaluate(
+            &self.pool,
+            &scene,
+            pixels::Observed {
+                views: &self.views,
+                real: &self.real,
+                pure: &self.pure,
+            },
+            &settings,
+            n,
+            wanted,
+        ))
+    }
+
+    /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
+    /// held fixed, until converged. Returns (first fits, last fits, evaluations).
+    fn diffuse_iteration(
+        &mut self,
+        spp: u32,
+        active: &[bool],
+        bar: &ProgressBar,
+    ) -> Result<(Vec<GroupFit>, Vec<GroupFit>, u32), Error> {
+        let seed = self.seed;
+        let wanted = |g: u16| active[g as usize];
+        let mut first = None;
+        let mut evaluations = 0;
+        loop {
+            let fits = self.evaluate(spp, seed, &wanted)?;
+            evaluations += 1;
+            bar.inc(1);
+            let first_fits = first.get_or_insert_with(|| fits.clone()).clone();
+            let mut max_change = 0.0f64;
+            for g in 0..self.n_groups() {
+                if let (true, GroupModel::Diffuse { color }) = (active[g], self.models[g]) {
+                    let (next, change) = diffuse::update(color, &fits[g]);
+                    self.models[g] = GroupModel::Diffuse { color: next };
+                    max_change = max_change.max(change);
+                }
+            }
+            if max_change <= fit::DIFFUSE_CONVERGED || evaluations >= fit::DIFFUSE_MAX_STEPS {
+                let last = self.evaluate(spp, seed, &wanted)?;
+                return Ok((first_fits, last, evaluations + 1));
+            }
+        }
+    }
+}
+
+fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len).with_style(
+        ProgressStyle::with_template("{msg:>14} [{bar:40}] {pos}/{len} {eta} left")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+/// The best isotropic Ward fit of a group's cache for one kind: roughness searched
+/// globally, reflectances in closed form.
+fn fit_ward(
+    pool: &rayon::ThreadPool,
+    cache: &cache::GroupCache,
+    kind: Kind,
+) -> (WardFit, f64, u32) {
+    let mut evaluations = 0;
+    let mut best: Option<(WardFit, f64)> = None;
+    let mut solve = |alpha: f64| {
+        evaluations += 1;
+        let lobe = Material::Ward {
+            rho_d: glam::Vec3::ZERO,
+            rho_s: glam::Vec3::ONE,
+            alpha: alpha as f32,
+        };
+        let sums = cache::linear_sums(pool, cache, &lobe);
+        let fit = match kind {
+            Kind::Plastic => isotropic::solve_plastic(&sums),
+            Kind::Metal => isotropic::solve_metal(&sums),
+        };
+        let sse = fit.sse;
+        if best.as_ref().is_none_or(|(b, _)| sse < b.sse) {
+            best = Some((fit, alpha));
+        }
+        sse
+    };
+    isotropic::minimise_1d(
+        &mut solve,
+        isotropic::ROUGHNESS_MIN,
+        isotropic::ROUGHNESS_MAX,
+        isotropic::ROUGHNESS_GRID,
+        isotropic::ROUGHNESS_REFINE_STEPS,
+        true,
+    );
+    let (fit, alpha) = best.unwrap_or((
+        isotropic::solve_diffuse(&relume_core::stages::isotropic::LinearSums::default()),
+        isotropic::ROUGHNESS_MAX,
+    ));
+    (fit, alpha, evaluations)
+}
+
+/// The paper's mirror test on an isotropic fit.
+fn mirror_test(fit: &WardFit, roughness: f64) -> Option<String> {
+    let total: f64 = (0..3).map(|c| fit.rho_d[c] + fit.rho_s[c]).sum();
+    let spec: f64 = fit.rho_s.iter().sum();
+    let fraction = if total > 0.0 { spec / total } else { 0.0 };
+    let (lo, hi) = fit
+        .rho_s
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), &v| (l.min(v), h.max(v)));
+    let tint = if hi > 0.0 { (hi - lo) / hi } else { 1.0 };
+    if fraction > fit::MIRROR_SPECULAR_FRACTION
+        && roughness <= fit::MIRROR_MAX_ROUGHNESS
+        && tint <= fit::MIRROR_MAX_TINT
+    {
+        Some(format!(
+            "mirror: specular fraction {fraction:.3} > MIRROR_SPECULAR_FRACTION {}, roughness {roughness:.4} <= MIRROR_MAX_ROUGHNESS {}, tint {tint:.3} <= MIRROR_MAX_TINT {}",
+            fit::MIRROR_SPECULAR_FRACTION,
+            fit::MIRROR_MAX_ROUGHNESS,
+            fit::MIRROR_MAX_TINT
+        ))
+    } else {
+        None
+    }
+}
+
+pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
+    let start = Instant::now();
+    let (desc, objects) = assemble::load_scene(&args.scene)?;
+    let mut real = Vec::with_capacity(desc.views.len());
+    for v in &desc.views {
+        let Some(path) = &v.image else {
+            return Err(Error::input(
+                &desc.path,
+                format!("view '{}' has no image: recover needs the panorama", v.name),
+            ));
+        };
+        real.push(images::read_view_image(path, v.exposure, v.size)?);
+    }
+    let kinds: Vec<GroupKind> = desc.groups.iter().map(|g| g.kind).collect();
+    let mut owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
+    let pool = parallel::thread_pool(args.threads)?;
+    let views = owned.views.clone();
+    let n_groups = owned.group_names.len();
+    let names = owned.group_names.clone();
+    let mut warnings = Vec::new();
+
+    let (pure, empty_views) = {
+        let scene = owned.build()?;
+        pixels::find_pure_pixels(&pool, &scene, &views)
+    };
+    for vi in empty_views {
+        warnings.push(format!(
+            "view '{}' sees no group in whole pixels (only lights, silhouettes or nothing): it adds nothing to the fit",
+            owned.desc.views[vi].name
+        ));
+    }
+    let mut rec = Recovery {
+        owned,
+        views,
+        real,
+        pure,
+        models: vec![GroupModel::Diffuse { color: [0.5; 3] }; n_groups],
+        pool,
+        seed: args.seed,
+    };
+    let mut reports: Vec<GroupReport> = (0..n_groups)
+        .map(|g| GroupReport {
+            group: names[g].clone(),
+            kind: format!("{:?}", kinds[g]).to_lowercase(),
+            pure_pixels: 0,
+            model: String::new(),
+            decisions: Vec::new(),
+            error_initial: None,
+            error_diffuse: None,
+            cache_error_diffuse: None,
+            cache_error_specular: None,
+            error_final: None,
+        })
+        .collect();
+
+    // Stage 1: all diffuse.
+    let stage_start = Instant::now();
+    let spp = args.effort.loop_spp();
+    let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "1 diffuse");
+    let all = vec![true; n_groups];
+    let (first, fits, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
+    bar.finish_and_clear();
+    let mut stages = vec![StageReport {
+        stage: "1 diffuse".into(),
+        evaluations,
+        samples_per_pixel: spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "rho_d <- rho_d * mean(real) / mean(rendered) per group and channel, until the largest relative change <= {}",
+            fit::DIFFUSE_CONVERGED
+        )],
+    }];
+    let mut candidates = Vec::new();
+    for g in 0..n_groups {
+        let r = &mut reports[g];
+        r.pure_pixels = fits[g].pixels;
+        r.error_initial = first[g].relative_error();
+        r.error_diffuse = fits[g].relative_error();
+        let e = fits[g].relative_error().unwrap_or(0.0);
+        match diffuse::verdict(&fits[g]) {
+            DiffuseVerdict::Unseen => {
+                rec.models[g] = GroupModel::Unseen;
+                r.decisions
+                    .push("unseen: no pure pixel in any view; material not recovered".into());
+                warnings.push(format!(
+                    "group '{}': no pure pixel in any view; its material is not recovered",
+                    names[g]
+                ));
+            }
+            DiffuseVerdict::BarelySeen => {
+                r.decisions.push(format!(
+                    "diffuse, barely seen: {} pure pixels < MIN_PIXELS_FOR_MODEL_CHOICE {}; no more complex model is tried",
+                    fits[g].pixels,
+                    fit::MIN_PIXELS_FOR_MODEL_CHOICE
+                ));
+                warnings.push(format!(
+                    "group '{}': only {} pure pixels; kept diffuse",
+                    names[g], fits[g].pixels
+                ));
+            }
+            DiffuseVerdict::Diffuse => {
+                r.decisions.push(format!("stage 1: diffuse error {e:.4} <= DIFFUSE_THRESHOLD {}; tested for a weak specular", fit::DIFFUSE_THRESHOLD));
+                candidates.push((g, e));
+            }
+            DiffuseVerdict::NeedsSpecular => {
+                r.decisions.push(format!(
+                    "stage 1: diffuse error {e:.4} > DIFFUSE_THRESHOLD {}: on to isotropic",
+                    fit::DIFFUSE_THRESHOLD
+                ));
+                candidates.push((g, e));
+            }
+        }
+    }
+
+    // Stage 2: isotropic, worst-explained groups first (mirrors before the rest).
+    let stage_start = Instant::now();
+    candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    let cache_settings = RenderSettings {
+        spp: args.effort.cache_spp(),
+        seed: args.seed ^ 0x1507,
+        ..RenderSettings::default()
+    };
+    let bar = progress_bar(candidates.len() as u64, "2 isotropic");
+    let mut evaluations = 0;
+    for &(g, _) in &candidates {
+        rec.apply_models();
+        let cache = {
+            let scene = rec.owned.build()?;
+            cache::build(
+                &rec.pool,
+                &scene,
+                &rec.views,
+                &rec.pure,
+                &rec.real,
+                g as u16,
+                &cache_settings,
+            )
+        };
+        let diffuse_fit = isotropic::solve_diffuse(&cache::linear_sums(
+            &rec.pool,
+            &cache,
+            &Material::Diffuse {
+                rho_d: glam::Vec3::ZERO,
+            },
+        ));
+        let kinds_to_try: &[Kind] = match kinds[g] {
+            GroupKind::Plastic => &[Kind::Plastic],
+            GroupKind::Metal => &[Kind::Metal],
+            GroupKind::Auto => &[Kind::Plastic, Kind::Metal],
+        };
+        let mut best: Option<(WardFit, f64, Kind)> = None;
+        for &kind in kinds_to_try {
+            let (fit, alpha, n) = fit_ward(&rec.pool, &cache, kind);
+            evaluations += n;
+            // Ties go to the first kind tried (plastic): the simpler explanation.
+            if best
+                .as_ref()
+                .is_none_or(|(b, _, _)| fit.relative_error < b.relative_error - 1e-4)
+            {
+                best = Some((fit, alpha, kind));
+            }
+        }
+        bar.inc(1);
+        let Some((ward, alpha, kind)) = best else {
+            continue;
+        };
+        let gain = isotropic::specular_gain(&diffuse_fit, &ward);
+        let r = &mut reports[g];
+        r.cache_error_diffuse = Some(diffuse_fit.relative_error);
+        r.cache_error_specular = Some(ward.relative_error);
+        if gain > fit::SPECULAR_GAIN_THRESHOLD {
+            r.decisions.push(format!(
+                "stage 2: isotropic {:?} (s {:.4}, roughness {alpha:.4}) removes {gain:.4} of relative error > SPECULAR_GAIN_THRESHOLD {} (diffuse {:.4}, isotropic {:.4} on the cache)",
+                kind,
+                ward.specularity,
+                fit::SPECULAR_GAIN_THRESHOLD,
+                diffuse_fit.relative_error,
+                ward.relative_error
+            ).to_lowercase());
+            rec.models[g] = match mirror_test(&ward, alpha) {
+                Some(why) => {
+                    r.decisions.push(format!("stage 2: {why}"));
+                    GroupModel::Mirror { color: ward.rho_s }
+                }
+                None => GroupModel::Isotropic {
+                    kind,
+                    color: ward.color,
+                    specularity: ward.specularity,
+                    roughness: alpha,
+                },
+            };
+        } else {
+            r.decisions.push(format!(
+                "stage 2: stays diffuse: a specular lobe removes only {gain:.4} of relative error <= SPECULAR_GAIN_THRESHOLD {}",
+                fit::SPECULAR_GAIN_THRESHOLD
+            ));
+            rec.models[g] = GroupModel::Diffuse {
+                color: diffuse_fit.rho_d,
+            };
+        }
+    }
+    bar.finish_and_clear();
+    stages.push(StageReport {
+        stage: "2 isotropic".into(),
+        evaluations,
+        samples_per_pixel: cache_settings.spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![
+            "each candidate group fitted on its transport cache: reflectances in closed form, roughness by a log grid and golden section".into(),
+        ],
+    });
+
+    // Stage 3: the diffuse groups again, under the specular materials now known.
+    let stage_start = Instant::now();
+    let active: Vec<bool> = rec
+        .models
+        .iter()
+        .map(|m| matches!(m, GroupModel::Diffuse { .. }))
+        .collect();
+    let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "3 diffuse again");
+    let (_, _, evaluations) = rec.diffuse_iteration(spp, &active, &bar)?;
+    bar.finish_and_clear();
+    stages.push(StageReport {
+        stage: "3 diffuse refinement".into(),
+        evaluations,
+        samples_per_pixel: spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![
+            "diffuse groups updated again with the specular groups' materials in the scene".into(),
+        ],
+    });
+
+    // Final render: errors, views and error images.
+    let stage_start = Instant::now();
+    let final_spp = args.effort.final_spp();
+    let final_seed = args.seed ^ 0xF1A1;
+    let final_fits = rec.evaluate(final_spp, final_seed, &|_| true)?;
+    for (g, r) in reports.iter_mut().enumerate() {
+        r.error_final = final_fits[g].relative_error();
+        r.model = rec.models[g].name().into();
+    }
+    let renders = output::render_views(&mut rec, final_spp, final_seed)?;
+    stages.push(StageReport {
+        stage: "final render".into(),
+        evaluations: 1,
+        samples_per_pixel: final_spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![
+            "every view rendered with the recovered model; error_final comes from it".into(),
+        ],
+    });
+
+    let report = RecoverReport {
+        scene: args.scene.display().to_string(),
+        seed: args.seed,
+        effort: format!("{:?}", args.effort).to_lowercase(),
+        error_definition: "sqrt(max(0, sum |R-T|^2 - sum var(R)) / sum |T|^2) over the group's pure pixels, RGB pooled (relume_core::fit)",
+        thresholds: serde_json::json!({
+            "DIFFUSE_THRESHOLD": fit::DIFFUSE_THRESHOLD,
+            "DIFFUSE_CONVERGED": fit::DIFFUSE_CONVERGED,
+            "SPECULAR_GAIN_THRESHOLD": fit::SPECULAR_GAIN_THRESHOLD,
+            "MIRROR_SPECULAR_FRACTION": fit::MIRROR_SPECULAR_FRACTION,
+            "MIRROR_MAX_ROUGHNESS": fit::MIRROR_MAX_ROUGHNESS,
+            "MIRROR_MAX_TINT": fit::MIRROR_MAX_TINT,
+            "MIN_PIXELS_FOR_MODEL_CHOICE": fit::MIN_PIXELS_FOR_MODEL_CHOICE,
+        }),
+        stages,
+        groups: reports,
+        warnings,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    output::write_all(&args.out, &rec, &renders, &report)?;
+    Ok(report)
+}

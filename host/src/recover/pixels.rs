@@ -1,0 +1,104 @@
+//! The pixels recovery works on: each group's pure pixels (whole footprint on the group),
+//! and their evaluation against the panorama, in a fixed partition so that the sums do not
+//! depend on the thread count.
+
+use glam::Vec3;
+use rayon::prelude::*;
+use relume_core::fit::GroupFit;
+use relume_core::geometry::{Surface, View};
+use relume_core::render::{self, RenderSettings};
+use relume_core::scene::Scene;
+
+use crate::compare::LABEL_RAYS_PER_SIDE;
+use crate::images::Image;
+use crate::parallel;
+
+/// Pixels per unit of parallel work (fixed: it decides the order of float sums).
+pub const CHUNK: usize = 256;
+
+/// A pixel whose whole footprint sees one group.
+#[derive(Clone, Copy, Debug)]
+pub struct PurePixel {
+    pub view: u32,
+    pub x: u32,
+    pub y: u32,
+    pub group: u16,
+}
+
+/// Every pure pixel of every view, in view and row order, and the views that see none.
+pub fn find_pure_pixels(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    views: &[View],
+) -> (Vec<PurePixel>, Vec<usize>) {
+    let mut pure = Vec::new();
+    let mut empty_views = Vec::new();
+    for (vi, view) in views.iter().enumerate() {
+        let labels = parallel::map_pixels(pool, view, |x, y| {
+            render::pixel_surface(scene, view, x, y, LABEL_RAYS_PER_SIDE)
+        });
+        let before = pure.len();
+        for (i, label) in labels.iter().enumerate() {
+            if let Some(Surface::Group(g)) = label {
+                pure.push(PurePixel {
+                    view: vi as u32,
+                    x: i as u32 % view.width,
+                    y: i as u32 / view.width,
+                    group: *g,
+                });
+            }
+        }
+        if pure.len() == before {
+            empty_views.push(vi);
+        }
+    }
+    (pure, empty_views)
+}
+
+/// The panorama's value at a pure pixel.
+pub fn real_value(real: &[Image], views: &[View], p: &PurePixel) -> Vec3 {
+    let view = &views[p.view as usize];
+    Vec3::from(real[p.view as usize].pixels[(p.y * view.width + p.x) as usize])
+}
+
+/// What the panorama shows: its views, their images, and the pixels that see one group.
+#[derive(Clone, Copy)]
+pub struct Observed<'a> {
+    pub views: &'a [View],
+    pub real: &'a [Image],
+    pub pure: &'a [PurePixel],
+}
+
+/// Renders the pure pixels (full global illumination) and compares them with the panorama,
+/// group by group. Only pixels of groups for which `wanted` is true are rendered.
+pub fn evaluate(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    observed: Observed,
+    settings: &RenderSettings,
+    n_groups: usize,
+    wanted: &(dyn Fn(u16) -> bool + Sync),
+) -> Vec<GroupFit> {
+    let Observed { views, real, pure } = observed;
+    let partials: Vec<Vec<GroupFit>> = pool.install(|| {
+        pure.par_chunks(CHUNK)
+            .map(|chunk| {
+                let mut fits = vec![GroupFit::default(); n_groups];
+                for p in chunk.iter().filter(|p| wanted(p.group)) {
+                    let view = &views[p.view as usize];
+                    let (value, variance) =
+                        render::render_pixel_with_variance(scene, view, p.view, p.x, p.y, settings);
+                    fits[p.group as usize].add(real_value(real, views, p), value, variance);
+                }
+                fits
+            })
+            .collect()
+    });
+    let mut total = vec![GroupFit::default(); n_groups];
+    for part in &partials {
+        for (t, p) in total.iter_mut().zip(part) {
+            t.merge(p);
+        }
+    }
+    total
+}
