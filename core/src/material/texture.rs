@@ -1,11 +1,14 @@
 //! Diffuse maps: RGB texels in one lent pool, looked up by bilinear interpolation between
 //! texel centres, clamped at the border (bench/README.md, "Texture sampling"): texel
 //! `(i, j)` has its centre at `u = (i + 0.5) / W`, `v = 1 - (j + 0.5) / H`; row 0 is v = 1.
+//! Texture coordinates outside [0, 1] are clamped to it (no wrapping), so beyond the outer
+//! texel centres a lookup returns the border texels; NaN coordinates count as 0.
 //!
 //! OWNER: material helper.
 
-use crate::error::Error;
-use crate::math::{Vec2, Vec3};
+use crate::config;
+use crate::error::{check_capacity, Error};
+use crate::math::{self, Vec2, Vec3};
 
 /// Index into [`Textures`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -27,9 +30,54 @@ pub struct Textures<'a> {
     texels: &'a [Vec3],
 }
 
+/// A texture coordinate forced into [0, 1] (NaN to 0).
+#[inline]
+fn clamp_unit(x: f32) -> f32 {
+    if x >= 0.0 {
+        x.min(1.0)
+    } else {
+        0.0
+    }
+}
+
+/// The two texel indices around continuous texel coordinate `x` (texel centres at
+/// integers) and the weight of the second, clamped to `[0, n - 1]`.
+#[inline]
+fn axis(x: f32, n: u32) -> (usize, usize, f32) {
+    let last = n.saturating_sub(1) as usize;
+    let f = math::floor(x);
+    let t = x - f;
+    if f < 0.0 {
+        return (0, 0, 0.0);
+    }
+    let i0 = (f as usize).min(last);
+    let i1 = (i0 + 1).min(last);
+    (i0, i1, t)
+}
+
 impl<'a> Textures<'a> {
     /// Checks that every texture fits in the pool and the capacities.
     pub fn new(infos: &'a [TextureInfo], texels: &'a [Vec3]) -> Result<Textures<'a>, Error> {
+        check_capacity("config::MAX_TEXTURES", config::MAX_TEXTURES, infos.len())?;
+        check_capacity("config::MAX_TEXELS", config::MAX_TEXELS, texels.len())?;
+        for info in infos {
+            if info.width == 0 || info.height == 0 {
+                return Err(Error::InvalidValue {
+                    what: "texture: width and height must be at least 1 texel",
+                });
+            }
+            let needed = (info.width as usize)
+                .checked_mul(info.height as usize)
+                .and_then(|count| count.checked_add(info.offset))
+                .unwrap_or(usize::MAX);
+            if needed > texels.len() {
+                return Err(Error::BufferTooSmall {
+                    what: "texture texels (offset + width * height)",
+                    needed,
+                    got: texels.len(),
+                });
+            }
+        }
         Ok(Textures { infos, texels })
     }
 
@@ -43,7 +91,194 @@ impl<'a> Textures<'a> {
 
     /// Bilinear lookup at texture coordinate `uv` (black for an unknown id).
     pub fn lookup(&self, id: TextureId, uv: Vec2) -> Vec3 {
-        let _ = (id, uv, self.texels);
-        Vec3::ZERO
+        let Some(info) = self.infos.get(id.0 as usize) else {
+            return Vec3::ZERO;
+        };
+        let (w, h) = (info.width, info.height);
+        // Continuous texel coordinates: texel (i, j)'s centre is at (i, j).
+        let x = clamp_unit(uv.x) * w as f32 - 0.5;
+        let y = (1.0 - clamp_unit(uv.y)) * h as f32 - 0.5;
+        let (i0, i1, tx) = axis(x, w);
+        let (j0, j1, ty) = axis(y, h);
+        let texel = |i: usize, j: usize| {
+            self.texels
+                .get(info.offset + j * w as usize + i)
+                .copied()
+                .unwrap_or(Vec3::ZERO)
+        };
+        let top = texel(i0, j0) * (1.0 - tx) + texel(i1, j0) * tx;
+        let bottom = texel(i0, j1) * (1.0 - tx) + texel(i1, j1) * tx;
+        top * (1.0 - ty) + bottom * ty
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::vec::Vec;
+
+    /// A 3 x 2 texture after a 1-texel padding: texel (i, j) = (i, j, 10 + i + 3 j).
+    fn pool() -> (Vec<TextureInfo>, Vec<Vec3>) {
+        let mut texels = std::vec![Vec3::splat(-1.0)];
+        for j in 0..2 {
+            for i in 0..3 {
+                texels.push(Vec3::new(i as f32, j as f32, (10 + i + 3 * j) as f32));
+            }
+        }
+        let infos = std::vec![
+            TextureInfo {
+                width: 3,
+                height: 2,
+                offset: 1,
+            },
+            TextureInfo {
+                width: 1,
+                height: 1,
+                offset: 0,
+            },
+        ];
+        (infos, texels)
+    }
+
+    fn centre(i: u32, j: u32, w: u32, h: u32) -> Vec2 {
+        Vec2::new(
+            (i as f32 + 0.5) / w as f32,
+            1.0 - (j as f32 + 0.5) / h as f32,
+        )
+    }
+
+    fn close(a: Vec3, b: Vec3) -> bool {
+        (a - b).abs().max_element() < 1e-5
+    }
+
+    #[test]
+    fn texel_centres_return_texels() {
+        let (infos, texels) = pool();
+        let t = Textures::new(&infos, &texels).unwrap();
+        assert_eq!(t.len(), 2);
+        assert!(!t.is_empty());
+        for j in 0..2 {
+            for i in 0..3 {
+                let got = t.lookup(TextureId(0), centre(i, j, 3, 2));
+                let want = Vec3::new(i as f32, j as f32, (10 + i + 3 * j) as f32);
+                assert!(close(got, want), "({i}, {j}): {got} != {want}");
+            }
+        }
+        // Row 0 is the top of the picture (v near 1).
+        assert!(close(
+            t.lookup(TextureId(0), Vec2::new(0.5, 0.75)),
+            Vec3::new(1.0, 0.0, 11.0)
+        ));
+        assert!(close(
+            t.lookup(TextureId(0), Vec2::new(0.5, 0.25)),
+            Vec3::new(1.0, 1.0, 14.0)
+        ));
+        // A 1 x 1 texture is constant.
+        for uv in [Vec2::ZERO, Vec2::ONE, Vec2::new(0.3, 0.8)] {
+            assert_eq!(t.lookup(TextureId(1), uv), Vec3::splat(-1.0));
+        }
+    }
+
+    #[test]
+    fn bilinear_between_centres() {
+        let (infos, texels) = pool();
+        let t = Textures::new(&infos, &texels).unwrap();
+        // Halfway between (0, 0) and (1, 0): u = 1/3, v = 0.75.
+        let got = t.lookup(TextureId(0), Vec2::new(1.0 / 3.0, 0.75));
+        assert!(close(got, Vec3::new(0.5, 0.0, 10.5)), "{got}");
+        // Halfway between rows 0 and 1: v = 0.5.
+        let got = t.lookup(TextureId(0), Vec2::new(5.0 / 6.0, 0.5));
+        assert!(close(got, Vec3::new(2.0, 0.5, 13.5)), "{got}");
+        // The middle of four centres is their mean.
+        let got = t.lookup(TextureId(0), Vec2::new(1.0 / 3.0, 0.5));
+        assert!(close(got, Vec3::new(0.5, 0.5, 12.0)), "{got}");
+        // A quarter of the way along u.
+        let got = t.lookup(TextureId(0), Vec2::new(1.0 / 6.0 + 1.0 / 12.0, 0.75));
+        assert!(close(got, Vec3::new(0.25, 0.0, 10.25)), "{got}");
+    }
+
+    #[test]
+    fn clamped_at_the_border() {
+        let (infos, texels) = pool();
+        let t = Textures::new(&infos, &texels).unwrap();
+        let id = TextureId(0);
+        let top_left = Vec3::new(0.0, 0.0, 10.0);
+        let bottom_right = Vec3::new(2.0, 1.0, 15.0);
+        for uv in [
+            Vec2::new(0.0, 1.0),
+            Vec2::new(0.1, 0.9),
+            Vec2::new(-3.0, 7.0),
+        ] {
+            assert!(close(t.lookup(id, uv), top_left), "{uv}");
+        }
+        for uv in [
+            Vec2::new(1.0, 0.0),
+            Vec2::new(0.95, 0.1),
+            Vec2::new(4.0, -2.0),
+        ] {
+            assert!(close(t.lookup(id, uv), bottom_right), "{uv}");
+        }
+        // Clamped, not wrapped: u = 1.2 is the right column, not u = 0.2.
+        let got = t.lookup(id, Vec2::new(1.2, 0.75));
+        assert!(close(got, Vec3::new(2.0, 0.0, 12.0)), "{got}");
+        // Along the left edge only v interpolates.
+        let got = t.lookup(id, Vec2::new(0.0, 0.5));
+        assert!(close(got, Vec3::new(0.0, 0.5, 11.5)), "{got}");
+        // NaN and infinite coordinates never panic and stay inside the texture.
+        for uv in [
+            Vec2::new(f32::NAN, 0.5),
+            Vec2::new(0.5, f32::NAN),
+            Vec2::new(f32::INFINITY, f32::NEG_INFINITY),
+        ] {
+            let v = t.lookup(id, uv);
+            assert!(v.is_finite() && v.z >= 10.0 && v.z <= 15.0, "{uv}: {v}");
+        }
+        // Unknown id: black.
+        assert_eq!(t.lookup(TextureId(2), Vec2::splat(0.5)), Vec3::ZERO);
+        assert_eq!(
+            Textures::default().lookup(TextureId(0), Vec2::ZERO),
+            Vec3::ZERO
+        );
+    }
+
+    #[test]
+    fn new_checks_the_pool() {
+        let texels = std::vec![Vec3::ONE; 12];
+        let info = |width, height, offset| TextureInfo {
+            width,
+            height,
+            offset,
+        };
+        assert!(Textures::new(&[info(4, 3, 0)], &texels).is_ok());
+        assert!(Textures::new(&[info(2, 3, 6), info(1, 1, 11)], &texels).is_ok());
+        assert!(Textures::new(&[], &[]).unwrap().is_empty());
+        assert_eq!(
+            Textures::new(&[info(4, 3, 1)], &texels).unwrap_err(),
+            Error::BufferTooSmall {
+                what: "texture texels (offset + width * height)",
+                needed: 13,
+                got: 12,
+            }
+        );
+        assert!(matches!(
+            Textures::new(&[info(u32::MAX, u32::MAX, usize::MAX)], &texels),
+            Err(Error::BufferTooSmall { .. })
+        ));
+        for bad in [info(0, 3, 0), info(3, 0, 0)] {
+            assert!(matches!(
+                Textures::new(&[bad], &texels),
+                Err(Error::InvalidValue { .. })
+            ));
+        }
+        let many = std::vec![info(1, 1, 0); config::MAX_TEXTURES + 1];
+        assert_eq!(
+            Textures::new(&many, &texels).unwrap_err(),
+            Error::Capacity {
+                what: "config::MAX_TEXTURES",
+                max: config::MAX_TEXTURES,
+                needed: config::MAX_TEXTURES + 1,
+            }
+        );
+        assert!(Textures::new(&many[..config::MAX_TEXTURES], &texels).is_ok());
     }
 }
