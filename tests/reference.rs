@@ -61,3 +61,39 @@ fn box_diffuse_small_agrees_with_radiance_within_2_percent() {
 fn glossy_small_agrees_with_radiance_within_2_percent() {
     check_scene("glossy", "256");
 }
+
+/// The tracer's closest hits on living-room's fixed ray sets agree with Embree's for at
+/// least 99.99% of the rays (same triangle, or distances within 1e-4 relative).
+#[test]
+fn closest_hits_agree_with_embree_on_living_room() {
+    let bench = shared().join("bench");
+    let scene = bench.join("living-room/scene.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    for set in ["primary", "incoherent"] {
+        let rays = bench.join(format!("rays/living-room/{set}.rays"));
+        let json = tmp.path().join(format!("{set}.json"));
+        relume_ok(
+            tmp.path(),
+            &[
+                "bench",
+                "rays",
+                path_str(&scene),
+                "--rays",
+                path_str(&rays),
+                "--json",
+                path_str(&json),
+                "--repeats",
+                "1",
+            ],
+        );
+        let figures: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let agreeing = figures["agreement"]["agreeing"].as_u64().unwrap();
+        let compared = figures["agreement"]["compared"].as_u64().unwrap();
+        assert_eq!(compared, figures["rays"].as_u64().unwrap());
+        assert!(
+            agreeing as f64 >= 0.9999 * compared as f64,
+            "{set}: only {agreeing} of {compared} hits agree with Embree"
+        );
+    }
+}
