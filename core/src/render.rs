@@ -273,3 +273,131 @@ pub fn pixel_surface(scene: &Scene, view: &View, x: u32, y: u32, n_sub: u32) -> 
     }
     seen
 }
+
+#[cfg(test)]
+mod tests {
+    //! Analytic checks of the path tracer: scenes whose radiance is known in closed form.
+
+    use super::*;
+    use crate::bvh::{Bvh, BvhBuffers, BvhNode, PackedTriangle};
+    use crate::geometry::Triangle;
+    use crate::material::{Material, SurfaceMaterial, Textures};
+    use crate::math::Vec2;
+    use crate::scene::{LightTriangle, SceneStorage};
+    use std::vec;
+    use std::vec::Vec;
+
+    /// A unit sphere of `rings x segments` quads (two triangles each). Quads whose centre
+    /// lies above `cos(cap) ` in z emit (`Surface::Light(0)`, front side facing the centre);
+    /// the rest are group 0.
+    fn furnace_sphere(rings: u32, segments: u32, cap_deg: f32) -> Vec<Triangle> {
+        let point = |i: u32, j: u32| {
+            let theta = math::PI * i as f32 / rings as f32;
+            let phi = 2.0 * math::PI * j as f32 / segments as f32;
+            Vec3::new(
+                math::sin(theta) * math::cos(phi),
+                math::sin(theta) * math::sin(phi),
+                math::cos(theta),
+            )
+        };
+        let cap_cos = math::cos(math::radians(cap_deg));
+        let mut tris = Vec::new();
+        for i in 0..rings {
+            for j in 0..segments {
+                let (a, b, c, d) = (point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
+                let centre = (a + b + c + d) * 0.25;
+                let surface = if centre.normalize().z > cap_cos {
+                    Surface::Light(0)
+                } else {
+                    Surface::Group(0)
+                };
+                // Wound so that the front normal points inwards (lights emit to the centre).
+                for v in [[a, c, b], [a, d, c]] {
+                    if (v[1] - v[0]).cross(v[2] - v[0]).length_squared() > 0.0 {
+                        tris.push(Triangle { v, uv: [Vec2::ZERO; 3], surface });
+                    }
+                }
+            }
+        }
+        tris
+    }
+
+    /// Mean and standard error of the radiance seen from the sphere's centre along
+    /// uniformly spread directions that meet the diffuse part.
+    fn mean_radiance_from_centre(scene: &Scene, n: u32, settings: &RenderSettings) -> (f64, f64) {
+        let (mut sum, mut sum2, mut count) = (0.0f64, 0.0f64, 0u32);
+        for k in 0..n {
+            let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+            let [u1, u2] = sampler.next_2d();
+            let z = 1.0 - 2.0 * u1;
+            let r = math::sqrt((1.0 - z * z).max(0.0));
+            let phi = 2.0 * math::PI * u2;
+            let dir = Vec3::new(r * math::cos(phi), r * math::sin(phi), z);
+            let ray = Ray::new(Vec3::ZERO, dir);
+            let Some(hit) = scene.intersect(&ray, f32::INFINITY) else { continue };
+            if scene.triangles[hit.triangle as usize].surface != Surface::Group(0) {
+                continue;
+            }
+            let l = radiance(scene, ray, &mut sampler, settings).y as f64;
+            sum += l;
+            sum2 += l * l;
+            count += 1;
+        }
+        let mean = sum / count as f64;
+        let var = (sum2 / count as f64 - mean * mean).max(0.0);
+        (mean, (var / count as f64).sqrt())
+    }
+
+    /// Furnace test. In a sphere every surface element sees every other with the same
+    /// form factor, so with a non-reflecting emitter of radiance `Le` over a fraction `f`
+    /// of the area and diffuse albedo `a` elsewhere, the diffuse radiance is uniform:
+    /// `L = a (f Le + (1 - f) L)`, i.e. `L = a f Le / (1 - a (1 - f))`. (With `f = 1`
+    /// reflecting this is the classic `Le / (1 - a)` furnace; our lights do not reflect.)
+    /// High albedos make the answer depend on every bounce and on Russian roulette.
+    #[test]
+    fn furnace_sphere_matches_the_closed_form() {
+        let triangles = furnace_sphere(64, 128, 25.0);
+        let (area_light, area_total) = triangles.iter().fold((0.0f64, 0.0f64), |(l, t), tri| {
+            let a = tri.area() as f64;
+            match tri.surface {
+                Surface::Light(_) => (l + a, t + a),
+                Surface::Group(_) => (l, t + a),
+            }
+        });
+        let f = area_light / area_total;
+        let le = 2.0f64;
+        for albedo in [0.3f32, 0.8] {
+            let materials = [SurfaceMaterial {
+                material: Material::Diffuse { rho_d: Vec3::splat(albedo) },
+                diffuse_map: None,
+            }];
+            let radiance = [Vec3::splat(le as f32)];
+            let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
+            let mut nodes = vec![BvhNode::default(); n_nodes];
+            let mut packed = vec![PackedTriangle::default(); n_packed];
+            let mut light_table = vec![LightTriangle::default(); triangles.len()];
+            let scene = Scene::build(
+                &triangles,
+                &materials,
+                &radiance,
+                Textures::default(),
+                SceneStorage {
+                    bvh: BvhBuffers { nodes: &mut nodes, packed: &mut packed },
+                    light_table: &mut light_table,
+                },
+            )
+            .unwrap();
+            let settings = RenderSettings { seed: 11, ..RenderSettings::default() };
+            let (mean, se) = mean_radiance_from_centre(&scene, 40_000, &settings);
+            let a = albedo as f64;
+            let expected = a * f * le / (1.0 - a * (1.0 - f));
+            // 4 standard errors of Monte Carlo noise, plus 0.5% for the tessellated sphere
+            // (its facets are not exactly on the sphere, so form factors are not exactly equal).
+            let tolerance = 4.0 * se + 0.005 * expected;
+            assert!(
+                (mean - expected).abs() <= tolerance,
+                "albedo {albedo}: mean {mean:.5} +- {se:.5}, expected {expected:.5} (f = {f:.4})"
+            );
+        }
+    }
+}
