@@ -304,7 +304,12 @@ mod tests {
         let mut tris = Vec::new();
         for i in 0..rings {
             for j in 0..segments {
-                let (a, b, c, d) = (point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
+                let (a, b, c, d) = (
+                    point(i, j),
+                    point(i + 1, j),
+                    point(i + 1, j + 1),
+                    point(i, j + 1),
+                );
                 let centre = (a + b + c + d) * 0.25;
                 let surface = if centre.normalize().z > cap_cos {
                     Surface::Light(0)
@@ -314,7 +319,11 @@ mod tests {
                 // Wound so that the front normal points inwards (lights emit to the centre).
                 for v in [[a, c, b], [a, d, c]] {
                     if (v[1] - v[0]).cross(v[2] - v[0]).length_squared() > 0.0 {
-                        tris.push(Triangle { v, uv: [Vec2::ZERO; 3], surface });
+                        tris.push(Triangle {
+                            v,
+                            uv: [Vec2::ZERO; 3],
+                            surface,
+                        });
                     }
                 }
             }
@@ -334,7 +343,9 @@ mod tests {
             let phi = 2.0 * math::PI * u2;
             let dir = Vec3::new(r * math::cos(phi), r * math::sin(phi), z);
             let ray = Ray::new(Vec3::ZERO, dir);
-            let Some(hit) = scene.intersect(&ray, f32::INFINITY) else { continue };
+            let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+                continue;
+            };
             if scene.triangles[hit.triangle as usize].surface != Surface::Group(0) {
                 continue;
             }
@@ -368,7 +379,9 @@ mod tests {
         let le = 2.0f64;
         for albedo in [0.3f32, 0.8] {
             let materials = [SurfaceMaterial {
-                material: Material::Diffuse { rho_d: Vec3::splat(albedo) },
+                material: Material::Diffuse {
+                    rho_d: Vec3::splat(albedo),
+                },
                 diffuse_map: None,
             }];
             let radiance = [Vec3::splat(le as f32)];
@@ -382,12 +395,18 @@ mod tests {
                 &radiance,
                 Textures::default(),
                 SceneStorage {
-                    bvh: BvhBuffers { nodes: &mut nodes, packed: &mut packed },
+                    bvh: BvhBuffers {
+                        nodes: &mut nodes,
+                        packed: &mut packed,
+                    },
                     light_table: &mut light_table,
                 },
             )
             .unwrap();
-            let settings = RenderSettings { seed: 11, ..RenderSettings::default() };
+            let settings = RenderSettings {
+                seed: 11,
+                ..RenderSettings::default()
+            };
             let (mean, se) = mean_radiance_from_centre(&scene, 40_000, &settings);
             let a = albedo as f64;
             let expected = a * f * le / (1.0 - a * (1.0 - f));
