@@ -403,6 +403,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         seed: args.seed ^ 0x1507,
         ..RenderSettings::default()
     };
+    let verify_spp = args.effort.loop_spp();
     let bar = progress_bar(candidates.len() as u64, "2 isotropic");
     let mut evaluations = 0;
     for &(g, _) in &candidates {
@@ -447,39 +448,57 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         let Some((ward, alpha, kind)) = best else {
             continue;
         };
-        let gain = isotropic::specular_gain(&diffuse_fit, &ward);
         let r = &mut reports[g];
         r.cache_error_diffuse = Some(diffuse_fit.relative_error);
         r.cache_error_specular = Some(ward.relative_error);
-        if gain > fit::SPECULAR_GAIN_THRESHOLD {
-            r.decisions.push(format!(
-                "stage 2: isotropic {:?} (s {:.4}, roughness {alpha:.4}) removes {gain:.4} of relative error > SPECULAR_GAIN_THRESHOLD {} (diffuse {:.4}, isotropic {:.4} on the cache)",
-                kind,
-                ward.specularity,
-                fit::SPECULAR_GAIN_THRESHOLD,
-                diffuse_fit.relative_error,
-                ward.relative_error
-            ).to_lowercase());
-            rec.models[g] = match mirror_test(&ward, alpha) {
-                Some(why) => {
-                    r.decisions.push(format!("stage 2: {why}"));
-                    GroupModel::Mirror { color: ward.rho_s }
-                }
-                None => GroupModel::Isotropic {
+
+        // The cache proposes; a full global-illumination render of the group's pixels
+        // decides. The cache's error carries its own sampling noise and the bias of a
+        // finite set of incident samples, which a specular lobe can partly "explain"; the
+        // render's error is noise-corrected (fit::GroupFit), so the gain it shows is real.
+        let stage1 = rec.models[g];
+        let candidate = match mirror_test(&ward, alpha) {
+            Some(why) => (GroupModel::Mirror { color: ward.rho_s }, Some(why)),
+            None => (
+                GroupModel::Isotropic {
                     kind,
                     color: ward.color,
                     specularity: ward.specularity,
                     roughness: alpha,
                 },
-            };
+                None,
+            ),
+        };
+        let only_g = |h: u16| h as usize == g;
+        let error_of = |rec: &mut Recovery, model: GroupModel| -> Result<f64, Error> {
+            rec.models[g] = model;
+            let fits = rec.evaluate(verify_spp, rec.seed ^ 0x5E1F, &only_g)?;
+            Ok(fits[g].relative_error().unwrap_or(f64::INFINITY))
+        };
+        let error_diffuse = error_of(&mut rec, stage1)?;
+        let error_specular = error_of(&mut rec, candidate.0)?;
+        evaluations += 2;
+        let gain = error_diffuse - error_specular;
+        let r = &mut reports[g];
+        if gain > fit::SPECULAR_GAIN_THRESHOLD {
+            r.decisions.push(format!(
+                "stage 2: {} {:?} (s {:.4}, roughness {alpha:.4}) proposed by the cache; a render shows it removes {gain:.4} of relative error > SPECULAR_GAIN_THRESHOLD {} (diffuse {error_diffuse:.4}, specular {error_specular:.4})",
+                candidate.0.name(),
+                kind,
+                ward.specularity,
+                fit::SPECULAR_GAIN_THRESHOLD,
+            ).to_lowercase());
+            if let Some(why) = candidate.1 {
+                r.decisions.push(format!("stage 2: {why}"));
+            }
+            rec.models[g] = candidate.0;
         } else {
             r.decisions.push(format!(
-                "stage 2: stays diffuse: a specular lobe removes only {gain:.4} of relative error <= SPECULAR_GAIN_THRESHOLD {}",
+                "stage 2: stays diffuse: the cache's best isotropic fit (s {:.4}, roughness {alpha:.4}) removes only {gain:.4} of relative error in a render <= SPECULAR_GAIN_THRESHOLD {} (diffuse {error_diffuse:.4}, specular {error_specular:.4})",
+                ward.specularity,
                 fit::SPECULAR_GAIN_THRESHOLD
             ));
-            rec.models[g] = GroupModel::Diffuse {
-                color: diffuse_fit.rho_d,
-            };
+            rec.models[g] = stage1;
         }
     }
     bar.finish_and_clear();
