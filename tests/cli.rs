@@ -37,7 +37,10 @@ fn one_and_two_threads_give_identical_bytes() {
     for view in ["px", "nx", "py", "ny", "pz", "nz"] {
         for ext in ["exr", "png"] {
             let name = format!("{view}.{ext}");
-            let (x, y) = (std::fs::read(a.join(&name)).unwrap(), std::fs::read(b.join(&name)).unwrap());
+            let (x, y) = (
+                std::fs::read(a.join(&name)).unwrap(),
+                std::fs::read(b.join(&name)).unwrap(),
+            );
             assert!(x == y, "{name} differs between 1 and 2 threads");
         }
     }
@@ -62,8 +65,15 @@ fn render_writes_exr_png_and_summary_for_every_view() {
     for view in ["px", "nx", "py", "ny", "pz", "nz"] {
         let img = relume::images::read_image(&out.join(format!("{view}.exr")), 1.0).unwrap();
         assert_eq!((img.width, img.height), (32, 32));
-        assert!(img.pixels.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
-        assert!(img.pixels.iter().flatten().any(|v| *v > 0.0), "{view} is black");
+        assert!(img
+            .pixels
+            .iter()
+            .flatten()
+            .all(|v| v.is_finite() && *v >= 0.0));
+        assert!(
+            img.pixels.iter().flatten().any(|v| *v > 0.0),
+            "{view} is black"
+        );
         assert!(out.join(format!("{view}.png")).is_file());
     }
     let info: serde_json::Value =

@@ -54,7 +54,11 @@ fn cornell_matches_the_golden_images_bit_for_bit() {
         if (a.width, a.height) != (b.width, b.height) || bits(&a) != bits(&b) {
             let new = golden_dir.join(format!("{view}.new.exr"));
             std::fs::copy(&rendered, &new).unwrap();
-            failures.push(format!("{view}: differs from {} (new image: {})", golden.display(), new.display()));
+            failures.push(format!(
+                "{view}: differs from {} (new image: {})",
+                golden.display(),
+                new.display()
+            ));
         }
     }
     assert!(

@@ -182,6 +182,11 @@ impl<const D: usize> Annealer<D> {
         (self.best, self.best_cost)
     }
 
+    /// The chain's current point (the last accepted one).
+    pub fn current(&self) -> [f64; D] {
+        self.current
+    }
+
     pub fn evaluations(&self) -> u32 {
         self.steps_done
     }

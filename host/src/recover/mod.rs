@@ -15,6 +15,7 @@ mod cache;
 mod model;
 mod output;
 mod pixels;
+mod refine;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -59,6 +60,15 @@ impl Effort {
             Effort::Fast => 16,
             Effort::Default => 64,
             Effort::Thorough => 256,
+        }
+    }
+
+    /// Temperature levels of the stage-2 annealing (10 proposals each).
+    fn anneal_levels(self) -> u32 {
+        match self {
+            Effort::Fast => 4,
+            Effort::Default => 8,
+            Effort::Thorough => 16,
         }
     }
 
@@ -172,6 +182,28 @@ impl Recovery {
         ))
     }
 
+    /// The bias-only error of group `g` (see [`pixels::evaluate_cross`]).
+    fn evaluate_cross(&mut self, spp: u32, seed: u64, g: usize) -> Result<GroupFit, Error> {
+        self.apply_models();
+        let settings = RenderSettings {
+            spp,
+            seed,
+            ..RenderSettings::default()
+        };
+        let scene = self.owned.build()?;
+        Ok(pixels::evaluate_cross(
+            &self.pool,
+            &scene,
+            pixels::Observed {
+                views: &self.views,
+                real: &self.real,
+                pure: &self.pure,
+            },
+            &settings,
+            g as u16,
+        ))
+    }
+
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
     /// held fixed, until converged. Returns (first fits, last fits, evaluations).
     fn diffuse_iteration(
@@ -256,13 +288,18 @@ fn fit_ward(
     (fit, alpha, evaluations)
 }
 
-/// The paper's mirror test on an isotropic fit.
-fn mirror_test(fit: &WardFit, roughness: f64) -> Option<String> {
-    let total: f64 = (0..3).map(|c| fit.rho_d[c] + fit.rho_s[c]).sum();
-    let spec: f64 = fit.rho_s.iter().sum();
+/// The paper's mirror test on an isotropic model: specular part above
+/// `MIRROR_SPECULAR_FRACTION` of the reflectance, a sharp lobe, and a reflected colour close
+/// to the incident one (an untinted specular reflectance).
+fn mirror_test(model: &GroupModel) -> Option<String> {
+    let GroupModel::Isotropic { roughness, .. } = *model else {
+        return None;
+    };
+    let (rho_d, rho_s) = model.reflectances();
+    let total: f64 = (0..3).map(|c| rho_d[c] + rho_s[c]).sum();
+    let spec: f64 = rho_s.iter().sum();
     let fraction = if total > 0.0 { spec / total } else { 0.0 };
-    let (lo, hi) = fit
-        .rho_s
+    let (lo, hi) = rho_s
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(l, h), &v| (l.min(v), h.max(v)));
     let tint = if hi > 0.0 { (hi - lo) / hi } else { 1.0 };
@@ -382,8 +419,19 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 ));
             }
             DiffuseVerdict::Diffuse => {
-                r.decisions.push(format!("stage 1: diffuse error {e:.4} <= DIFFUSE_THRESHOLD {}; tested for a weak specular", fit::DIFFUSE_THRESHOLD));
-                candidates.push((g, e));
+                if e <= fit::SPECULAR_GAIN_THRESHOLD {
+                    // A specular lobe cannot remove more error than there is.
+                    r.decisions.push(format!(
+                        "stage 1: diffuse, error {e:.4} <= SPECULAR_GAIN_THRESHOLD {}: no specular model could gain more",
+                        fit::SPECULAR_GAIN_THRESHOLD
+                    ));
+                } else {
+                    r.decisions.push(format!(
+                        "stage 1: diffuse error {e:.4} <= DIFFUSE_THRESHOLD {}; tested for a weak specular",
+                        fit::DIFFUSE_THRESHOLD
+                    ));
+                    candidates.push((g, e));
+                }
             }
             DiffuseVerdict::NeedsSpecular => {
                 r.decisions.push(format!(
@@ -452,37 +500,67 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         r.cache_error_diffuse = Some(diffuse_fit.relative_error);
         r.cache_error_specular = Some(ward.relative_error);
 
-        // The cache proposes; a full global-illumination render of the group's pixels
-        // decides. The cache's error carries its own sampling noise and the bias of a
-        // finite set of incident samples, which a specular lobe can partly "explain"; the
+        // The cache proposes; annealing on renders of the group's pixels refines; a
+        // render decides. The cache's error carries its own sampling noise and the bias of
+        // a finite set of incident samples, which a specular lobe can partly "explain"; the
         // render's error is noise-corrected (fit::GroupFit), so the gain it shows is real.
         let stage1 = rec.models[g];
-        let candidate = match mirror_test(&ward, alpha) {
-            Some(why) => (GroupModel::Mirror { color: ward.rho_s }, Some(why)),
-            None => (
-                GroupModel::Isotropic {
-                    kind,
-                    color: ward.color,
-                    specularity: ward.specularity,
-                    roughness: alpha,
-                },
-                None,
-            ),
+        let proposal = GroupModel::Isotropic {
+            kind,
+            color: ward.color,
+            specularity: ward.specularity,
+            roughness: alpha,
+        };
+        let refined = refine::anneal_isotropic(
+            &mut rec,
+            g,
+            kind,
+            proposal,
+            verify_spp,
+            args.effort.anneal_levels(),
+        )?;
+        evaluations += refined.evaluations;
+        let candidate = match mirror_test(&refined.model) {
+            Some(why) => {
+                let (_, rho_s) = refined.model.reflectances();
+                (GroupModel::Mirror { color: rho_s }, Some(why))
+            }
+            None => (refined.model, None),
+        };
+        let (specularity, alpha) = match refined.model {
+            GroupModel::Isotropic {
+                specularity,
+                roughness,
+                ..
+            } => (specularity, roughness),
+            _ => (ward.specularity, alpha),
         };
         let only_g = |h: u16| h as usize == g;
         let error_of = |rec: &mut Recovery, model: GroupModel| -> Result<f64, Error> {
             rec.models[g] = model;
-            let fits = rec.evaluate(verify_spp, rec.seed ^ 0x5E1F, &only_g)?;
+            let fits = rec.evaluate(2 * verify_spp, rec.seed ^ 0x5E1F, &only_g)?;
             Ok(fits[g].relative_error().unwrap_or(f64::INFINITY))
+        };
+        // The diffuse alternative gets the same chance as the specular one: its colour is
+        // re-fitted under the materials found so far (stage 1 saw every group diffuse).
+        let stage1 = match stage1 {
+            GroupModel::Diffuse { color } => {
+                rec.models[g] = stage1;
+                let fits = rec.evaluate(verify_spp, rec.seed ^ 0x5E1F, &only_g)?;
+                GroupModel::Diffuse {
+                    color: diffuse::update(color, &fits[g]).0,
+                }
+            }
+            other => other,
         };
         let error_diffuse = error_of(&mut rec, stage1)?;
         let error_specular = error_of(&mut rec, candidate.0)?;
-        evaluations += 2;
+        evaluations += 3;
         let gain = error_diffuse - error_specular;
         let r = &mut reports[g];
         if gain > fit::SPECULAR_GAIN_THRESHOLD {
             r.decisions.push(format!(
-                "stage 2: {} {:?} (s {:.4}, roughness {alpha:.4}) proposed by the cache; a render shows it removes {gain:.4} of relative error > SPECULAR_GAIN_THRESHOLD {} (diffuse {error_diffuse:.4}, specular {error_specular:.4})",
+                "stage 2: {} {:?} (s {specularity:.4}, roughness {alpha:.4}; cache proposed s {:.4}) removes {gain:.4} of relative error in a render > SPECULAR_GAIN_THRESHOLD {} (diffuse {error_diffuse:.4}, specular {error_specular:.4})",
                 candidate.0.name(),
                 kind,
                 ward.specularity,
@@ -494,8 +572,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             rec.models[g] = candidate.0;
         } else {
             r.decisions.push(format!(
-                "stage 2: stays diffuse: the cache's best isotropic fit (s {:.4}, roughness {alpha:.4}) removes only {gain:.4} of relative error in a render <= SPECULAR_GAIN_THRESHOLD {} (diffuse {error_diffuse:.4}, specular {error_specular:.4})",
-                ward.specularity,
+                "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) removes only {gain:.4} of relative error in a render <= SPECULAR_GAIN_THRESHOLD {} (diffuse {error_diffuse:.4}, specular {error_specular:.4})",
                 fit::SPECULAR_GAIN_THRESHOLD
             ));
             rec.models[g] = stage1;

@@ -39,6 +39,27 @@ impl GroupModel {
         }
     }
 
+    /// Diffuse and specular reflectances `(rho_d, rho_s)` (reflectance.md).
+    pub fn reflectances(&self) -> ([f64; 3], [f64; 3]) {
+        match *self {
+            GroupModel::Diffuse { color } => (color, [0.0; 3]),
+            GroupModel::Isotropic {
+                kind,
+                color,
+                specularity: s,
+                ..
+            } => (
+                color.map(|c| c * (1.0 - s)),
+                match kind {
+                    Kind::Plastic => [s; 3],
+                    Kind::Metal => color.map(|c| c * s),
+                },
+            ),
+            GroupModel::Mirror { color } => ([0.0; 3], color),
+            GroupModel::Unseen => ([0.0; 3], [0.0; 3]),
+        }
+    }
+
     /// The material the renderer uses for this model.
     pub fn surface_material(&self) -> SurfaceMaterial {
         let material = match *self {

@@ -102,3 +102,51 @@ pub fn evaluate(
     }
     total
 }
+
+/// Like [`evaluate`] for one group, but with an error that noise cannot lower or raise:
+/// each pixel is rendered twice with independent samples (`spp / 2` each) and
+/// `sum_sq_diff` holds `sum (A - T) . (B - T)`, whose expectation is the squared bias alone
+/// (the two renders' noises are independent). `sum_rendered` is the mean of both renders;
+/// `sum_render_variance` is zero. The search compares models on it: a noisy model (a sharp
+/// lobe) is neither rewarded, as a subtracted variance estimate would, nor punished.
+pub fn evaluate_cross(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    observed: Observed,
+    settings: &RenderSettings,
+    group: u16,
+) -> GroupFit {
+    let Observed { views, real, pure } = observed;
+    let half = |seed: u64| RenderSettings {
+        spp: (settings.spp / 2).max(1),
+        seed,
+        ..*settings
+    };
+    let (a, b) = (half(settings.seed), half(settings.seed ^ 0xC055_C055));
+    let partials: Vec<GroupFit> = pool.install(|| {
+        pure.par_chunks(CHUNK)
+            .map(|chunk| {
+                let mut fit = GroupFit::default();
+                for p in chunk.iter().filter(|p| p.group == group) {
+                    let view = &views[p.view as usize];
+                    let ra = render::render_pixel(scene, view, p.view, p.x, p.y, &a);
+                    let rb = render::render_pixel(scene, view, p.view, p.x, p.y, &b);
+                    let t = real_value(real, views, p);
+                    fit.pixels += 1;
+                    for c in 0..3 {
+                        fit.sum_real[c] += t[c] as f64;
+                        fit.sum_rendered[c] += 0.5 * (ra[c] as f64 + rb[c] as f64);
+                    }
+                    fit.sum_sq_diff += (ra - t).dot(rb - t) as f64;
+                    fit.sum_sq_real += t.dot(t) as f64;
+                }
+                fit
+            })
+            .collect()
+    });
+    let mut total = GroupFit::default();
+    for part in &partials {
+        total.merge(part);
+    }
+    total
+}

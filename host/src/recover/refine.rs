@@ -1,0 +1,168 @@
+//! Stage 2's fit on renders: simulated annealing over (specularity, log roughness) of one
+//! group, every cost a full global-illumination render of that group's pure pixels only
+//! (the paper re-renders the panorama; pixels of other groups do not change the cost).
+//!
+//! The colour is not a dimension of the search: at each point it is moved by the stage-1
+//! rule, `color <- color * mean(real) / mean(rendered)`, before the cost is taken. For a
+//! metal the group's own light is proportional to its colour, so one step lands on the best
+//! colour; for a plastic the step corrects the diffuse part. This keeps the annealing in
+//! two dimensions, where a short schedule finds the minimum.
+//!
+//! All renders of one group use one seed (common random numbers), so two points are compared
+//! on the same noise and the search follows the model, not the dice.
+
+use relume_core::anneal::{Annealer, Schedule};
+use relume_core::fit::GroupFit;
+use relume_core::material::Kind;
+use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
+use relume_core::stages::isotropic::{ROUGHNESS_MAX, ROUGHNESS_MIN};
+
+use super::model::GroupModel;
+use super::pixels::PurePixel;
+use super::Recovery;
+use crate::error::Error;
+
+/// The bounds of the search (reflectance.md: roughness in (0, 0.3]; the paper's Table 2
+/// bounds reflectances by [0, 1]).
+const SPECULARITY_MAX: f64 = 1.0;
+
+/// The search's cost: the squared relative bias from two independent renders
+/// (`pixels::evaluate_cross`), signed. Noise neither lowers it (as subtracting an estimated
+/// variance does for sharp lobes, whose heavy-tailed noise inflates that estimate) nor
+/// raises it (as a plain squared error does, which pushes the search away from sharp lobes).
+fn search_cost(fit: &GroupFit) -> f64 {
+    if fit.pixels == 0 || fit.sum_sq_real <= 0.0 {
+        return f64::INFINITY;
+    }
+    fit.sum_sq_diff / fit.sum_sq_real
+}
+
+/// Pixels of one group the search renders at most: an even, fixed subset of a large group
+/// says as much about three reflectances and a roughness as all of it, at a fraction of
+/// the cost.
+pub const MAX_SEARCH_PIXELS: usize = 1024;
+
+/// Every `k`-th pure pixel of group `g`, so that at most [`MAX_SEARCH_PIXELS`] remain.
+fn search_subset(pure: &[PurePixel], g: usize) -> Vec<PurePixel> {
+    let of_g: Vec<PurePixel> = pure
+        .iter()
+        .filter(|p| p.group as usize == g)
+        .copied()
+        .collect();
+    let stride = of_g.len().div_ceil(MAX_SEARCH_PIXELS).max(1);
+    of_g.into_iter().step_by(stride).collect()
+}
+
+/// What the search found.
+pub struct Refined {
+    pub model: GroupModel,
+    pub evaluations: u32,
+}
+
+/// The annealing schedule for an effort level's number of temperature levels.
+pub fn schedule(levels: u32) -> Schedule {
+    Schedule {
+        // Costs are squared relative errors (0.001-0.1): a temperature of that order
+        // accepts early uphill moves and freezes within a few levels.
+        initial_temperature: 0.01,
+        cooling: 0.6,
+        steps_per_level: 10,
+        levels,
+        initial_step: 0.25,
+    }
+}
+
+/// Anneals group `g` of kind `kind` from `start` (an isotropic model), rendering at `spp`.
+pub fn anneal_isotropic(
+    rec: &mut Recovery,
+    g: usize,
+    kind: Kind,
+    start: GroupModel,
+    spp: u32,
+    levels: u32,
+) -> Result<Refined, Error> {
+    let GroupModel::Isotropic {
+        color,
+        specularity,
+        roughness,
+        ..
+    } = start
+    else {
+        return Ok(Refined {
+            model: start,
+            evaluations: 0,
+        });
+    };
+    let subset = search_subset(&rec.pure, g);
+    let all_pixels = std::mem::replace(&mut rec.pure, subset);
+    let result = anneal_on_pixels(rec, g, kind, color, specularity, roughness, spp, levels);
+    rec.pure = all_pixels;
+    result
+}
+
+#[allow(clippy::too_many_arguments)]
+fn anneal_on_pixels(
+    rec: &mut Recovery,
+    g: usize,
+    kind: Kind,
+    mut color: [f64; 3],
+    specularity: f64,
+    roughness: f64,
+    spp: u32,
+    levels: u32,
+) -> Result<Refined, Error> {
+    let seed = rec.seed ^ 0xA11E_A1ED ^ g as u64;
+    let mut evaluations = 0u32;
+    // One cost: the colour step, then the cost at the stepped colour.
+    let mut cost_at = |rec: &mut Recovery,
+                       x: [f64; 2],
+                       color: &mut [f64; 3]|
+     -> Result<(f64, GroupModel), Error> {
+        let model = |c: [f64; 3]| GroupModel::Isotropic {
+            kind,
+            color: c,
+            specularity: x[0],
+            roughness: libm::exp(x[1]),
+        };
+        rec.models[g] = model(*color);
+        let ratio = rec.evaluate_cross(spp, seed, g)?.mean_ratio();
+        for c in 0..3 {
+            color[c] = (color[c] * ratio[c]).clamp(0.0, MAX_DIFFUSE_REFLECTANCE);
+        }
+        rec.models[g] = model(*color);
+        let fit = rec.evaluate_cross(spp, seed, g)?;
+        evaluations += 2;
+        Ok((search_cost(&fit), model(*color)))
+    };
+
+    let lower = [0.0, libm::log(ROUGHNESS_MIN)];
+    let upper = [SPECULARITY_MAX, libm::log(ROUGHNESS_MAX)];
+    let x0 = [
+        specularity.clamp(0.0, SPECULARITY_MAX),
+        libm::log(roughness.clamp(ROUGHNESS_MIN, ROUGHNESS_MAX)),
+    ];
+    let (cost0, mut best_model) = cost_at(rec, x0, &mut color)?;
+    let mut best_cost = cost0;
+    let mut annealer = Annealer::new(lower, upper, x0, cost0, schedule(levels), seed)
+        .map_err(|e| Error::core("annealing", e))?;
+    // The colour that goes with the chain's current point.
+    let mut chain_color = color;
+    while !annealer.is_done() {
+        let x = annealer.propose();
+        let mut c = chain_color;
+        let (cost, model) = cost_at(rec, x, &mut c)?;
+        annealer.tell(cost);
+        if annealer.current() == x {
+            chain_color = c;
+        }
+        if cost < best_cost {
+            best_cost = cost;
+            best_model = model;
+        }
+    }
+    rec.models[g] = best_model;
+    Ok(Refined {
+        model: best_model,
+        evaluations,
+    })
+}

@@ -1,0 +1,80 @@
+//! `relume recover` end to end: determinism across thread counts, the golden
+//! materials.toml of our bundled scene, and the all-diffuse reference coming out diffuse.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use common::{path_str, relume_ok, shared, workspace};
+
+fn recover(scene: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> Vec<u8> {
+    let mut args = vec!["recover", path_str(scene), "--out", path_str(out)];
+    args.extend_from_slice(extra);
+    relume_ok(out.parent().unwrap(), &args);
+    std::fs::read(out.join("materials.toml")).unwrap()
+}
+
+/// The same scene and seed give the same materials.toml bytes on 1 and 2 threads, and the
+/// committed golden (regenerate with RELUME_UPDATE_GOLDEN=1, and say why in the commit).
+#[test]
+fn cornell_recovery_is_deterministic_and_matches_its_golden() {
+    let root = workspace();
+    let scene = root.join("scenes/cornell/scene.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    let fast = ["--effort", "fast", "--seed", "3"];
+    let one = recover(
+        &scene,
+        &tmp.path().join("t1"),
+        &[&fast[..], &["--threads", "1"]].concat(),
+    );
+    let two = recover(
+        &scene,
+        &tmp.path().join("t2"),
+        &[&fast[..], &["--threads", "2"]].concat(),
+    );
+    assert!(one == two, "materials.toml differs between 1 and 2 threads");
+
+    let golden = root.join("tests/golden/cornell-recover/materials.toml");
+    if std::env::var_os("RELUME_UPDATE_GOLDEN").is_some() {
+        std::fs::create_dir_all(golden.parent().unwrap()).unwrap();
+        std::fs::write(&golden, &one).unwrap();
+        return;
+    }
+    let expected = std::fs::read(&golden).unwrap_or_default();
+    if expected != one {
+        let new = golden.with_extension("new.toml");
+        std::fs::write(&new, &one).unwrap();
+        panic!(
+            "recovered materials differ from {} (new: {}).\nIf intended: RELUME_UPDATE_GOLDEN=1 cargo test --test recover, and explain it in the commit.",
+            golden.display(),
+            new.display()
+        );
+    }
+    for file in ["materials.rad", "report.json"] {
+        assert!(tmp.path().join("t1").join(file).is_file(), "{file} missing");
+    }
+}
+
+/// An all-diffuse room must come out all diffuse, with every reflectance within 1% of
+/// the truth (box-diffuse, 64x64 per face, default effort).
+#[test]
+fn box_diffuse_small_comes_out_diffuse() {
+    let bench = shared().join("bench/box-diffuse");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("rec");
+    recover(&bench.join("scene-small.toml"), &out, &[]);
+    let rows =
+        relume::compare::materials_report(&bench.join("truth.toml"), &out.join("materials.toml"))
+            .unwrap();
+    assert_eq!(rows.len(), 6);
+    for row in &rows {
+        println!("{row:?}");
+        assert!(row.class_ok, "{}: not diffuse", row.group);
+        let err = row.diffuse_rel_err.unwrap();
+        assert!(
+            err <= 0.01,
+            "{}: diffuse reflectance off by {:.2}%",
+            row.group,
+            100.0 * err
+        );
+    }
+}
