@@ -63,6 +63,11 @@ impl GroupFit {
         Some(libm::sqrt(systematic / self.sum_sq_real))
     }
 
+    /// The mean rendered value per channel (0 without pixels).
+    pub fn mean_rendered(&self) -> [f64; 3] {
+        core::array::from_fn(|c| self.sum_rendered[c] / self.pixels.max(1) as f64)
+    }
+
     /// `mean(real) / mean(rendered)` per channel (1 where the render is black).
     pub fn mean_ratio(&self) -> [f64; 3] {
         core::array::from_fn(|c| {

@@ -216,6 +216,10 @@ impl Recovery {
         let wanted = |g: u16| active[g as usize];
         let mut first = None;
         let mut evaluations = 0;
+        let mut previous_change = f64::INFINITY;
+        // Per group: the reflectance and mean rendered value of the previous step, from
+        // which the update measures how strongly the render responds (its slope).
+        let mut previous: Vec<Option<([f64; 3], [f64; 3])>> = vec![None; self.n_groups()];
         loop {
             let fits = self.evaluate(spp, seed, &wanted)?;
             evaluations += 1;
@@ -224,15 +228,17 @@ impl Recovery {
             let mut max_change = 0.0f64;
             for g in 0..self.n_groups() {
                 if let (true, GroupModel::Diffuse { color }) = (active[g], self.models[g]) {
-                    let (next, change) = diffuse::update(color, &fits[g]);
+                    let (next, change) = diffuse::update_with_slope(color, &fits[g], previous[g]);
+                    previous[g] = Some((color, fits[g].mean_rendered()));
                     self.models[g] = GroupModel::Diffuse { color: next };
                     max_change = max_change.max(change);
                 }
             }
-            if max_change <= fit::DIFFUSE_CONVERGED || evaluations >= fit::DIFFUSE_MAX_STEPS {
+            if diffuse::converged(evaluations, max_change, previous_change) {
                 let last = self.evaluate(spp, seed, &wanted)?;
                 return Ok((first_fits, last, evaluations + 1));
             }
+            previous_change = max_change;
         }
     }
 }
@@ -386,8 +392,9 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         samples_per_pixel: spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![format!(
-            "rho_d <- rho_d * mean(real) / mean(rendered) per group and channel, until the largest relative change <= {}",
-            fit::DIFFUSE_CONVERGED
+            "rho_d <- rho_d * mean(real) / mean(rendered) per group and channel, until the largest relative change <= {} or, after {} steps, stops shrinking (the render's noise floor)",
+            fit::DIFFUSE_CONVERGED,
+            diffuse::MIN_STEPS
         )],
     }];
     let mut candidates = Vec::new();
