@@ -294,6 +294,11 @@ fn fit_ward(
     (fit, alpha, evaluations)
 }
 
+/// Colour steps at most when a diffuse alternative is re-fitted in stage 2.
+const REFIT_MAX_STEPS: u32 = 6;
+/// The relative colour change at which that re-fit stops.
+const REFIT_CONVERGED: f64 = 1e-3;
+
 /// The paper's mirror test on an isotropic model: specular part above
 /// `MIRROR_SPECULAR_FRACTION` of the reflectance, a sharp lobe, and a reflected colour close
 /// to the incident one (an untinted specular reflectance).
@@ -543,20 +548,37 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             _ => (ward.specularity, alpha),
         };
         let only_g = |h: u16| h as usize == g;
+        // Both alternatives are judged by the bias-only error of two independent renders
+        // (pixels::evaluate_cross): a subtracted variance estimate would favour the model
+        // whose sampling is noisier (any Ward lobe, however weak), not the better model.
         let error_of = |rec: &mut Recovery, model: GroupModel| -> Result<f64, Error> {
             rec.models[g] = model;
-            let fits = rec.evaluate(2 * verify_spp, rec.seed ^ 0x5E1F, &only_g)?;
-            Ok(fits[g].relative_error().unwrap_or(f64::INFINITY))
+            let fit = rec.evaluate_cross(4 * verify_spp, rec.seed ^ 0x5E1F, g)?;
+            Ok(if fit.sum_sq_real > 0.0 {
+                (fit.sum_sq_diff.max(0.0) / fit.sum_sq_real).sqrt()
+            } else {
+                f64::INFINITY
+            })
         };
         // The diffuse alternative gets the same chance as the specular one: its colour is
         // re-fitted under the materials found so far (stage 1 saw every group diffuse).
         let stage1 = match stage1 {
-            GroupModel::Diffuse { color } => {
-                rec.models[g] = stage1;
-                let fits = rec.evaluate(verify_spp, rec.seed ^ 0x5E1F, &only_g)?;
-                GroupModel::Diffuse {
-                    color: diffuse::update(color, &fits[g]).0,
+            GroupModel::Diffuse { mut color } => {
+                // As many colour steps as the annealing's colour had (it stepped at every
+                // point), bounded: until the change is below REFIT_CONVERGED.
+                let mut previous = None;
+                for _ in 0..REFIT_MAX_STEPS {
+                    rec.models[g] = GroupModel::Diffuse { color };
+                    let fits = rec.evaluate(verify_spp, rec.seed ^ 0x5E1F, &only_g)?;
+                    evaluations += 1;
+                    let (next, change) = diffuse::update_with_slope(color, &fits[g], previous);
+                    previous = Some((color, fits[g].mean_rendered()));
+                    color = next;
+                    if change <= REFIT_CONVERGED {
+                        break;
+                    }
                 }
+                GroupModel::Diffuse { color }
             }
             other => other,
         };
