@@ -101,6 +101,13 @@ pub const MIRROR_MAX_TINT: f64 = 0.1;
 /// trusted to pick a more complex model.
 pub const MIN_PIXELS_FOR_MODEL_CHOICE: u32 = 16;
 
+/// Texture detection (stage 3): pixel step of the differences of the difference image.
+pub const TEXTURE_STEP: u32 = 3;
+/// Texture detection: differences below this fraction of the largest are left out.
+pub const TEXTURE_FLOOR: f64 = 0.01;
+/// Texture detection: a group whose feature exceeds this is textured (the paper's 40%).
+pub const TEXTURE_THRESHOLD: f64 = 0.4;
+
 #[cfg(test)]
 mod tests {
     use super::*;

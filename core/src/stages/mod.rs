@@ -4,3 +4,4 @@
 
 pub mod diffuse;
 pub mod isotropic;
+pub mod texture;

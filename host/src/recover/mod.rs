@@ -27,6 +27,7 @@ use relume_core::material::{Kind, Material};
 use relume_core::render::RenderSettings;
 use relume_core::stages::diffuse::{self, DiffuseVerdict};
 use relume_core::stages::isotropic::{self, WardFit};
+use relume_core::stages::texture;
 use serde::Serialize;
 
 use crate::assemble::{self, MaterialSource, OwnedScene};
@@ -107,6 +108,9 @@ pub struct GroupReport {
     pub cache_error_specular: Option<f64>,
     /// Error of the final render of the recovered model.
     pub error_final: Option<f64>,
+    /// Stage 3's texture feature on the final render's difference image (see
+    /// `relume_core::stages::texture`), for groups with enough pixels.
+    pub texture_feature: Option<f64>,
 }
 
 #[derive(Serialize, Debug)]
@@ -381,6 +385,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             cache_error_diffuse: None,
             cache_error_specular: None,
             error_final: None,
+            texture_feature: None,
         })
         .collect();
 
@@ -648,6 +653,45 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         r.model = rec.models[g].name().into();
     }
     let renders = output::render_views(&mut rec, final_spp, final_seed)?;
+
+    // Stage 3 (texture detection), on the final render: the paper's statistic of each
+    // group's difference image. Stages 4 (anisotropic) and 5 (textures) are not built yet,
+    // so a detection is reported, and the model is kept.
+    let differences = pixels::step_differences(
+        pixels::Observed {
+            views: &rec.views,
+            real: &rec.real,
+            pure: &rec.pure,
+        },
+        &renders,
+        n_groups,
+        fit::TEXTURE_STEP,
+    );
+    for (g, r) in reports.iter_mut().enumerate() {
+        if r.pure_pixels < fit::MIN_PIXELS_FOR_MODEL_CHOICE {
+            continue;
+        }
+        let Some(feature) = texture::texture_feature(&differences[g]) else {
+            continue;
+        };
+        r.texture_feature = Some(feature);
+        let error = r.error_final.unwrap_or(0.0);
+        if error > fit::DIFFUSE_THRESHOLD {
+            r.decisions.push(if texture::is_textured(feature) {
+                format!(
+                    "stage 3: error {error:.4} > DIFFUSE_THRESHOLD {} and texture feature {feature:.3} > TEXTURE_THRESHOLD {}: textured (diffuse-map recovery is not implemented; model kept)",
+                    fit::DIFFUSE_THRESHOLD,
+                    fit::TEXTURE_THRESHOLD
+                )
+            } else {
+                format!(
+                    "stage 3: error {error:.4} > DIFFUSE_THRESHOLD {} and texture feature {feature:.3} <= TEXTURE_THRESHOLD {}: anisotropic candidate (stage 4 is not implemented; model kept)",
+                    fit::DIFFUSE_THRESHOLD,
+                    fit::TEXTURE_THRESHOLD
+                )
+            });
+        }
+    }
     stages.push(StageReport {
         stage: "final render".into(),
         evaluations: 1,
@@ -671,6 +715,9 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "MIRROR_MAX_ROUGHNESS": fit::MIRROR_MAX_ROUGHNESS,
             "MIRROR_MAX_TINT": fit::MIRROR_MAX_TINT,
             "MIN_PIXELS_FOR_MODEL_CHOICE": fit::MIN_PIXELS_FOR_MODEL_CHOICE,
+            "TEXTURE_STEP": fit::TEXTURE_STEP,
+            "TEXTURE_FLOOR": fit::TEXTURE_FLOOR,
+            "TEXTURE_THRESHOLD": fit::TEXTURE_THRESHOLD,
         }),
         stages,
         groups: reports,

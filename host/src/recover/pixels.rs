@@ -150,3 +150,42 @@ pub fn evaluate_cross(
     }
     total
 }
+
+/// For stage 3 (texture detection): per group, `|D(p) - D(q)|` for every pair of the
+/// group's pure pixels `step` apart along a row or a column of one view, where
+/// `D = lum(real) - lum(rendered)` (see `relume_core::stages::texture`).
+pub fn step_differences(
+    observed: Observed,
+    renders: &[Vec<Vec3>],
+    n_groups: usize,
+    step: u32,
+) -> Vec<Vec<f32>> {
+    let Observed { views, real, pure } = observed;
+    let mut out = vec![Vec::new(); n_groups];
+    for (vi, view) in views.iter().enumerate() {
+        let (w, h) = (view.width, view.height);
+        // The group of each pure pixel of this view, and its difference D.
+        let mut label = vec![None; (w * h) as usize];
+        for p in pure.iter().filter(|p| p.view as usize == vi) {
+            label[(p.y * w + p.x) as usize] = Some(p.group);
+        }
+        let d = |i: usize| {
+            relume_core::math::luminance(Vec3::from(real[vi].pixels[i]))
+                - relume_core::math::luminance(renders[vi][i])
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                let Some(g) = label[i] else { continue };
+                let right = (x + step < w).then(|| i + step as usize);
+                let down = (y + step < h).then(|| i + (step * w) as usize);
+                for j in [right, down].into_iter().flatten() {
+                    if label[j] == Some(g) {
+                        out[g as usize].push((d(i) - d(j)).abs());
+                    }
+                }
+            }
+        }
+    }
+    out
+}

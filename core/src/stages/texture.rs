@@ -1,0 +1,68 @@
+//! Stage 3: texture detection by the paper's statistic on a group's difference image.
+//!
+//! Exact definition. Let `D(p) = lum(real(p)) - lum(rendered(p))` over the group's pure
+//! pixels, `rendered` being the best untextured model. For every pair of pure pixels of the
+//! group `TEXTURE_STEP` apart along a row or a column of one view, take `|D(p) - D(q)|`.
+//! With `m` the largest of these, keep those above `TEXTURE_FLOOR * m`; the feature is
+//! their mean divided by `m`, in (0, 1]. A texture left unexplained puts many strong
+//! differences all over the group (feature high); a missed anisotropic highlight or render
+//! noise puts few large ones among many small ones (feature low). The group is textured
+//! when the feature exceeds `TEXTURE_THRESHOLD`.
+
+use crate::fit::{TEXTURE_FLOOR, TEXTURE_THRESHOLD};
+
+/// The feature of the absolute step differences `diffs` (any order); `None` when there is
+/// no difference at all (no pairs, or a perfect fit).
+pub fn texture_feature(diffs: &[f32]) -> Option<f64> {
+    let max = diffs
+        .iter()
+        .filter(|d| d.is_finite())
+        .fold(0.0f64, |m, &d| m.max(libm::fabs(d as f64)));
+    if !(max > 0.0) {
+        return None;
+    }
+    let floor = TEXTURE_FLOOR * max;
+    let (sum, n) = diffs
+        .iter()
+        .filter(|d| d.is_finite())
+        .map(|&d| libm::fabs(d as f64))
+        .filter(|&d| d > floor)
+        .fold((0.0f64, 0u32), |(s, n), d| (s + d, n + 1));
+    Some(sum / n.max(1) as f64 / max)
+}
+
+/// Whether a feature says "textured".
+pub fn is_textured(feature: f64) -> bool {
+    feature > TEXTURE_THRESHOLD
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::vec::Vec;
+
+    #[test]
+    fn a_pattern_all_over_the_group_is_textured() {
+        // A checker: every step difference is either 0 or the full contrast.
+        let diffs: Vec<f32> = (0..1000)
+            .map(|i| if i % 2 == 0 { 0.3 } else { 0.0 })
+            .collect();
+        let f = texture_feature(&diffs).unwrap();
+        assert!((f - 1.0).abs() < 1e-9 && is_textured(f));
+    }
+
+    #[test]
+    fn one_highlight_among_small_differences_is_not_textured() {
+        let mut diffs: Vec<f32> = (0..1000).map(|i| 0.01 + 0.01 * ((i % 7) as f32)).collect();
+        diffs.extend([1.0, 0.8, 0.6]);
+        let f = texture_feature(&diffs).unwrap();
+        assert!(f < 0.1 && !is_textured(f), "{f}");
+    }
+
+    #[test]
+    fn no_difference_gives_no_feature() {
+        assert_eq!(texture_feature(&[]), None);
+        assert_eq!(texture_feature(&[0.0, 0.0]), None);
+        assert_eq!(texture_feature(&[f32::NAN]), None);
+    }
+}
