@@ -93,3 +93,66 @@ fn usage_errors_exit_with_code_2() {
     let out = relume(tmp.path(), &["frobnicate"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// `bench downsample` halves the panorama into a scene that loads and renders, and keeps
+/// each view's mean radiance (a box average).
+#[test]
+fn downsample_makes_a_loadable_half_resolution_scene() {
+    let root = workspace();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("half");
+    relume_ok(
+        tmp.path(),
+        &[
+            "bench",
+            "downsample",
+            path_str(&root.join("scenes/cornell/scene.toml")),
+            "--factor",
+            "2",
+            "--out",
+            path_str(&out),
+        ],
+    );
+    let mean = |img: &relume::images::Image| -> f64 {
+        img.pixels.iter().flatten().map(|&v| v as f64).sum::<f64>() / img.pixels.len() as f64
+    };
+    for view in ["px", "nx", "py", "ny", "pz", "nz"] {
+        let full =
+            relume::images::read_image(&root.join(format!("scenes/cornell/views/{view}.exr")), 1.0)
+                .unwrap();
+        let half = relume::images::read_image(&out.join(format!("views/{view}.exr")), 1.0).unwrap();
+        assert_eq!((half.width, half.height), (full.width / 2, full.height / 2));
+        let (a, b) = (mean(&full), mean(&half));
+        assert!((a - b).abs() <= 1e-5 * a, "{view}: mean {a} became {b}");
+    }
+    relume_ok(
+        tmp.path(),
+        &[
+            "render",
+            path_str(&out.join("scene.toml")),
+            "--materials",
+            path_str(&root.join("scenes/cornell/materials.toml")),
+            "--out",
+            path_str(&tmp.path().join("render")),
+            "--spp",
+            "2",
+        ],
+    );
+    let bad = relume(
+        tmp.path(),
+        &[
+            "bench",
+            "downsample",
+            path_str(&root.join("scenes/cornell/scene.toml")),
+            "--factor",
+            "5",
+            "--out",
+            path_str(&tmp.path().join("bad")),
+        ],
+    );
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("not a multiple of factor 5"),
+        "{err}"
+    );
+}

@@ -8,7 +8,7 @@ use clap::{Parser, Subcommand};
 use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
 use crate::recover::{self as recover_cmd, Effort};
-use crate::{bench, compare, render_cmd};
+use crate::{bench, compare, downsample, render_cmd};
 
 #[derive(Parser)]
 #[command(
@@ -117,6 +117,15 @@ enum BenchCommand {
         /// Timed runs (best is kept) after one warm-up.
         #[arg(long, default_value_t = 5)]
         repeats: usize,
+    },
+    /// Box-average a scene's panorama by an integer factor into a new scene (for timing
+    /// and judging recovery at several resolutions).
+    Downsample {
+        scene: PathBuf,
+        #[arg(long)]
+        factor: u32,
+        #[arg(long)]
+        out: PathBuf,
     },
 }
 
@@ -236,6 +245,11 @@ fn run(command: Command) -> Result<(), Error> {
                 repeats,
             };
             bench::bench_rays(&args, &built).map(|_| ())
+        }
+        Command::Bench(BenchCommand::Downsample { scene, factor, out }) => {
+            downsample::downsample(&scene, factor, &out)?;
+            println!("wrote {}", out.join("scene.toml").display());
+            Ok(())
         }
     }
 }

@@ -1,0 +1,167 @@
+//! `relume bench downsample`: a scene's panorama box-averaged by an integer factor, with a
+//! scene.toml that points at it. A pixel of the result is exactly the mean of its
+//! `factor x factor` pixels, which is what a render of the same footprint gives (the
+//! references' `views-small/` are made this way), so recovery can be timed and judged at
+//! several resolutions from one panorama.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::error::Error;
+use crate::fsutil;
+use crate::images::{self, Image};
+use crate::scene_file::{self, GroupKind, SceneDesc};
+
+/// Box-averages `image` by `factor` (its size must be a multiple of it).
+pub fn box_average(image: &Image, factor: u32) -> Image {
+    let (w, h) = (image.width / factor, image.height / factor);
+    let n = (factor * factor) as f64;
+    let mut pixels = Vec::with_capacity((w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let mut sum = [0.0f64; 3];
+            for dy in 0..factor {
+                for dx in 0..factor {
+                    let p =
+                        image.pixels[((y * factor + dy) * image.width + x * factor + dx) as usize];
+                    for c in 0..3 {
+                        sum[c] += p[c] as f64;
+                    }
+                }
+            }
+            pixels.push(sum.map(|s| (s / n) as f32));
+        }
+    }
+    Image {
+        width: w,
+        height: h,
+        pixels,
+    }
+}
+
+fn list(v: &[f32]) -> String {
+    let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
+    format!("[{}]", items.join(", "))
+}
+
+fn quoted(s: &str) -> String {
+    format!("{:?}", s)
+}
+
+/// scene.toml text for `desc`, with absolute paths (the file lives elsewhere).
+fn scene_toml(desc: &SceneDesc) -> String {
+    let mut t = String::new();
+    let paths: Vec<String> = desc
+        .geometry
+        .iter()
+        .map(|p| quoted(&p.display().to_string()))
+        .collect();
+    let hide: Vec<String> = desc.hide.iter().map(|h| quoted(h)).collect();
+    let _ = writeln!(
+        t,
+        "format = 1\nname = {}\ngeometry = [{}]\nhide = [{}]",
+        quoted(&desc.name),
+        paths.join(", "),
+        hide.join(", ")
+    );
+    for v in &desc.views {
+        let _ = writeln!(t, "\n[[view]]\nname = {}", quoted(&v.name));
+        if let Some(image) = &v.image {
+            let _ = writeln!(t, "image = {}", quoted(&image.display().to_string()));
+        }
+        let _ = writeln!(
+            t,
+            "position = {}\ndirection = {}\nup = {}\nfov_deg = {}\nsize = [{}, {}]\nexposure = {:?}",
+            list(&v.position),
+            list(&v.direction),
+            list(&v.up),
+            list(&v.fov_deg),
+            v.size[0],
+            v.size[1],
+            v.exposure
+        );
+    }
+    for l in &desc.lights {
+        let _ = writeln!(
+            t,
+            "\n[[light]]\nobject = {}\nradiance = {}",
+            quoted(&l.object),
+            list(&l.radiance)
+        );
+    }
+    for g in &desc.groups {
+        let kind = match g.kind {
+            GroupKind::Plastic => "plastic",
+            GroupKind::Metal => "metal",
+            GroupKind::Auto => "auto",
+        };
+        let objects: Vec<String> = g.objects.iter().map(|o| quoted(o)).collect();
+        let _ = writeln!(
+            t,
+            "\n[[group]]\nname = {}\nkind = \"{kind}\"\nobjects = [{}]",
+            quoted(&g.name),
+            objects.join(", ")
+        );
+    }
+    t
+}
+
+/// Writes `out/scene.toml` and `out/views/<view>.exr`, the panorama of `scene` box-averaged
+/// by `factor`. Errors: a factor of 0, a view without image, a size not divisible.
+pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<(), Error> {
+    if factor == 0 {
+        return Err(Error::Usage("--factor must be at least 1".into()));
+    }
+    let mut desc = scene_file::load_scene(scene)?;
+    let views_dir = out.join("views");
+    fsutil::create_dir(&views_dir)?;
+    for v in &mut desc.views {
+        let Some(path) = v.image.clone() else {
+            return Err(Error::input(
+                scene,
+                format!("view '{}' has no image to downsample", v.name),
+            ));
+        };
+        if v.size[0] % factor != 0 || v.size[1] % factor != 0 {
+            return Err(Error::input(
+                scene,
+                format!(
+                    "view '{}' is {}x{}, not a multiple of factor {factor}",
+                    v.name, v.size[0], v.size[1]
+                ),
+            ));
+        }
+        // Radiance in, radiance out: the exposure is applied here and written as 1.
+        let image = images::read_view_image(&path, v.exposure, v.size)?;
+        let small = box_average(&image, factor);
+        let target = views_dir.join(format!("{}.exr", v.name));
+        images::write_exr(&target, &small)?;
+        v.image = Some(std::fs::canonicalize(&target).map_err(|e| Error::io(&target, e))?);
+        v.size = [v.size[0] / factor, v.size[1] / factor];
+        v.exposure = 1.0;
+    }
+    desc.geometry = desc
+        .geometry
+        .iter()
+        .map(|g| std::fs::canonicalize(g).map_err(|e| Error::io(g, e)))
+        .collect::<Result<_, _>>()?;
+    fsutil::write_atomic(&out.join("scene.toml"), scene_toml(&desc).as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_average_is_the_mean_of_each_block() {
+        let image = Image {
+            width: 4,
+            height: 2,
+            pixels: (0..8).map(|i| [i as f32, 1.0, 2.0 * i as f32]).collect(),
+        };
+        let small = box_average(&image, 2);
+        assert_eq!((small.width, small.height), (2, 1));
+        // Block 0: pixels 0, 1, 4, 5 -> mean 2.5; block 1: 2, 3, 6, 7 -> 4.5.
+        assert_eq!(small.pixels, vec![[2.5, 1.0, 5.0], [4.5, 1.0, 9.0]]);
+    }
+}
