@@ -87,8 +87,9 @@ pub const DIFFUSE_THRESHOLD: f64 = 0.05;
 pub const DIFFUSE_CONVERGED: f64 = 2e-4;
 /// The diffuse iteration stops after this many steps at the most.
 pub const DIFFUSE_MAX_STEPS: u32 = 30;
-/// A specular model is kept only when it removes more than this much relative error
-/// compared with the diffuse model (see `stages::isotropic::specular_gain`).
+/// A specular model is kept only when a render of the group shows it removes more than this
+/// much relative error compared with the diffuse model (host `recover`, stage 2); a group
+/// whose diffuse error is already below it is not tried.
 pub const SPECULAR_GAIN_THRESHOLD: f64 = 0.01;
 /// A fitted isotropic metal whose specular part is above this fraction of its reflectance,
 /// with a roughness at most [`MIRROR_MAX_ROUGHNESS`], is tested as a mirror (the paper's 90%).

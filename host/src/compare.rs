@@ -184,18 +184,6 @@ pub struct MaterialRow {
     pub diffuse_map_psnr_db: Option<f64>,
 }
 
-fn model_name(m: Model) -> &'static str {
-    match m {
-        Model::Diffuse => "diffuse",
-        Model::Isotropic => "isotropic",
-        Model::Anisotropic => "anisotropic",
-        Model::Mirror => "mirror",
-        Model::TexturedDiffuse => "textured-diffuse",
-        Model::TexturedIsotropic => "textured-isotropic",
-        Model::TexturedAnisotropic => "textured-anisotropic",
-    }
-}
-
 fn rel(a: f64, truth: f64) -> f64 {
     if truth != 0.0 {
         (a - truth).abs() / truth.abs()
@@ -247,11 +235,11 @@ pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRo
     for tm in &t.materials {
         let mut row = MaterialRow {
             group: tm.group.clone(),
-            true_model: model_name(tm.model).into(),
+            true_model: tm.model.name().into(),
             ..MaterialRow::default()
         };
         if let Some(rm) = by_group.get(tm.group.as_str()) {
-            row.model = Some(model_name(rm.model).into());
+            row.model = Some(rm.model.name().into());
             row.class_ok = rm.model == tm.model;
             if let (Some(a), Some(b)) = (diffuse_of(rm), diffuse_of(tm)) {
                 row.diffuse_rel_err = Some((0..3).map(|c| rel(a[c], b[c])).sum::<f64>() / 3.0);

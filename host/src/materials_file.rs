@@ -138,6 +138,22 @@ pub struct MaterialsDesc {
 }
 
 impl MaterialDesc {
+    /// An entry of `model` for `group` with no parameter set yet (for writers).
+    pub fn new(group: &str, model: Model) -> MaterialDesc {
+        MaterialDesc {
+            group: group.to_string(),
+            model,
+            color: None,
+            specularity: None,
+            roughness: None,
+            roughness_u: None,
+            roughness_v: None,
+            direction_u: None,
+            diffuse_map: None,
+            line: 0,
+        }
+    }
+
     /// The core's parameters; a textured model maps to its untextured counterpart
     /// (textured-diffuse to diffuse).
     pub fn params(&self) -> Params {
@@ -823,18 +839,7 @@ mod tests {
     }
 
     fn desc(group: &str, model: Model) -> MaterialDesc {
-        MaterialDesc {
-            group: group.into(),
-            model,
-            color: None,
-            specularity: None,
-            roughness: None,
-            roughness_u: None,
-            roughness_v: None,
-            direction_u: None,
-            diffuse_map: None,
-            line: 0,
-        }
+        MaterialDesc::new(group, model)
     }
 
     #[test]

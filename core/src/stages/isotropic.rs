@@ -152,16 +152,6 @@ pub fn solve_diffuse(sums: &LinearSums) -> WardFit {
     finish(sums, rho_d, [0.0; 3], rho_d, 0.0)
 }
 
-/// Whether a specular fit explains the group measurably better than the diffuse one on the
-/// same cached pixels: the error it removes, `sqrt(e_diffuse^2 - e_specular^2)`, must exceed
-/// [`crate::fit::SPECULAR_GAIN_THRESHOLD`] (the paper's 1% that keeps weak speculars out of
-/// diffuse). The cache's own noise adds equally to both errors and cancels in the difference.
-pub fn specular_gain(diffuse: &WardFit, specular: &WardFit) -> f64 {
-    let e2 = diffuse.relative_error * diffuse.relative_error
-        - specular.relative_error * specular.relative_error;
-    libm::sqrt(e2.max(0.0))
-}
-
 /// Metal: minimise over colour `c` (3) and `s`, `rho_d = c (1 - s)`, `S = c s`. For a given
 /// `s` each channel's colour is closed-form; `s` is found by a fine scan of [0, 1] (cheap:
 /// sums only), refined by golden section.

@@ -25,6 +25,7 @@ use relume_core::fit::{self, GroupFit};
 use relume_core::geometry::View;
 use relume_core::material::{Kind, Material};
 use relume_core::render::RenderSettings;
+use relume_core::scene::Scene;
 use relume_core::stages::diffuse::{self, DiffuseVerdict};
 use relume_core::stages::isotropic::{self, WardFit};
 use relume_core::stages::texture;
@@ -157,6 +158,29 @@ impl Recovery {
         }
     }
 
+    /// Runs `measure` on the scene with the current models, the observed pixels and render
+    /// settings of `spp` samples from `seed`: the one setup every evaluation shares.
+    fn with_scene<T>(
+        &mut self,
+        spp: u32,
+        seed: u64,
+        measure: impl FnOnce(&rayon::ThreadPool, &Scene, pixels::Observed, &RenderSettings) -> T,
+    ) -> Result<T, Error> {
+        self.apply_models();
+        let settings = RenderSettings {
+            spp,
+            seed,
+            ..RenderSettings::default()
+        };
+        let scene = self.owned.build()?;
+        let observed = pixels::Observed {
+            views: &self.views,
+            real: &self.real,
+            pure: &self.pure,
+        };
+        Ok(measure(&self.pool, &scene, observed, &settings))
+    }
+
     /// Renders the pure pixels of the groups `wanted` with the current models.
     fn evaluate(
         &mut self,
@@ -164,48 +188,17 @@ impl Recovery {
         seed: u64,
         wanted: &(dyn Fn(u16) -> bool + Sync),
     ) -> Result<Vec<GroupFit>, Error> {
-        self.apply_models();
         let n = self.n_groups();
-        let settings = RenderSettings {
-            spp,
-            seed,
-            ..RenderSettings::default()
-        };
-        let scene = self.owned.build()?;
-        Ok(pixels::evaluate(
-            &self.pool,
-            &scene,
-            pixels::Observed {
-                views: &self.views,
-                real: &self.real,
-                pure: &self.pure,
-            },
-            &settings,
-            n,
-            wanted,
-        ))
+        self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            pixels::evaluate(pool, scene, observed, settings, n, wanted)
+        })
     }
 
     /// The bias-only error of group `g` (see [`pixels::evaluate_cross`]).
     fn evaluate_cross(&mut self, spp: u32, seed: u64, g: usize) -> Result<GroupFit, Error> {
-        self.apply_models();
-        let settings = RenderSettings {
-            spp,
-            seed,
-            ..RenderSettings::default()
-        };
-        let scene = self.owned.build()?;
-        Ok(pixels::evaluate_cross(
-            &self.pool,
-            &scene,
-            pixels::Observed {
-                views: &self.views,
-                real: &self.real,
-                pure: &self.pure,
-            },
-            &settings,
-            g as u16,
-        ))
+        self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            pixels::evaluate_cross(pool, scene, observed, settings, g as u16)
+        })
     }
 
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
@@ -531,7 +524,6 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         let refined = refine::anneal_isotropic(
             &mut rec,
             g,
-            kind,
             proposal,
             verify_spp,
             args.effort.anneal_levels(),

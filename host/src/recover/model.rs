@@ -92,18 +92,7 @@ impl GroupModel {
     /// The entry of materials.toml (none for an unseen group).
     pub fn material_desc(&self, group: &str) -> Option<MaterialDesc> {
         let f = |c: [f64; 3]| Some(c.map(|x| x as f32));
-        let mut d = MaterialDesc {
-            group: group.to_string(),
-            model: Model::Diffuse,
-            color: None,
-            specularity: None,
-            roughness: None,
-            roughness_u: None,
-            roughness_v: None,
-            direction_u: None,
-            diffuse_map: None,
-            line: 0,
-        };
+        let mut d = MaterialDesc::new(group, Model::Diffuse);
         match *self {
             GroupModel::Diffuse { color } => {
                 d.color = f(color);

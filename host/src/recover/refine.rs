@@ -13,7 +13,6 @@
 
 use relume_core::anneal::{Annealer, Schedule};
 use relume_core::fit::GroupFit;
-use relume_core::material::Kind;
 use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
 use relume_core::stages::isotropic::{ROUGHNESS_MAX, ROUGHNESS_MIN};
 
@@ -72,20 +71,34 @@ pub fn schedule(levels: u32) -> Schedule {
     }
 }
 
-/// Anneals group `g` of kind `kind` from `start` (an isotropic model), rendering at `spp`.
+/// Anneals group `g` from `start` (an isotropic model; any other is returned as it is),
+/// rendering at `spp`, over a fixed subset of the group's pixels.
 pub fn anneal_isotropic(
     rec: &mut Recovery,
     g: usize,
-    kind: Kind,
+    start: GroupModel,
+    spp: u32,
+    levels: u32,
+) -> Result<Refined, Error> {
+    let subset = search_subset(&rec.pure, g);
+    let all_pixels = std::mem::replace(&mut rec.pure, subset);
+    let result = anneal_on_pixels(rec, g, start, spp, levels);
+    rec.pure = all_pixels;
+    result
+}
+
+fn anneal_on_pixels(
+    rec: &mut Recovery,
+    g: usize,
     start: GroupModel,
     spp: u32,
     levels: u32,
 ) -> Result<Refined, Error> {
     let GroupModel::Isotropic {
-        color,
+        kind,
+        mut color,
         specularity,
         roughness,
-        ..
     } = start
     else {
         return Ok(Refined {
@@ -93,24 +106,6 @@ pub fn anneal_isotropic(
             evaluations: 0,
         });
     };
-    let subset = search_subset(&rec.pure, g);
-    let all_pixels = std::mem::replace(&mut rec.pure, subset);
-    let result = anneal_on_pixels(rec, g, kind, color, specularity, roughness, spp, levels);
-    rec.pure = all_pixels;
-    result
-}
-
-#[allow(clippy::too_many_arguments)]
-fn anneal_on_pixels(
-    rec: &mut Recovery,
-    g: usize,
-    kind: Kind,
-    mut color: [f64; 3],
-    specularity: f64,
-    roughness: f64,
-    spp: u32,
-    levels: u32,
-) -> Result<Refined, Error> {
     let seed = rec.seed ^ 0xA11E_A1ED ^ g as u64;
     let mut evaluations = 0u32;
     // One cost: the colour step, then the cost at the stepped colour.
