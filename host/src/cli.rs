@@ -62,6 +62,8 @@ enum Command {
         /// How much work to spend (samples per evaluation and in the final render).
         #[arg(long, value_enum, default_value_t = Effort::Default)]
         effort: Effort,
+        #[command(flatten)]
+        knobs: BudgetOverrides,
     },
     /// Compare two sets of views, or two materials files.
     #[command(subcommand)]
@@ -69,6 +71,51 @@ enum Command {
     /// Benchmarks that print figures.
     #[command(subcommand)]
     Bench(BenchCommand),
+}
+
+/// Overrides of single knobs of the `--effort` level (for studying the time/accuracy trade).
+#[derive(clap::Args)]
+struct BudgetOverrides {
+    /// Samples per pixel of the renders inside the loops.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    loop_spp: Option<u32>,
+    /// Samples per pixel of a group's transport cache.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    cache_spp: Option<u32>,
+    /// Temperature levels of the stage-2 annealing (10 proposals each).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    anneal_levels: Option<u32>,
+    /// Samples per pixel of the final render.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    final_spp: Option<u32>,
+    /// The search that refines stage 2's proposal.
+    #[arg(long, value_enum)]
+    optimiser: Option<recover_cmd::Optimiser>,
+    /// Keep at most N pure pixels of a group, as GROUP=N (stability studies).
+    #[arg(long, value_parser = parse_group_limit)]
+    limit_group_pixels: Option<(String, u32)>,
+}
+
+impl BudgetOverrides {
+    fn apply(&self, effort: Effort) -> recover_cmd::Budget {
+        let mut b = effort.budget();
+        b.loop_spp = self.loop_spp.unwrap_or(b.loop_spp);
+        b.cache_spp = self.cache_spp.unwrap_or(b.cache_spp);
+        b.anneal_levels = self.anneal_levels.unwrap_or(b.anneal_levels);
+        b.final_spp = self.final_spp.unwrap_or(b.final_spp);
+        b.optimiser = self.optimiser.unwrap_or(b.optimiser);
+        b
+    }
+}
+
+fn parse_group_limit(s: &str) -> Result<(String, u32), String> {
+    let (group, n) = s
+        .split_once('=')
+        .ok_or_else(|| format!("expected GROUP=N, got '{s}'"))?;
+    let n = n
+        .parse::<u32>()
+        .map_err(|e| format!("'{n}' is not a pixel count: {e}"))?;
+    Ok((group.to_string(), n))
 }
 
 #[derive(Subcommand)]
@@ -183,13 +230,15 @@ fn run(command: Command) -> Result<(), Error> {
             seed,
             threads,
             effort,
+            knobs,
         } => {
             let args = recover_cmd::RecoverArgs {
                 scene,
                 out,
                 seed,
                 threads,
-                effort,
+                budget: knobs.apply(effort),
+                limit_group_pixels: knobs.limit_group_pixels.clone(),
             };
             let report = recover_cmd::run(&args)?;
             for g in &report.groups {

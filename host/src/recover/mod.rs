@@ -49,38 +49,47 @@ pub enum Effort {
 }
 
 impl Effort {
-    fn loop_spp(self) -> u32 {
-        match self {
-            Effort::Fast => 8,
-            Effort::Default => 32,
-            Effort::Thorough => 128,
+    /// The knobs this effort level stands for.
+    pub fn budget(self) -> Budget {
+        let (loop_spp, cache_spp, anneal_levels, final_spp) = match self {
+            Effort::Fast => (8, 16, 4, 32),
+            Effort::Default => (32, 64, 8, 128),
+            Effort::Thorough => (128, 256, 16, 512),
+        };
+        Budget {
+            loop_spp,
+            cache_spp,
+            anneal_levels,
+            final_spp,
+            optimiser: Optimiser::Annealing,
         }
     }
+}
 
-    fn cache_spp(self) -> u32 {
-        match self {
-            Effort::Fast => 16,
-            Effort::Default => 64,
-            Effort::Thorough => 256,
-        }
-    }
+/// The search that refines stage 2's proposal.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Optimiser {
+    /// Simulated annealing (the paper's global search).
+    Annealing,
+    /// Nelder-Mead from the same start (a local search, as Boivin & Gagalowicz used).
+    NelderMead,
+}
 
-    /// Temperature levels of the stage-2 annealing (10 proposals each).
-    fn anneal_levels(self) -> u32 {
-        match self {
-            Effort::Fast => 4,
-            Effort::Default => 8,
-            Effort::Thorough => 16,
-        }
-    }
-
-    fn final_spp(self) -> u32 {
-        match self {
-            Effort::Fast => 32,
-            Effort::Default => 128,
-            Effort::Thorough => 512,
-        }
-    }
+/// The knobs that trade time for accuracy. An [`Effort`] level names one setting of them;
+/// `relume bench tradeoff` sweeps them one at a time.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Budget {
+    /// Samples per pixel of the renders inside the loops (stage 1, the searches).
+    pub loop_spp: u32,
+    /// Samples per pixel of a group's transport cache (stage 2's proposal).
+    pub cache_spp: u32,
+    /// Temperature levels of the annealing (10 proposals each); for Nelder-Mead, the same
+    /// number of evaluations.
+    pub anneal_levels: u32,
+    /// Samples per pixel of the final render that the report's errors come from.
+    pub final_spp: u32,
+    pub optimiser: Optimiser,
 }
 
 pub struct RecoverArgs {
@@ -88,7 +97,10 @@ pub struct RecoverArgs {
     pub out: PathBuf,
     pub seed: u64,
     pub threads: Option<usize>,
-    pub effort: Effort,
+    pub budget: Budget,
+    /// Keep at most this many pure pixels of the named group (an even subset): for
+    /// studying how recovery degrades as a group is seen in fewer pixels.
+    pub limit_group_pixels: Option<(String, u32)>,
 }
 
 /// What the report says of one group.
@@ -127,7 +139,7 @@ pub struct StageReport {
 pub struct RecoverReport {
     pub scene: String,
     pub seed: u64,
-    pub effort: String,
+    pub budget: Budget,
     pub error_definition: &'static str,
     pub thresholds: serde_json::Value,
     pub stages: Vec<StageReport>,
@@ -351,6 +363,23 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         let scene = owned.build()?;
         pixels::find_pure_pixels(&pool, &scene, &views)
     };
+    let pure = match &args.limit_group_pixels {
+        Some((name, limit)) => {
+            let Some(g) = names.iter().position(|n| n == name) else {
+                return Err(Error::input(
+                    &args.scene,
+                    format!(
+                        "--limit-group-pixels names group '{name}', which the scene does not have"
+                    ),
+                ));
+            };
+            warnings.push(format!(
+                "group '{name}': limited to {limit} pure pixels on request (--limit-group-pixels)"
+            ));
+            pixels::limit_group(pure, g as u16, *limit as usize)
+        }
+        None => pure,
+    };
     for vi in empty_views {
         warnings.push(format!(
             "view '{}' sees no group in whole pixels (only lights, silhouettes or nothing): it adds nothing to the fit",
@@ -384,7 +413,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
 
     // Stage 1: all diffuse.
     let stage_start = Instant::now();
-    let spp = args.effort.loop_spp();
+    let spp = args.budget.loop_spp;
     let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "1 diffuse");
     let all = vec![true; n_groups];
     let (first, fits, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
@@ -457,11 +486,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let stage_start = Instant::now();
     candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
     let cache_settings = RenderSettings {
-        spp: args.effort.cache_spp(),
+        spp: args.budget.cache_spp,
         seed: args.seed ^ 0x1507,
         ..RenderSettings::default()
     };
-    let verify_spp = args.effort.loop_spp();
+    let verify_spp = args.budget.loop_spp;
     let bar = progress_bar(candidates.len() as u64, "2 isotropic");
     let mut evaluations = 0;
     for &(g, _) in &candidates {
@@ -521,13 +550,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             specularity: ward.specularity,
             roughness: alpha,
         };
-        let refined = refine::anneal_isotropic(
-            &mut rec,
-            g,
-            proposal,
-            verify_spp,
-            args.effort.anneal_levels(),
-        )?;
+        let refined =
+            refine::anneal_isotropic(&mut rec, g, proposal, verify_spp, args.budget.anneal_levels)?;
         evaluations += refined.evaluations;
         let candidate = match mirror_test(&refined.model) {
             Some(why) => {
@@ -637,7 +661,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
 
     // Final render: errors, views and error images.
     let stage_start = Instant::now();
-    let final_spp = args.effort.final_spp();
+    let final_spp = args.budget.final_spp;
     let final_seed = args.seed ^ 0xF1A1;
     let final_fits = rec.evaluate(final_spp, final_seed, &|_| true)?;
     for (g, r) in reports.iter_mut().enumerate() {
@@ -697,7 +721,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let report = RecoverReport {
         scene: args.scene.display().to_string(),
         seed: args.seed,
-        effort: format!("{:?}", args.effort).to_lowercase(),
+        budget: args.budget,
         error_definition: "sqrt(max(0, sum |R-T|^2 - sum var(R)) / sum |T|^2) over the group's pure pixels, RGB pooled (relume_core::fit)",
         thresholds: serde_json::json!({
             "DIFFUSE_THRESHOLD": fit::DIFFUSE_THRESHOLD,

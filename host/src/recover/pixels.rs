@@ -17,12 +17,35 @@ use crate::parallel;
 pub const CHUNK: usize = 256;
 
 /// A pixel whose whole footprint sees one group.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PurePixel {
     pub view: u32,
     pub x: u32,
     pub y: u32,
     pub group: u16,
+}
+
+/// `pure` with group `g` thinned to at most `limit` pixels, evenly over its pixel order
+/// (the other groups untouched).
+pub fn limit_group(pure: Vec<PurePixel>, g: u16, limit: usize) -> Vec<PurePixel> {
+    let count = pure.iter().filter(|p| p.group == g).count();
+    if count <= limit {
+        return pure;
+    }
+    let mut seen = 0usize;
+    let mut kept = 0usize;
+    pure.into_iter()
+        .filter(|p| {
+            if p.group != g {
+                return true;
+            }
+            // Keep pixel `seen` when it crosses the next multiple of count/limit.
+            let keep = kept < limit && seen * limit >= kept * count;
+            seen += 1;
+            kept += keep as usize;
+            keep
+        })
+        .collect()
 }
 
 /// Every pure pixel of every view, in view and row order, and the views that see none.
@@ -188,4 +211,31 @@ pub fn step_differences(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn limiting_a_group_keeps_an_even_subset_and_the_other_groups() {
+        let pure: Vec<PurePixel> = (0..100)
+            .map(|i| PurePixel {
+                view: 0,
+                x: i,
+                y: 0,
+                group: (i % 2) as u16,
+            })
+            .collect();
+        let limited = limit_group(pure.clone(), 1, 10);
+        let ones: Vec<u32> = limited
+            .iter()
+            .filter(|p| p.group == 1)
+            .map(|p| p.x)
+            .collect();
+        assert_eq!(ones.len(), 10);
+        assert!(ones.windows(2).all(|w| w[1] - w[0] == 10), "{ones:?}");
+        assert_eq!(limited.iter().filter(|p| p.group == 0).count(), 50);
+        assert_eq!(limit_group(pure.clone(), 1, 80), pure);
+    }
 }
