@@ -550,8 +550,14 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             specularity: ward.specularity,
             roughness: alpha,
         };
-        let refined =
-            refine::anneal_isotropic(&mut rec, g, proposal, verify_spp, args.budget.anneal_levels)?;
+        let refined = refine::anneal_isotropic(
+            &mut rec,
+            g,
+            proposal,
+            verify_spp,
+            args.budget.anneal_levels,
+            args.budget.optimiser,
+        )?;
         evaluations += refined.evaluations;
         let candidate = match mirror_test(&refined.model) {
             Some(why) => {

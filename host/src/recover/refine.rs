@@ -18,7 +18,7 @@ use relume_core::stages::isotropic::{ROUGHNESS_MAX, ROUGHNESS_MIN};
 
 use super::model::GroupModel;
 use super::pixels::PurePixel;
-use super::Recovery;
+use super::{Optimiser, Recovery};
 use crate::error::Error;
 
 /// The bounds of the search (reflectance.md: roughness in (0, 0.3]; the paper's Table 2
@@ -79,7 +79,10 @@ pub fn anneal_isotropic(
     start: GroupModel,
     spp: u32,
     levels: u32,
+    optimiser: Optimiser,
 ) -> Result<Refined, Error> {
+    // TODO(nelder-mead arm): `Optimiser::NelderMead` searches with the same budget.
+    let _ = optimiser;
     let subset = search_subset(&rec.pure, g);
     let all_pixels = std::mem::replace(&mut rec.pure, subset);
     let result = anneal_on_pixels(rec, g, start, spp, levels);
