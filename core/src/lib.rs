@@ -14,6 +14,7 @@
 //! - [`transport`]: the light at each pixel sample's first vertex, cached for re-weighting.
 //! - [`fit`]: the fit error of a group and every threshold of the staged recovery.
 //! - [`anneal`]: seeded simulated annealing in ask/tell form.
+//! - [`nelder_mead`]: bounded Nelder-Mead simplex search in the same form (a local arm).
 //! - [`stages`]: the stages of the recovery, as pure functions of measured fits.
 //!
 //! The core never allocates, never does I/O and never panics on user data: the host lends
@@ -40,6 +41,7 @@ pub mod fit;
 pub mod geometry;
 pub mod material;
 pub mod math;
+pub mod nelder_mead;
 pub mod render;
 pub mod rng;
 pub mod scene;
