@@ -10,9 +10,14 @@
 //!
 //! All renders of one group use one seed (common random numbers), so two points are compared
 //! on the same noise and the search follows the model, not the dice.
+//!
+//! [`Optimiser::NelderMead`] replaces the annealing by a local simplex search from the same
+//! start, with the same cost, colour step and number of evaluations, so that
+//! `relume bench tradeoff` can show what the global search buys.
 
 use relume_core::anneal::{Annealer, Schedule};
 use relume_core::fit::GroupFit;
+use relume_core::nelder_mead::NelderMead;
 use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
 use relume_core::stages::isotropic::{ROUGHNESS_MAX, ROUGHNESS_MIN};
 
@@ -71,8 +76,8 @@ pub fn schedule(levels: u32) -> Schedule {
     }
 }
 
-/// Anneals group `g` from `start` (an isotropic model; any other is returned as it is),
-/// rendering at `spp`, over a fixed subset of the group's pixels.
+/// Refines group `g` from `start` (an isotropic model; any other is returned as it is) with
+/// `optimiser`, rendering at `spp`, over a fixed subset of the group's pixels.
 pub fn anneal_isotropic(
     rec: &mut Recovery,
     g: usize,
@@ -81,11 +86,9 @@ pub fn anneal_isotropic(
     levels: u32,
     optimiser: Optimiser,
 ) -> Result<Refined, Error> {
-    // TODO(nelder-mead arm): `Optimiser::NelderMead` searches with the same budget.
-    let _ = optimiser;
     let subset = search_subset(&rec.pure, g);
     let all_pixels = std::mem::replace(&mut rec.pure, subset);
-    let result = anneal_on_pixels(rec, g, start, spp, levels);
+    let result = anneal_on_pixels(rec, g, start, spp, levels, optimiser);
     rec.pure = all_pixels;
     result
 }
@@ -96,6 +99,7 @@ fn anneal_on_pixels(
     start: GroupModel,
     spp: u32,
     levels: u32,
+    optimiser: Optimiser,
 ) -> Result<Refined, Error> {
     let GroupModel::Isotropic {
         kind,
@@ -141,21 +145,51 @@ fn anneal_on_pixels(
     ];
     let (cost0, mut best_model) = cost_at(rec, x0, &mut color)?;
     let mut best_cost = cost0;
-    let mut annealer = Annealer::new(lower, upper, x0, cost0, schedule(levels), seed)
-        .map_err(|e| Error::core("annealing", e))?;
-    // The colour that goes with the chain's current point.
-    let mut chain_color = color;
-    while !annealer.is_done() {
-        let x = annealer.propose();
-        let mut c = chain_color;
-        let (cost, model) = cost_at(rec, x, &mut c)?;
-        annealer.tell(cost);
-        if annealer.current() == x {
-            chain_color = c;
+    match optimiser {
+        Optimiser::Annealing => {
+            let mut annealer = Annealer::new(lower, upper, x0, cost0, schedule(levels), seed)
+                .map_err(|e| Error::core("annealing", e))?;
+            // The colour that goes with the chain's current point.
+            let mut chain_color = color;
+            while !annealer.is_done() {
+                let x = annealer.propose();
+                let mut c = chain_color;
+                let (cost, model) = cost_at(rec, x, &mut c)?;
+                annealer.tell(cost);
+                if annealer.current() == x {
+                    chain_color = c;
+                }
+                if cost < best_cost {
+                    best_cost = cost;
+                    best_model = model;
+                }
+            }
         }
-        if cost < best_cost {
-            best_cost = cost;
-            best_model = model;
+        Optimiser::NelderMead => {
+            let plan = schedule(levels);
+            let mut simplex = NelderMead::new(
+                lower,
+                upper,
+                x0,
+                cost0,
+                plan.total_steps(),
+                plan.initial_step,
+            )
+            .map_err(|e| Error::core("Nelder-Mead search", e))?;
+            // Each colour step starts from the best point's colour: a simplex has no
+            // single current point to carry it, and the best is where it contracts to.
+            let mut best_color = color;
+            while !simplex.is_done() {
+                let x = simplex.propose();
+                let mut c = best_color;
+                let (cost, model) = cost_at(rec, x, &mut c)?;
+                simplex.tell(cost);
+                if cost < best_cost {
+                    best_cost = cost;
+                    best_model = model;
+                    best_color = c;
+                }
+            }
         }
     }
     rec.models[g] = best_model;
