@@ -28,6 +28,13 @@ pub struct GroupFit {
 }
 
 impl GroupFit {
+    /// `sqrt(max(0, sum_sq_diff) / sum_sq_real)`: the relative error of a fit whose
+    /// `sum_sq_diff` holds cross products of two independent renders (host
+    /// `pixels::evaluate_cross`), in which noise has no part. `None` without real signal.
+    pub fn bias_only_error(&self) -> Option<f64> {
+        (self.sum_sq_real > 0.0).then(|| libm::sqrt(self.sum_sq_diff.max(0.0) / self.sum_sq_real))
+    }
+
     /// Adds one pixel: the panorama's value, our render and its variance.
     pub fn add(&mut self, real: Vec3, rendered: Vec3, render_variance: Vec3) {
         self.pixels += 1;
@@ -108,6 +115,18 @@ pub const TEXTURE_STEP: u32 = 3;
 pub const TEXTURE_FLOOR: f64 = 0.01;
 /// Texture detection: a group whose feature exceeds this is textured (the paper's 40%).
 pub const TEXTURE_THRESHOLD: f64 = 0.4;
+/// Texture detection as decided (stages::texture::cross_contrast): a plastic group whose
+/// unexplained log-radiance changes by more than this RMS over `TEXTURE_STEP` pixels, noise
+/// removed, is textured. A uniform material's residual varies smoothly (a misfit lobe
+/// spans many pixels) and the references' own noise is 0.6-1.7%; a picture's contrast is
+/// tens of percent.
+pub const TEXTURE_CONTRAST_THRESHOLD: f64 = 0.1;
+/// Stage 5: a pixel whose rendered specular part is above this fraction of its observed
+/// radiance is a highlight and says nothing about the map.
+pub const HIGHLIGHT_FRACTION: f64 = 0.5;
+/// Stage 5: a pixel receiving less than this fraction of the group's median irradiance is
+/// in shadow and says little about the map.
+pub const SHADOW_FRACTION: f64 = 0.1;
 
 #[cfg(test)]
 mod tests {

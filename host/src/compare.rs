@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use relume_core::geometry::Surface;
+use relume_core::material::texture::bilinear_taps;
 use relume_core::render;
 use serde::Serialize;
 
@@ -201,24 +202,43 @@ fn diffuse_of(m: &MaterialDesc) -> Option<[f64; 3]> {
     }
 }
 
+/// PSNR of a recovered map against the truth's, peak = the truth's maximum. The recovered
+/// map may have another size: it is sampled as the renderer samples it (bilinear between
+/// texel centres, clamped) at the truth's texel centres.
 fn psnr(truth: &Path, recovered: &Path) -> Result<Option<f64>, Error> {
     let t = images::read_image(truth, 1.0)?;
     let r = images::read_image(recovered, 1.0)?;
-    if (t.width, t.height) != (r.width, r.height) {
+    if t.pixels.is_empty() || r.pixels.is_empty() {
         return Ok(None);
     }
+    let sample = |u: f32, v: f32| {
+        bilinear_taps(r.width, r.height, glam::Vec2::new(u, v))
+            .iter()
+            .fold([0.0f64; 3], |mut sum, &(k, a)| {
+                for (s, c) in sum.iter_mut().zip(r.pixels[k]) {
+                    *s += a as f64 * c as f64;
+                }
+                sum
+            })
+    };
     let peak = t
         .pixels
         .iter()
         .flatten()
         .fold(0.0f64, |m, &v| m.max(v as f64));
-    let mse = t
-        .pixels
-        .iter()
-        .zip(&r.pixels)
-        .flat_map(|(a, b)| (0..3).map(move |c| (a[c] as f64 - b[c] as f64).powi(2)))
-        .sum::<f64>()
-        / (3 * t.pixels.len()).max(1) as f64;
+    let mut sum_sq = 0.0f64;
+    for j in 0..t.height {
+        for i in 0..t.width {
+            let u = (i as f32 + 0.5) / t.width as f32;
+            let v = 1.0 - (j as f32 + 0.5) / t.height as f32;
+            let ours = sample(u, v);
+            let theirs = t.pixels[(j * t.width + i) as usize];
+            sum_sq += (0..3)
+                .map(|c| (ours[c] - theirs[c] as f64).powi(2))
+                .sum::<f64>();
+        }
+    }
+    let mse = sum_sq / (3 * t.pixels.len()) as f64;
     Ok(Some(if mse > 0.0 {
         10.0 * (peak * peak / mse).log10()
     } else {

@@ -94,22 +94,35 @@ impl<'a> Textures<'a> {
         let Some(info) = self.infos.get(id.0 as usize) else {
             return Vec3::ZERO;
         };
-        let (w, h) = (info.width, info.height);
-        // Continuous texel coordinates: texel (i, j)'s centre is at (i, j).
-        let x = clamp_unit(uv.x) * w as f32 - 0.5;
-        let y = (1.0 - clamp_unit(uv.y)) * h as f32 - 0.5;
-        let (i0, i1, tx) = axis(x, w);
-        let (j0, j1, ty) = axis(y, h);
-        let texel = |i: usize, j: usize| {
-            self.texels
-                .get(info.offset + j * w as usize + i)
-                .copied()
-                .unwrap_or(Vec3::ZERO)
-        };
-        let top = texel(i0, j0) * (1.0 - tx) + texel(i1, j0) * tx;
-        let bottom = texel(i0, j1) * (1.0 - tx) + texel(i1, j1) * tx;
-        top * (1.0 - ty) + bottom * ty
+        bilinear_taps(info.width, info.height, uv)
+            .iter()
+            .map(|&(index, weight)| {
+                self.texels
+                    .get(info.offset + index)
+                    .copied()
+                    .unwrap_or(Vec3::ZERO)
+                    * weight
+            })
+            .fold(Vec3::ZERO, |a, b| a + b)
     }
+}
+
+/// The four texels (row-major index into a `width x height` texture) and weights that a
+/// bilinear lookup at `uv` blends; the weights sum to 1. Shared by the lookup and by the
+/// recovery of a map (stage 5), which must invert exactly this sampling.
+pub fn bilinear_taps(width: u32, height: u32, uv: Vec2) -> [(usize, f32); 4] {
+    // Continuous texel coordinates: texel (i, j)'s centre is at (i, j).
+    let x = clamp_unit(uv.x) * width as f32 - 0.5;
+    let y = (1.0 - clamp_unit(uv.y)) * height as f32 - 0.5;
+    let (i0, i1, tx) = axis(x, width);
+    let (j0, j1, ty) = axis(y, height);
+    let w = width as usize;
+    [
+        (j0 * w + i0, (1.0 - tx) * (1.0 - ty)),
+        (j0 * w + i1, tx * (1.0 - ty)),
+        (j1 * w + i0, (1.0 - tx) * ty),
+        (j1 * w + i1, tx * ty),
+    ]
 }
 
 #[cfg(test)]

@@ -5,3 +5,4 @@
 pub mod diffuse;
 pub mod isotropic;
 pub mod texture;
+pub mod texture_map;

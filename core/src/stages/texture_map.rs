@@ -1,0 +1,303 @@
+//! Stage 5: a group's diffuse map, `T = (I_real - I_specular) / E`, solved at the map's
+//! resolution rather than pixel by pixel.
+//!
+//! The host renders each pure pixel `p` of the group twice with the current map (the
+//! group's full model, and its specular part alone) and so knows, per channel, how much
+//! radiance one unit of diffuse reflectance sends to the camera there: `e_p`, the
+//! irradiance over pi, which carries the full global illumination. The renderer samples
+//! the map bilinearly (`material::texture::bilinear_taps`), so the observation is
+//! `e_p * sum_k a_pk T_k = I_p - S_p`. Dividing pixel by pixel and splatting would blur
+//! the map by that bilinear kernel; instead the weighted least-squares problem over the
+//! texels is solved by SIRT (simultaneous iterative reconstruction: each texel moves by
+//! its observations' residuals over their summed weights), which converges monotonically
+//! without a step size to tune. Texels no pixel sees are filled from their neighbours.
+//!
+//! Highlights and shadows are removed by the weights the host gives: a pixel whose light
+//! is mostly specular, or which receives little light, says little about `T`.
+
+use crate::error::{check_capacity, Error};
+use crate::material::texture::bilinear_taps;
+use crate::math::{Vec2, Vec3};
+
+/// The smallest and largest side of a recovered map.
+pub const MIN_SIDE: u32 = 4;
+pub const MAX_SIDE: u32 = 1024;
+
+/// Texels per pure pixel: one. Below it, detail the views resolve is lost; above it, the
+/// problem is underdetermined and noise fills the extra texels.
+pub const TEXELS_PER_PIXEL: f64 = 1.0;
+
+/// Iterations of the solver: enough for the bilinear kernel's coupling to settle (the
+/// residual stops changing in the fourth digit on the references well before this).
+pub const SOLVER_ITERATIONS: u32 = 60;
+
+/// Points per pixel at which the map is sampled: a pixel's value is the map averaged over
+/// its footprint (the renderer's box filter), which one centre lookup would misplace by up
+/// to a texel wherever the map has detail; a 2x2 grid at the quarter points follows it.
+pub const FOOTPRINT_SAMPLES: usize = 4;
+
+/// Sub-pixel offsets (in pixels, from the pixel's corner) of the footprint samples.
+pub const FOOTPRINT_OFFSETS: [[f32; 2]; FOOTPRINT_SAMPLES] =
+    [[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]];
+
+/// What the map must explain at one pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapObservation {
+    /// Texture coordinates at the pixel's [`FOOTPRINT_OFFSETS`].
+    pub uv: [Vec2; FOOTPRINT_SAMPLES],
+    /// Radiance per unit of diffuse reflectance, per channel (`E / pi`).
+    pub gain: Vec3,
+    /// The diffuse radiance to explain: `I_real - I_specular`.
+    pub target: Vec3,
+    /// Confidence in `[0, 1]` (0 removes the pixel: a highlight, a shadow).
+    pub weight: f32,
+}
+
+/// The side of the square map for a group seen in `pixels` pure pixels. Square, so that
+/// RADIANCE's `colorpict` (which scales a picture's shorter side to 1) maps it as the
+/// truth maps are mapped, with one remapping for both axes.
+pub fn map_side(pixels: usize) -> u32 {
+    let texels = (pixels as f64 * TEXELS_PER_PIXEL).max(1.0);
+    (libm::round(libm::sqrt(texels)) as u32).clamp(MIN_SIDE, MAX_SIDE)
+}
+
+/// Solves for the `width x height` map in `texels` (row 0 = v 1), starting from its
+/// content, clamped to reflectances in `[0, max_reflectance]`. `numerator` and
+/// `denominator` are scratch of the same length. Returns how many texels no observation
+/// touched (filled from their neighbours).
+pub fn solve_map(
+    observations: &[MapObservation],
+    width: u32,
+    height: u32,
+    max_reflectance: f32,
+    texels: &mut [Vec3],
+    numerator: &mut [Vec3],
+    denominator: &mut [Vec3],
+) -> Result<usize, Error> {
+    let n = (width as usize)
+        .checked_mul(height as usize)
+        .ok_or(Error::InvalidValue {
+            what: "texture map: width x height overflows",
+        })?;
+    check_capacity("config::MAX_TEXELS", crate::config::MAX_TEXELS, n)?;
+    for (what, len) in [
+        ("texture map texels", texels.len()),
+        ("texture map numerator scratch", numerator.len()),
+        ("texture map denominator scratch", denominator.len()),
+    ] {
+        if len < n {
+            return Err(Error::BufferTooSmall {
+                what,
+                needed: n,
+                got: len,
+            });
+        }
+    }
+    let (texels, numerator, denominator) =
+        (&mut texels[..n], &mut numerator[..n], &mut denominator[..n]);
+    let usable = |o: &MapObservation| {
+        o.weight > 0.0
+            && o.uv.iter().all(|uv| uv.is_finite())
+            && o.gain.is_finite()
+            && o.target.is_finite()
+    };
+    // The taps of the footprint average: each sample's bilinear taps at a quarter weight.
+    let taps = |o: &MapObservation| {
+        let mut all = [(0usize, 0.0f32); 4 * FOOTPRINT_SAMPLES];
+        for (s, uv) in o.uv.iter().enumerate() {
+            for (t, (k, a)) in bilinear_taps(width, height, *uv).into_iter().enumerate() {
+                all[4 * s + t] = (k, a / FOOTPRINT_SAMPLES as f32);
+            }
+        }
+        all
+    };
+
+    // The summed weights of each texel do not change between iterations.
+    denominator.fill(Vec3::ZERO);
+    for o in observations.iter().filter(|o| usable(o)) {
+        for (k, a) in taps(o) {
+            denominator[k] += o.gain * o.gain * (a * o.weight);
+        }
+    }
+    for _ in 0..SOLVER_ITERATIONS {
+        numerator.fill(Vec3::ZERO);
+        for o in observations.iter().filter(|o| usable(o)) {
+            let taps = taps(o);
+            let predicted = taps
+                .iter()
+                .fold(Vec3::ZERO, |sum, &(k, a)| sum + texels[k] * a)
+                * o.gain;
+            let residual = (o.target - predicted) * o.gain * o.weight;
+            for (k, a) in taps {
+                numerator[k] += residual * a;
+            }
+        }
+        for k in 0..n {
+            for c in 0..3 {
+                if denominator[k][c] > 0.0 {
+                    texels[k][c] = (texels[k][c] + numerator[k][c] / denominator[k][c])
+                        .clamp(0.0, max_reflectance);
+                }
+            }
+        }
+    }
+    Ok(fill_unseen(width, height, texels, denominator))
+}
+
+/// Gives every texel no observation touched (zero weight in `seen`) the mean of its
+/// already known 4-neighbours, growing inwards from the known texels ring by ring.
+fn fill_unseen(width: u32, height: u32, texels: &mut [Vec3], seen: &mut [Vec3]) -> usize {
+    let (w, h) = (width as usize, height as usize);
+    let known = |s: &Vec3| s.max_element() > 0.0;
+    let unseen = seen.iter().filter(|s| !known(s)).count();
+    if unseen == texels.len() {
+        return unseen;
+    }
+    loop {
+        let mut changed = false;
+        // Mark texels filled in this ring with a negative weight so that they do not
+        // feed the same ring (the result would depend on the scan order).
+        for j in 0..h {
+            for i in 0..w {
+                let k = j * w + i;
+                if known(&seen[k]) || seen[k].x < 0.0 {
+                    continue;
+                }
+                let mut sum = Vec3::ZERO;
+                let mut count = 0.0f32;
+                let neighbours = [
+                    (i > 0).then(|| k - 1),
+                    (i + 1 < w).then(|| k + 1),
+                    (j > 0).then(|| k - w),
+                    (j + 1 < h).then(|| k + w),
+                ];
+                for m in neighbours.into_iter().flatten() {
+                    if known(&seen[m]) {
+                        sum += texels[m];
+                        count += 1.0;
+                    }
+                }
+                if count > 0.0 {
+                    texels[k] = sum / count;
+                    seen[k] = Vec3::splat(-1.0);
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            return unseen;
+        }
+        for s in seen.iter_mut().filter(|s| s.x < 0.0) {
+            *s = Vec3::ONE;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Sampler;
+    use std::vec;
+    use std::vec::Vec;
+
+    fn truth_map(w: u32, h: u32) -> Vec<Vec3> {
+        (0..w * h)
+            .map(|k| {
+                let (i, j) = (k % w, k / w);
+                Vec3::new(
+                    0.1 + 0.8 * ((i + j) % 2) as f32,
+                    0.2 + 0.05 * i as f32,
+                    0.7 - 0.04 * j as f32,
+                )
+            })
+            .collect()
+    }
+
+    fn lookup(map: &[Vec3], w: u32, h: u32, uv: Vec2) -> Vec3 {
+        bilinear_taps(w, h, uv)
+            .iter()
+            .fold(Vec3::ZERO, |s, &(k, a)| s + map[k] * a)
+    }
+
+    /// Observations of `map` at `count` random points of `[lo, hi]^2` with random gains.
+    fn observe(map: &[Vec3], w: u32, h: u32, count: u32, lo: f32, hi: f32) -> Vec<MapObservation> {
+        let mut rng = Sampler::for_pixel_sample(7, 0, 0, 0);
+        (0..count)
+            .map(|_| {
+                let [a, b] = rng.next_2d();
+                let uv = Vec2::new(lo + (hi - lo - 0.1) * a, lo + (hi - lo - 0.1) * b);
+                let [g0, g1] = rng.next_2d();
+                let gain = Vec3::new(0.2 + g0, 0.3 + g1, 0.5 + 0.5 * g0);
+                // A pixel a tenth of the map wide.
+                let uvs = FOOTPRINT_OFFSETS.map(|[dx, dy]| uv + Vec2::new(dx, dy) * 0.1);
+                let seen = uvs
+                    .iter()
+                    .fold(Vec3::ZERO, |s, uv| s + lookup(map, w, h, *uv))
+                    / FOOTPRINT_SAMPLES as f32;
+                MapObservation {
+                    uv: uvs,
+                    gain,
+                    target: gain * seen,
+                    weight: 1.0,
+                }
+            })
+            .collect()
+    }
+
+    fn solve(obs: &[MapObservation], w: u32, h: u32) -> (Vec<Vec3>, usize) {
+        let n = (w * h) as usize;
+        let mut map = vec![Vec3::splat(0.5); n];
+        let (mut a, mut b) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
+        let unseen = solve_map(obs, w, h, 1.0, &mut map, &mut a, &mut b).unwrap();
+        (map, unseen)
+    }
+
+    #[test]
+    fn recovers_a_map_that_the_observations_determine() {
+        let (w, h) = (8, 6);
+        let truth = truth_map(w, h);
+        let obs = observe(&truth, w, h, 4000, 0.0, 1.0);
+        let (map, unseen) = solve(&obs, w, h);
+        assert_eq!(unseen, 0);
+        let worst = map
+            .iter()
+            .zip(&truth)
+            .map(|(a, b)| (*a - *b).abs().max_element())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 0.02, "worst texel error {worst}");
+    }
+
+    #[test]
+    fn zero_weight_pixels_are_ignored_and_unseen_texels_filled_from_neighbours() {
+        let (w, h) = (8, 8);
+        let truth = vec![Vec3::splat(0.3); 64];
+        // Only the left half is observed; a "highlight" pixel with weight 0 lies there too.
+        let mut obs = observe(&truth, w, h, 3000, 0.0, 0.45);
+        obs.push(MapObservation {
+            uv: [Vec2::new(0.2, 0.2); FOOTPRINT_SAMPLES],
+            gain: Vec3::ONE,
+            target: Vec3::splat(50.0),
+            weight: 0.0,
+        });
+        let (map, unseen) = solve(&obs, w, h);
+        assert!(unseen > 20, "{unseen}");
+        for t in &map {
+            assert!((*t - Vec3::splat(0.3)).abs().max_element() < 0.01, "{t}");
+        }
+    }
+
+    #[test]
+    fn sides_follow_the_pixel_count_within_bounds() {
+        assert_eq!(map_side(10_000), 100);
+        assert_eq!(map_side(3), MIN_SIDE);
+        assert_eq!(map_side(usize::MAX / 2), MAX_SIDE);
+    }
+
+    #[test]
+    fn short_buffers_are_an_error() {
+        let mut small = vec![Vec3::ZERO; 3];
+        let mut a = vec![Vec3::ZERO; 16];
+        let mut b = vec![Vec3::ZERO; 16];
+        assert!(solve_map(&[], 4, 4, 1.0, &mut small, &mut a, &mut b).is_err());
+    }
+}
