@@ -200,6 +200,18 @@ pub fn write_exr(path: &Path, image: &Image) -> Result<(), Error> {
     fsutil::write_atomic(path, &bytes)
 }
 
+/// Writes a Radiance RGBE picture (.hdr), atomically: how a RADIANCE `colorpict` reads
+/// a recovered diffuse map.
+pub fn write_hdr(path: &Path, image: &Image) -> Result<(), Error> {
+    check_buffer(path, image)?;
+    let pixels: Vec<image::Rgb<f32>> = image.pixels.iter().map(|p| image::Rgb(*p)).collect();
+    let mut bytes = Vec::new();
+    image::codecs::hdr::HdrEncoder::new(&mut bytes)
+        .encode(&pixels, image.width as usize, image.height as usize)
+        .map_err(|e| Error::input(path, format!("cannot encode HDR: {e}")))?;
+    fsutil::write_atomic(path, &bytes)
+}
+
 /// Writes an 8-bit sRGB preview for people, atomically: radiance times `exposure`, or by
 /// default scaled so that the [`PREVIEW_PERCENTILE`] of luminance shows as
 /// [`PREVIEW_TARGET`]; clamped to [0, 1] (NaN and negative values show black).

@@ -11,11 +11,13 @@
 //!    kept only when it removes measurably more error than the diffuse model; mirror test.
 //! 3. Diffuse groups are refined again under the specular materials found.
 
+mod anisotropic;
 mod cache;
 mod model;
 mod output;
 mod pixels;
 mod refine;
+mod texture;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -28,7 +30,7 @@ use relume_core::render::RenderSettings;
 use relume_core::scene::Scene;
 use relume_core::stages::diffuse::{self, DiffuseVerdict};
 use relume_core::stages::isotropic::{self, WardFit};
-use relume_core::stages::texture;
+use relume_core::stages::texture as texture_stage;
 use serde::Serialize;
 
 use crate::assemble::{self, MaterialSource, OwnedScene};
@@ -124,6 +126,12 @@ pub struct GroupReport {
     /// Stage 3's texture feature on the final render's difference image (see
     /// `relume_core::stages::texture`), for groups with enough pixels.
     pub texture_feature: Option<f64>,
+    /// Stage 3's decision statistic (`relume_core::stages::texture::cross_contrast`) under
+    /// the best untextured model, for the groups tested.
+    pub texture_contrast: Option<f64>,
+    /// The bias-only error of the group's model when stage 2 or 5 decided (see
+    /// `pixels::evaluate_cross`).
+    pub error_decided: Option<f64>,
 }
 
 #[derive(Serialize, Debug)]
@@ -155,6 +163,8 @@ struct Recovery {
     real: Vec<Image>,
     pure: Vec<PurePixel>,
     models: Vec<GroupModel>,
+    /// Diffuse maps of textured groups (`GroupModel::Textured::map` indexes it).
+    maps: Vec<texture::RecoveredMap>,
     pool: rayon::ThreadPool,
     seed: u64,
 }
@@ -167,6 +177,18 @@ impl Recovery {
     fn apply_models(&mut self) {
         for (m, model) in self.owned.materials.iter_mut().zip(&self.models) {
             *m = model.surface_material();
+        }
+        self.owned.texture_infos.clear();
+        self.owned.texels.clear();
+        for map in &self.maps {
+            self.owned
+                .texture_infos
+                .push(relume_core::material::TextureInfo {
+                    width: map.side,
+                    height: map.side,
+                    offset: self.owned.texels.len(),
+                });
+            self.owned.texels.extend_from_slice(&map.texels);
         }
     }
 
@@ -208,9 +230,11 @@ impl Recovery {
 
     /// The bias-only error of group `g` (see [`pixels::evaluate_cross`]).
     fn evaluate_cross(&mut self, spp: u32, seed: u64, g: usize) -> Result<GroupFit, Error> {
-        self.with_scene(spp, seed, |pool, scene, observed, settings| {
-            pixels::evaluate_cross(pool, scene, observed, settings, g as u16)
-        })
+        let n = self.n_groups();
+        let fits = self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            pixels::evaluate_cross(pool, scene, observed, settings, n, &|h| h as usize == g)
+        })?;
+        Ok(fits[g])
     }
 
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
@@ -303,6 +327,11 @@ fn fit_ward(
     (fit, alpha, evaluations)
 }
 
+/// Stage 5 renders the irradiance at this many times the final render's samples: a map
+/// takes the render's noise into its texels (T = I / E, pixel by pixel), where the final
+/// render averages it away; textured groups are small, so this costs little.
+const MAP_SPP_FACTOR: u32 = 8;
+
 /// Colour steps at most when a diffuse alternative is re-fitted in stage 2.
 const REFIT_MAX_STEPS: u32 = 6;
 /// The relative colour change at which that re-fit stops.
@@ -392,6 +421,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         real,
         pure,
         models: vec![GroupModel::Diffuse { color: [0.5; 3] }; n_groups],
+        maps: Vec::new(),
         pool,
         seed: args.seed,
     };
@@ -408,6 +438,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             cache_error_specular: None,
             error_final: None,
             texture_feature: None,
+            texture_contrast: None,
+            error_decided: None,
         })
         .collect();
 
@@ -581,11 +613,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         let error_of = |rec: &mut Recovery, model: GroupModel| -> Result<f64, Error> {
             rec.models[g] = model;
             let fit = rec.evaluate_cross(4 * verify_spp, rec.seed ^ 0x5E1F, g)?;
-            Ok(if fit.sum_sq_real > 0.0 {
-                (fit.sum_sq_diff.max(0.0) / fit.sum_sq_real).sqrt()
-            } else {
-                f64::INFINITY
-            })
+            Ok(fit.bias_only_error().unwrap_or(f64::INFINITY))
         };
         // The diffuse alternative gets the same chance as the specular one: its colour is
         // re-fitted under the materials found so far (stage 1 saw every group diffuse).
@@ -626,12 +654,14 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 r.decisions.push(format!("stage 2: {why}"));
             }
             rec.models[g] = candidate.0;
+            r.error_decided = Some(error_specular);
         } else {
             r.decisions.push(format!(
                 "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) removes only {gain:.4} of relative error in a render <= SPECULAR_GAIN_THRESHOLD {} (diffuse {error_diffuse:.4}, specular {error_specular:.4})",
                 fit::SPECULAR_GAIN_THRESHOLD
             ));
             rec.models[g] = stage1;
+            r.error_decided = Some(error_diffuse);
         }
     }
     bar.finish_and_clear();
@@ -645,18 +675,181 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         ],
     });
 
-    // Stage 3: the diffuse groups again, under the specular materials now known.
+    // Stages 3 and 5: texture detection on the groups a uniform model leaves measurably
+    // unexplained, and the diffuse maps of those found textured.
+    let stage_start = Instant::now();
+    let mut evaluations = 0;
+    let mut notes = Vec::new();
+    let tested: Vec<usize> = (0..n_groups)
+        .filter(|&g| {
+            reports[g].pure_pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE
+                && kinds[g] != GroupKind::Metal
+                && reports[g]
+                    .error_decided
+                    .or(reports[g].error_diffuse)
+                    .unwrap_or(0.0)
+                    > fit::SPECULAR_GAIN_THRESHOLD
+                && match rec.models[g] {
+                    GroupModel::Diffuse { .. } => true,
+                    GroupModel::Isotropic { kind, .. } => kind == Kind::Plastic,
+                    _ => false,
+                }
+        })
+        .collect();
+    let bar = progress_bar(tested.len() as u64, "3+5 textures");
+    for g in tested {
+        let contrast = texture::texture_contrast(&mut rec, g, 4 * verify_spp, args.seed ^ 0x7E57)?;
+        evaluations += 1;
+        bar.inc(1);
+        let r = &mut reports[g];
+        r.texture_contrast = contrast;
+        let Some(contrast) = contrast else {
+            r.decisions
+                .push("stage 3: no pair of lit pixels 3 apart; texture not tested".into());
+            continue;
+        };
+        if !texture_stage::has_texture_contrast(contrast) {
+            r.decisions.push(format!(
+                "stage 3: untextured: step contrast {contrast:.4} <= TEXTURE_CONTRAST_THRESHOLD {}",
+                fit::TEXTURE_CONTRAST_THRESHOLD
+            ));
+            continue;
+        }
+        let (specularity, roughness) = match rec.models[g] {
+            GroupModel::Isotropic {
+                specularity,
+                roughness,
+                ..
+            } => (specularity, roughness),
+            _ => (0.0, 0.0),
+        };
+        let standin = rec.models[g];
+        let summary = texture::recover_map(
+            &mut rec,
+            g,
+            specularity,
+            roughness,
+            MAP_SPP_FACTOR * args.budget.final_spp,
+            args.seed,
+        )?;
+        evaluations += 2;
+        let r = &mut reports[g];
+        r.decisions.push(format!(
+            "stage 3: textured: step contrast {contrast:.4} > TEXTURE_CONTRAST_THRESHOLD {}",
+            fit::TEXTURE_CONTRAST_THRESHOLD
+        ));
+        r.decisions.push(format!(
+            "stage 5: {} map {}x{} from {} pixels (T = (I_real - I_specular) / E under the {} stand-in's lobe); {} highlight and {} shadow pixels removed, {} texels unseen and filled from neighbours",
+            rec.models[g].name(),
+            summary.side,
+            summary.side,
+            summary.pixels,
+            standin.name(),
+            summary.highlights,
+            summary.shadows,
+            summary.unseen_texels
+        ));
+    }
+    bar.finish_and_clear();
+    notes.push(format!(
+        "plastic groups with more than SPECULAR_GAIN_THRESHOLD {} of error left: textured when the noise-free step contrast of ln(real / rendered) exceeds TEXTURE_CONTRAST_THRESHOLD {}; maps solved by least squares at about one texel per pure pixel",
+        fit::SPECULAR_GAIN_THRESHOLD,
+        fit::TEXTURE_CONTRAST_THRESHOLD
+    ));
+    stages.push(StageReport {
+        stage: "3+5 texture detection and diffuse maps".into(),
+        evaluations,
+        samples_per_pixel: MAP_SPP_FACTOR * args.budget.final_spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes,
+    });
+
+    // Stage 4: anisotropic, for the untextured isotropic groups that their lobe left with
+    // more than DIFFUSE_THRESHOLD of error.
+    let stage_start = Instant::now();
+    let mut evaluations = 0;
+    let stage4: Vec<usize> = (0..n_groups)
+        .filter(|&g| {
+            // As the paper: only a group that stage 2 made isotropic goes on; one that
+            // stayed diffuse showed no lobe worth its parameters.
+            matches!(rec.models[g], GroupModel::Isotropic { .. })
+                && reports[g].error_decided.unwrap_or(0.0) > fit::DIFFUSE_THRESHOLD
+        })
+        .collect();
+    let bar = progress_bar(stage4.len() as u64, "4 anisotropic");
+    for g in stage4 {
+        let kept = rec.models[g];
+        let start = kept;
+        let refined = anisotropic::anneal_anisotropic(
+            &mut rec,
+            g,
+            start,
+            verify_spp,
+            args.budget.anneal_levels,
+        )?;
+        evaluations += refined.evaluations + 2;
+        bar.inc(1);
+        let error_of = |rec: &mut Recovery, model: GroupModel| -> Result<f64, Error> {
+            rec.models[g] = model;
+            let fit = rec.evaluate_cross(4 * verify_spp, rec.seed ^ 0x5E1F, g)?;
+            Ok(fit.bias_only_error().unwrap_or(f64::INFINITY))
+        };
+        let error_kept = error_of(&mut rec, kept)?;
+        let error_aniso = error_of(&mut rec, refined.model)?;
+        let gain = error_kept - error_aniso;
+        let r = &mut reports[g];
+        if let (
+            true,
+            GroupModel::Anisotropic {
+                roughness_u,
+                roughness_v,
+                direction: d,
+                ..
+            },
+        ) = (gain > fit::SPECULAR_GAIN_THRESHOLD, refined.model)
+        {
+            r.decisions.push(format!(
+                "stage 4: anisotropic (roughness_u {roughness_u:.4}, roughness_v {roughness_v:.4}, direction [{:.3}, {:.3}, {:.3}]) removes {gain:.4} of relative error in a render > SPECULAR_GAIN_THRESHOLD {} ({} {error_kept:.4}, anisotropic {error_aniso:.4})",
+                d[0], d[1], d[2],
+                fit::SPECULAR_GAIN_THRESHOLD,
+                kept.name()
+            ));
+            rec.models[g] = refined.model;
+            r.error_decided = Some(error_aniso);
+        } else {
+            r.decisions.push(format!(
+                "stage 4: stays {}: the best anisotropic fit removes only {gain:.4} of relative error in a render <= SPECULAR_GAIN_THRESHOLD {} ({} {error_kept:.4}, anisotropic {error_aniso:.4})",
+                kept.name(),
+                fit::SPECULAR_GAIN_THRESHOLD,
+                kept.name()
+            ));
+            rec.models[g] = kept;
+        }
+    }
+    bar.finish_and_clear();
+    stages.push(StageReport {
+        stage: "4 anisotropic".into(),
+        evaluations,
+        samples_per_pixel: verify_spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "untextured groups with an isotropic fit and more than DIFFUSE_THRESHOLD {} of error left: annealing over (log roughness_u, log roughness_v, direction angle), colour and specularity kept from stage 2",
+            fit::DIFFUSE_THRESHOLD
+        )],
+    });
+
+    // Diffuse refinement: the diffuse groups again, under the specular materials now known.
     let stage_start = Instant::now();
     let active: Vec<bool> = rec
         .models
         .iter()
         .map(|m| matches!(m, GroupModel::Diffuse { .. }))
         .collect();
-    let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "3 diffuse again");
+    let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "diffuse again");
     let (_, _, evaluations) = rec.diffuse_iteration(spp, &active, &bar)?;
     bar.finish_and_clear();
     stages.push(StageReport {
-        stage: "3 diffuse refinement".into(),
+        stage: "diffuse refinement".into(),
         evaluations,
         samples_per_pixel: spp,
         seconds: stage_start.elapsed().as_secs_f64(),
@@ -676,9 +869,9 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     }
     let renders = output::render_views(&mut rec, final_spp, final_seed)?;
 
-    // Stage 3 (texture detection), on the final render: the paper's statistic of each
-    // group's difference image. Stages 4 (anisotropic) and 5 (textures) are not built yet,
-    // so a detection is reported, and the model is kept.
+    // The paper's own texture feature, on the final render's difference image: reported
+    // beside the statistic stage 3 decides on, since on our references it does not
+    // separate the classes (docs/recovery.md).
     let differences = pixels::step_differences(
         pixels::Observed {
             views: &rec.views,
@@ -688,30 +881,13 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &renders,
         n_groups,
         fit::TEXTURE_STEP,
+        |real, rendered| {
+            relume_core::math::luminance(real) - relume_core::math::luminance(rendered)
+        },
     );
     for (g, r) in reports.iter_mut().enumerate() {
-        if r.pure_pixels < fit::MIN_PIXELS_FOR_MODEL_CHOICE {
-            continue;
-        }
-        let Some(feature) = texture::texture_feature(&differences[g]) else {
-            continue;
-        };
-        r.texture_feature = Some(feature);
-        let error = r.error_final.unwrap_or(0.0);
-        if error > fit::DIFFUSE_THRESHOLD {
-            r.decisions.push(if texture::is_textured(feature) {
-                format!(
-                    "stage 3: error {error:.4} > DIFFUSE_THRESHOLD {} and texture feature {feature:.3} > TEXTURE_THRESHOLD {}: textured (diffuse-map recovery is not implemented; model kept)",
-                    fit::DIFFUSE_THRESHOLD,
-                    fit::TEXTURE_THRESHOLD
-                )
-            } else {
-                format!(
-                    "stage 3: error {error:.4} > DIFFUSE_THRESHOLD {} and texture feature {feature:.3} <= TEXTURE_THRESHOLD {}: anisotropic candidate (stage 4 is not implemented; model kept)",
-                    fit::DIFFUSE_THRESHOLD,
-                    fit::TEXTURE_THRESHOLD
-                )
-            });
+        if r.pure_pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE {
+            r.texture_feature = texture_stage::texture_feature(&differences[g]);
         }
     }
     stages.push(StageReport {
@@ -740,6 +916,9 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "TEXTURE_STEP": fit::TEXTURE_STEP,
             "TEXTURE_FLOOR": fit::TEXTURE_FLOOR,
             "TEXTURE_THRESHOLD": fit::TEXTURE_THRESHOLD,
+            "TEXTURE_CONTRAST_THRESHOLD": fit::TEXTURE_CONTRAST_THRESHOLD,
+            "HIGHLIGHT_FRACTION": fit::HIGHLIGHT_FRACTION,
+            "SHADOW_FRACTION": fit::SHADOW_FRACTION,
         }),
         stages,
         groups: reports,

@@ -2,7 +2,9 @@
 //! outputs are written from.
 
 use glam::Vec3;
-use relume_core::material::{Kind, Material, Params, SurfaceMaterial};
+use std::path::Path;
+
+use relume_core::material::{Kind, Material, Params, SurfaceMaterial, TextureId};
 
 use crate::materials_file::{MaterialDesc, Model};
 
@@ -18,8 +20,25 @@ pub enum GroupModel {
         specularity: f64,
         roughness: f64,
     },
+    /// Stage 4: the isotropic model's colour and specularity with a lobe of roughness
+    /// `roughness_u` along `direction` (in the surface plane) and `roughness_v` across.
+    Anisotropic {
+        kind: Kind,
+        color: [f64; 3],
+        specularity: f64,
+        roughness_u: f64,
+        roughness_v: f64,
+        direction: [f64; 3],
+    },
     Mirror {
         color: [f64; 3],
+    },
+    /// A plastic whose diffuse reflectance is the recovered map `map` (an index into the
+    /// recovery's maps), with an optional isotropic specular lobe (specularity 0: none).
+    Textured {
+        map: usize,
+        specularity: f64,
+        roughness: f64,
     },
     /// No pure pixel: nothing recovered (rendered as a neutral grey meanwhile).
     Unseen,
@@ -34,16 +53,26 @@ impl GroupModel {
         match self {
             GroupModel::Diffuse { .. } => "diffuse",
             GroupModel::Isotropic { .. } => "isotropic",
+            GroupModel::Anisotropic { .. } => "anisotropic",
             GroupModel::Mirror { .. } => "mirror",
+            GroupModel::Textured { specularity, .. } if *specularity > 0.0 => "textured-isotropic",
+            GroupModel::Textured { .. } => "textured-diffuse",
             GroupModel::Unseen => "unseen",
         }
     }
 
-    /// Diffuse and specular reflectances `(rho_d, rho_s)` (reflectance.md).
+    /// Diffuse and specular reflectances `(rho_d, rho_s)` (reflectance.md); for a textured
+    /// model `rho_d` is in its map and given here as zero.
     pub fn reflectances(&self) -> ([f64; 3], [f64; 3]) {
         match *self {
             GroupModel::Diffuse { color } => (color, [0.0; 3]),
             GroupModel::Isotropic {
+                kind,
+                color,
+                specularity: s,
+                ..
+            }
+            | GroupModel::Anisotropic {
                 kind,
                 color,
                 specularity: s,
@@ -56,6 +85,7 @@ impl GroupModel {
                 },
             ),
             GroupModel::Mirror { color } => ([0.0; 3], color),
+            GroupModel::Textured { specularity, .. } => ([0.0; 3], [specularity; 3]),
             GroupModel::Unseen => ([0.0; 3], [0.0; 3]),
         }
     }
@@ -78,7 +108,49 @@ impl GroupModel {
                 },
             )
             .unwrap_or(Material::Diffuse { rho_d: v3(color) }),
+            GroupModel::Anisotropic {
+                kind,
+                color,
+                specularity,
+                roughness_u,
+                roughness_v,
+                direction,
+            } => Material::from_params(
+                kind,
+                v3(color),
+                Params::Anisotropic {
+                    specularity: specularity as f32,
+                    roughness_u: roughness_u as f32,
+                    roughness_v: roughness_v as f32,
+                    direction: v3(direction),
+                },
+            )
+            .unwrap_or(Material::Diffuse { rho_d: v3(color) }),
             GroupModel::Mirror { color } => Material::Mirror { rho: v3(color) },
+            GroupModel::Textured {
+                map,
+                specularity,
+                roughness,
+            } => {
+                // The map replaces rho_d; the colour only tints a metal's lobe.
+                let material = if specularity > 0.0 {
+                    Material::from_params(
+                        Kind::Plastic,
+                        Vec3::ONE,
+                        Params::Isotropic {
+                            specularity: specularity as f32,
+                            roughness: roughness as f32,
+                        },
+                    )
+                    .unwrap_or(Material::Diffuse { rho_d: Vec3::ONE })
+                } else {
+                    Material::Diffuse { rho_d: Vec3::ONE }
+                };
+                return SurfaceMaterial {
+                    material,
+                    diffuse_map: Some(TextureId(map as u16)),
+                };
+            }
             GroupModel::Unseen => Material::Diffuse {
                 rho_d: Vec3::splat(0.5),
             },
@@ -90,7 +162,8 @@ impl GroupModel {
     }
 
     /// The entry of materials.toml (none for an unseen group).
-    pub fn material_desc(&self, group: &str) -> Option<MaterialDesc> {
+    /// `map_path` is where a textured model's map is written.
+    pub fn material_desc(&self, group: &str, map_path: Option<&Path>) -> Option<MaterialDesc> {
         let f = |c: [f64; 3]| Some(c.map(|x| x as f32));
         let mut d = MaterialDesc::new(group, Model::Diffuse);
         match *self {
@@ -110,17 +183,51 @@ impl GroupModel {
                 d.specularity = Some(specularity as f32);
                 d.roughness = Some(roughness as f32);
             }
+            GroupModel::Anisotropic {
+                color,
+                specularity,
+                roughness_u,
+                roughness_v,
+                direction,
+                ..
+            } => {
+                d.model = Model::Anisotropic;
+                d.color = f(color);
+                d.specularity = Some(specularity as f32);
+                d.roughness_u = Some(roughness_u as f32);
+                d.roughness_v = Some(roughness_v as f32);
+                d.direction_u = f(direction);
+            }
             GroupModel::Mirror { color } => {
                 d.model = Model::Mirror;
                 d.color = f(color);
+            }
+            GroupModel::Textured {
+                specularity,
+                roughness,
+                ..
+            } => {
+                d.model = if specularity > 0.0 {
+                    Model::TexturedIsotropic
+                } else {
+                    Model::TexturedDiffuse
+                };
+                d.specularity = Some(specularity as f32);
+                d.roughness = Some(if specularity > 0.0 {
+                    roughness as f32
+                } else {
+                    0.0
+                });
+                d.diffuse_map = map_path.map(Path::to_path_buf);
             }
             GroupModel::Unseen => return None,
         }
         Some(d)
     }
 
-    /// The RADIANCE primitive of this model.
-    pub fn radiance_primitive(&self, group: &str) -> Option<String> {
+    /// The RADIANCE primitive of this model; a textured model's takes the name of its
+    /// `colorpict` pattern as `map_modifier`, the picture being the map over (1 - s).
+    pub fn radiance_primitive(&self, group: &str, map_modifier: &str) -> Option<String> {
         Some(match *self {
             GroupModel::Diffuse { color: c } => format!(
                 "void plastic {group}\n0\n0\n5 {} {} {} 0 0\n",
@@ -144,9 +251,46 @@ impl GroupModel {
                 specularity as f32,
                 roughness as f32
             ),
+            GroupModel::Anisotropic {
+                kind,
+                color: c,
+                specularity,
+                roughness_u,
+                roughness_v,
+                direction: d,
+            } => format!(
+                "void {} {group}\n4 {} {} {} .\n0\n6 {} {} {} {} {} {}\n",
+                if kind == Kind::Metal {
+                    "metal2"
+                } else {
+                    "plastic2"
+                },
+                d[0] as f32,
+                d[1] as f32,
+                d[2] as f32,
+                c[0] as f32,
+                c[1] as f32,
+                c[2] as f32,
+                specularity as f32,
+                roughness_u as f32,
+                roughness_v as f32
+            ),
             GroupModel::Mirror { color: c } => format!(
                 "void mirror {group}\n0\n0\n3 {} {} {}\n",
                 c[0] as f32, c[1] as f32, c[2] as f32
+            ),
+            GroupModel::Textured {
+                specularity,
+                roughness,
+                ..
+            } => format!(
+                "{map_modifier} plastic {group}\n0\n0\n5 1 1 1 {} {}\n",
+                specularity as f32,
+                if specularity > 0.0 {
+                    roughness as f32
+                } else {
+                    0.0
+                }
             ),
             GroupModel::Unseen => return None,
         })

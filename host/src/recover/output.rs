@@ -5,7 +5,8 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::{RecoverReport, Recovery};
+use super::model::GroupModel;
+use super::{texture, RecoverReport, Recovery};
 use crate::error::Error;
 use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialsDesc};
@@ -77,29 +78,124 @@ pub(super) fn write_all(
         images::write_png_preview(&out.join("errors").join(format!("{name}.png")), &diff, None)?;
     }
     let names = &rec.owned.group_names;
+    let map_path = |g: usize| out.join("textures").join(format!("{}.exr", names[g]));
+    let mut rad = String::from("# relume: recovered materials as RADIANCE primitives\n");
+    for (g, model) in rec.models.iter().enumerate() {
+        let name = &names[g];
+        let mut modifier = String::from("void");
+        if let GroupModel::Textured {
+            map, specularity, ..
+        } = *model
+        {
+            fsutil::create_dir(&out.join("textures"))?;
+            let map = &rec.maps[map];
+            let image = Image {
+                width: map.side,
+                height: map.side,
+                pixels: map.texels.iter().map(|t| t.to_array()).collect(),
+            };
+            images::write_exr(&map_path(g), &image)?;
+            match texture::uv_affine(rec, g) {
+                Some(affine) => {
+                    write_radiance_picture(out, name, &image, specularity, &affine)?;
+                    modifier = format!("pict_{name}");
+                    rad.push_str(&format!(
+                        "\nvoid colorpict {modifier}\n7 red green blue textures/{name}.hdr textures/{name}.cal pic_u pic_v\n0\n0\n"
+                    ));
+                }
+                None => rad.push_str(&format!(
+                    "\n# {name}: its texture coordinates are not an affine function of the surface point (a curved group), which a RADIANCE colorpict on polygons cannot reproduce; the map's mean colour is used\n"
+                )),
+            }
+            if modifier == "void" {
+                let mean = map.texels.iter().fold(Vec3::ZERO, |a, b| a + *b)
+                    / map.texels.len().max(1) as f32;
+                let (s, r) = match *model {
+                    GroupModel::Textured {
+                        specularity,
+                        roughness,
+                        ..
+                    } => (specularity as f32, roughness as f32),
+                    _ => (0.0, 0.0),
+                };
+                let c = mean / (1.0 - s).max(1e-3);
+                rad.push_str(&format!(
+                    "\nvoid plastic {name}\n0\n0\n5 {} {} {} {s} {r}\n",
+                    c.x, c.y, c.z
+                ));
+                continue;
+            }
+        }
+        match model.radiance_primitive(name, &modifier) {
+            Some(p) => {
+                rad.push('\n');
+                rad.push_str(&p);
+            }
+            None => rad.push_str(&format!("\n# {name}: unseen, not recovered\n")),
+        }
+    }
     let materials_path = out.join("materials.toml");
     let materials = MaterialsDesc {
         path: materials_path.clone(),
         materials: rec
             .models
             .iter()
-            .zip(names)
-            .filter_map(|(m, n)| m.material_desc(n))
+            .enumerate()
+            .filter_map(|(g, m)| {
+                let path = matches!(m, GroupModel::Textured { .. }).then(|| map_path(g));
+                m.material_desc(&names[g], path.as_deref())
+            })
             .collect(),
     };
     materials_file::write_materials(&materials_path, &materials)?;
-    let mut rad = String::from("# relume: recovered materials as RADIANCE primitives\n");
-    for (m, n) in rec.models.iter().zip(names) {
-        match m.radiance_primitive(n) {
-            Some(p) => {
-                rad.push('\n');
-                rad.push_str(&p);
-            }
-            None => rad.push_str(&format!("\n# {n}: unseen, not recovered\n")),
-        }
-    }
     fsutil::write_atomic(&out.join("materials.rad"), rad.as_bytes())?;
     let text = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(e.to_string()))?;
     fsutil::write_atomic(&out.join("report.json"), text.as_bytes())?;
     Ok(())
+}
+
+/// The RADIANCE picture and mapping of a textured group: `textures/<group>.hdr` holds the
+/// map over (1 - s) (RADIANCE's plastic multiplies the picture by its colour and (1 - s));
+/// `textures/<group>.cal` turns the hit point into the OBJ (u, v) and remaps it so that
+/// RADIANCE, which interpolates between the first and last texel over [0, 1], samples the
+/// texel centres where the OBJ convention puts them (as in the references' tex_*.cal).
+fn write_radiance_picture(
+    out: &Path,
+    name: &str,
+    map: &Image,
+    specularity: f64,
+    affine: &texture::UvAffine,
+) -> Result<(), Error> {
+    let scale = 1.0 / (1.0 - specularity as f32).max(1e-3);
+    let picture = Image {
+        width: map.width,
+        height: map.height,
+        pixels: map.pixels.iter().map(|p| p.map(|c| c * scale)).collect(),
+    };
+    images::write_hdr(&out.join("textures").join(format!("{name}.hdr")), &picture)?;
+    let (o, gu, gv) = (affine.origin, affine.grad_u, affine.grad_v);
+    let cal = format!(
+        "{{ relume: OBJ (u, v) of group {name} as an affine function of the hit point }}\n\
+         N = {n};\n\
+         obj_u = {u0} + (Px-({ox}))*({gux}) + (Py-({oy}))*({guy}) + (Pz-({oz}))*({guz});\n\
+         obj_v = {v0} + (Px-({ox}))*({gvx}) + (Py-({oy}))*({gvy}) + (Pz-({oz}))*({gvz});\n\
+         pic_u = (obj_u*N - .5)/(N - 1);\n\
+         pic_v = (obj_v*N - .5)/(N - 1);\n",
+        n = map.width,
+        u0 = affine.uv0[0],
+        v0 = affine.uv0[1],
+        ox = o.x,
+        oy = o.y,
+        oz = o.z,
+        gux = gu.x,
+        guy = gu.y,
+        guz = gu.z,
+        gvx = gv.x,
+        gvy = gv.y,
+        gvz = gv.z,
+    );
+    fsutil::write_atomic(
+        &out.join("textures").join(format!("{name}.cal")),
+        cal.as_bytes(),
+    )
 }

@@ -8,6 +8,7 @@ use relume_core::fit::GroupFit;
 use relume_core::geometry::{Surface, View};
 use relume_core::render::{self, RenderSettings};
 use relume_core::scene::Scene;
+use relume_core::stages::texture_map::{FOOTPRINT_OFFSETS, FOOTPRINT_SAMPLES};
 
 use crate::compare::LABEL_RAYS_PER_SIDE;
 use crate::images::Image;
@@ -126,7 +127,7 @@ pub fn evaluate(
     total
 }
 
-/// Like [`evaluate`] for one group, but with an error that noise cannot lower or raise:
+/// Like [`evaluate`], but with an error that noise cannot lower or raise:
 /// each pixel is rendered twice with independent samples (`spp / 2` each) and
 /// `sum_sq_diff` holds `sum (A - T) . (B - T)`, whose expectation is the squared bias alone
 /// (the two renders' noises are independent). `sum_rendered` is the mean of both renders;
@@ -137,8 +138,9 @@ pub fn evaluate_cross(
     scene: &Scene,
     observed: Observed,
     settings: &RenderSettings,
-    group: u16,
-) -> GroupFit {
+    n_groups: usize,
+    wanted: &(dyn Fn(u16) -> bool + Sync),
+) -> Vec<GroupFit> {
     let Observed { views, real, pure } = observed;
     let half = |seed: u64| RenderSettings {
         spp: (settings.spp / 2).max(1),
@@ -146,15 +148,16 @@ pub fn evaluate_cross(
         ..*settings
     };
     let (a, b) = (half(settings.seed), half(settings.seed ^ 0xC055_C055));
-    let partials: Vec<GroupFit> = pool.install(|| {
+    let partials: Vec<Vec<GroupFit>> = pool.install(|| {
         pure.par_chunks(CHUNK)
             .map(|chunk| {
-                let mut fit = GroupFit::default();
-                for p in chunk.iter().filter(|p| p.group == group) {
+                let mut fits = vec![GroupFit::default(); n_groups];
+                for p in chunk.iter().filter(|p| wanted(p.group)) {
                     let view = &views[p.view as usize];
                     let ra = render::render_pixel(scene, view, p.view, p.x, p.y, &a);
                     let rb = render::render_pixel(scene, view, p.view, p.x, p.y, &b);
                     let t = real_value(real, views, p);
+                    let fit = &mut fits[p.group as usize];
                     fit.pixels += 1;
                     for c in 0..3 {
                         fit.sum_real[c] += t[c] as f64;
@@ -163,25 +166,88 @@ pub fn evaluate_cross(
                     fit.sum_sq_diff += (ra - t).dot(rb - t) as f64;
                     fit.sum_sq_real += t.dot(t) as f64;
                 }
-                fit
+                fits
             })
             .collect()
     });
-    let mut total = GroupFit::default();
+    let mut total = vec![GroupFit::default(); n_groups];
     for part in &partials {
-        total.merge(part);
+        for (t, p) in total.iter_mut().zip(part) {
+            t.merge(p);
+        }
     }
     total
 }
 
+/// The rendered value of each of `pixels`, in order (a fixed partition: the same bytes
+/// for any thread count).
+pub fn render_pixels(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    views: &[View],
+    pixels: &[PurePixel],
+    settings: &RenderSettings,
+) -> Vec<Vec3> {
+    pool.install(|| {
+        pixels
+            .par_chunks(CHUNK)
+            .flat_map_iter(|chunk| {
+                chunk.iter().map(|p| {
+                    let view = &views[p.view as usize];
+                    render::render_pixel(scene, view, p.view, p.x, p.y, settings)
+                })
+            })
+            .collect()
+    })
+}
+
+/// The texture coordinates where the rays through pixel `p` at its footprint samples
+/// (`texture_map::FOOTPRINT_OFFSETS`) hit.
+pub fn pixel_uvs(
+    scene: &Scene,
+    views: &[View],
+    p: &PurePixel,
+) -> Option<[glam::Vec2; FOOTPRINT_SAMPLES]> {
+    let mut uvs = [glam::Vec2::ZERO; FOOTPRINT_SAMPLES];
+    for (uv, [dx, dy]) in uvs.iter_mut().zip(FOOTPRINT_OFFSETS) {
+        let ray = views[p.view as usize].ray(p.x as f32 + dx, p.y as f32 + dy);
+        let hit = scene.intersect(&ray, f32::INFINITY)?;
+        let triangle = scene.triangles.get(hit.triangle as usize)?;
+        *uv = triangle.uv_at(hit.b1, hit.b2);
+    }
+    Some(uvs)
+}
+
+/// Pairs of indices into `pixels` (one group's pure pixels) that are `step` apart along a
+/// row or a column of one view.
+pub fn step_pairs(views: &[View], pixels: &[PurePixel], step: u32) -> Vec<(usize, usize)> {
+    let mut index = std::collections::HashMap::with_capacity(pixels.len());
+    for (i, p) in pixels.iter().enumerate() {
+        index.insert((p.view, p.x, p.y), i);
+    }
+    let mut pairs = Vec::new();
+    for (i, p) in pixels.iter().enumerate() {
+        let view = &views[p.view as usize];
+        let right = (p.x + step < view.width).then(|| (p.view, p.x + step, p.y));
+        let down = (p.y + step < view.height).then(|| (p.view, p.x, p.y + step));
+        for key in [right, down].into_iter().flatten() {
+            if let Some(&j) = index.get(&key) {
+                pairs.push((i, j));
+            }
+        }
+    }
+    pairs
+}
+
 /// For stage 3 (texture detection): per group, `|D(p) - D(q)|` for every pair of the
-/// group's pure pixels `step` apart along a row or a column of one view, where
-/// `D = lum(real) - lum(rendered)` (see `relume_core::stages::texture`).
+/// group's pure pixels `step` apart along a row or a column of one view, where `D(p)` is
+/// `difference(real(p), rendered(p))` (see `relume_core::stages::texture`).
 pub fn step_differences(
     observed: Observed,
     renders: &[Vec<Vec3>],
     n_groups: usize,
     step: u32,
+    difference: impl Fn(Vec3, Vec3) -> f32,
 ) -> Vec<Vec<f32>> {
     let Observed { views, real, pure } = observed;
     let mut out = vec![Vec::new(); n_groups];
@@ -192,10 +258,7 @@ pub fn step_differences(
         for p in pure.iter().filter(|p| p.view as usize == vi) {
             label[(p.y * w + p.x) as usize] = Some(p.group);
         }
-        let d = |i: usize| {
-            relume_core::math::luminance(Vec3::from(real[vi].pixels[i]))
-                - relume_core::math::luminance(renders[vi][i])
-        };
+        let d = |i: usize| difference(Vec3::from(real[vi].pixels[i]), renders[vi][i]);
         for y in 0..h {
             for x in 0..w {
                 let i = (y * w + x) as usize;

@@ -34,7 +34,7 @@ const SPECULARITY_MAX: f64 = 1.0;
 /// (`pixels::evaluate_cross`), signed. Noise neither lowers it (as subtracting an estimated
 /// variance does for sharp lobes, whose heavy-tailed noise inflates that estimate) nor
 /// raises it (as a plain squared error does, which pushes the search away from sharp lobes).
-fn search_cost(fit: &GroupFit) -> f64 {
+pub(super) fn search_cost(fit: &GroupFit) -> f64 {
     if fit.pixels == 0 || fit.sum_sq_real <= 0.0 {
         return f64::INFINITY;
     }
@@ -47,7 +47,7 @@ fn search_cost(fit: &GroupFit) -> f64 {
 pub const MAX_SEARCH_PIXELS: usize = 1024;
 
 /// Every `k`-th pure pixel of group `g`, so that at most [`MAX_SEARCH_PIXELS`] remain.
-fn search_subset(pure: &[PurePixel], g: usize) -> Vec<PurePixel> {
+pub(super) fn search_subset(pure: &[PurePixel], g: usize) -> Vec<PurePixel> {
     let of_g: Vec<PurePixel> = pure
         .iter()
         .filter(|p| p.group as usize == g)

@@ -1,0 +1,100 @@
+//! Stage 4's fit: simulated annealing over (log roughness_u, log roughness_v, direction
+//! angle) of one group, keeping stage 2's colour and specularity as the paper does. Every
+//! cost is a full global-illumination render of the group's pure pixels (a fixed subset
+//! of at most `refine::MAX_SEARCH_PIXELS`), on one seed, with stage 2's bias-only cost.
+//!
+//! The direction is an angle in the plane of the group's largest triangle: reflectance.md
+//! projects any direction onto each surface, so one angle covers a planar group exactly
+//! and a curved one as its main face sees it.
+
+use glam::Vec3;
+use relume_core::anneal::Annealer;
+use relume_core::geometry::Surface;
+use relume_core::stages::isotropic::{ROUGHNESS_MAX, ROUGHNESS_MIN};
+
+use super::model::GroupModel;
+use super::refine::{schedule, search_cost, search_subset, Refined};
+use super::Recovery;
+use crate::error::Error;
+
+/// Two unit tangents of the group's largest triangle (`None` for a group of no area).
+fn tangent_basis(rec: &Recovery, g: usize) -> Option<(Vec3, Vec3)> {
+    let largest = rec
+        .owned
+        .triangles
+        .iter()
+        .filter(|t| t.surface == Surface::Group(g as u16))
+        .max_by(|a, b| a.area().total_cmp(&b.area()))?;
+    let n = largest.normal_area2().try_normalize()?;
+    let t = (largest.v[1] - largest.v[0]).try_normalize()?;
+    Some((t, n.cross(t)))
+}
+
+/// Anneals group `g` from the isotropic model `start` (any other is returned as it is).
+pub fn anneal_anisotropic(
+    rec: &mut Recovery,
+    g: usize,
+    start: GroupModel,
+    spp: u32,
+    levels: u32,
+) -> Result<Refined, Error> {
+    let (
+        GroupModel::Isotropic {
+            kind,
+            color,
+            specularity,
+            roughness,
+        },
+        Some((t, b)),
+    ) = (start, tangent_basis(rec, g))
+    else {
+        return Ok(Refined {
+            model: start,
+            evaluations: 0,
+        });
+    };
+    let model_at = |x: [f64; 3]| {
+        let (sin, cos) = x[2].sin_cos();
+        let d = t * cos as f32 + b * sin as f32;
+        GroupModel::Anisotropic {
+            kind,
+            color,
+            specularity,
+            roughness_u: x[0].exp(),
+            roughness_v: x[1].exp(),
+            direction: [d.x as f64, d.y as f64, d.z as f64],
+        }
+    };
+    let subset = search_subset(&rec.pure, g);
+    let all_pixels = std::mem::replace(&mut rec.pure, subset);
+    let seed = rec.seed ^ 0xA1507 ^ g as u64;
+    let mut evaluations = 0u32;
+    let mut cost_of = |rec: &mut Recovery, x: [f64; 3]| -> Result<f64, Error> {
+        rec.models[g] = model_at(x);
+        evaluations += 1;
+        Ok(search_cost(&rec.evaluate_cross(spp, seed, g)?))
+    };
+    let result = (|| {
+        let log_r = roughness.clamp(ROUGHNESS_MIN, ROUGHNESS_MAX).ln();
+        let lower = [ROUGHNESS_MIN.ln(), ROUGHNESS_MIN.ln(), 0.0];
+        let upper = [ROUGHNESS_MAX.ln(), ROUGHNESS_MAX.ln(), std::f64::consts::PI];
+        // Start slightly anisotropic, so that the direction matters from the first step.
+        let x0 = [log_r - 0.2, log_r + 0.2, 0.5 * std::f64::consts::PI];
+        let cost0 = cost_of(rec, x0)?;
+        let mut annealer = Annealer::new(lower, upper, x0, cost0, schedule(levels), seed)
+            .map_err(|e| Error::core("anisotropic annealing", e))?;
+        while !annealer.is_done() {
+            let x = annealer.propose();
+            let cost = cost_of(rec, x)?;
+            annealer.tell(cost);
+        }
+        Ok(annealer.best().0)
+    })();
+    rec.pure = all_pixels;
+    let best = result?;
+    rec.models[g] = model_at(best);
+    Ok(Refined {
+        model: model_at(best),
+        evaluations,
+    })
+}

@@ -1,0 +1,263 @@
+//! Stages 3 and 5 on the host: the renders that texture detection and the diffuse-map
+//! solve need. The statistic and the solver are the core's (`relume_core::stages::texture`
+//! and `texture_map`).
+
+use glam::{Vec2, Vec3};
+use relume_core::fit;
+use relume_core::geometry::Surface;
+use relume_core::math::luminance;
+use relume_core::render::RenderSettings;
+use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
+use relume_core::stages::texture;
+use relume_core::stages::texture_map::{self, MapObservation, FOOTPRINT_SAMPLES};
+
+use super::model::GroupModel;
+use super::pixels::{self, PurePixel};
+use super::Recovery;
+use crate::error::Error;
+
+/// A recovered diffuse map (row 0 = v 1), square.
+#[derive(Clone, Debug)]
+pub struct RecoveredMap {
+    pub side: u32,
+    pub texels: Vec<Vec3>,
+}
+
+/// How a map was recovered, for the report.
+pub struct MapSummary {
+    pub side: u32,
+    pub pixels: usize,
+    pub highlights: usize,
+    pub shadows: usize,
+    pub unseen_texels: usize,
+}
+
+fn group_pixels(rec: &Recovery, g: usize) -> Vec<PurePixel> {
+    rec.pure
+        .iter()
+        .filter(|p| p.group as usize == g)
+        .copied()
+        .collect()
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+/// Renders `pixels` twice with independent samples (`spp / 2` each) under the current
+/// models: the two renders that noise-free statistics need.
+fn render_twice(
+    rec: &mut Recovery,
+    pixels: &[PurePixel],
+    spp: u32,
+    seed: u64,
+) -> Result<(Vec<Vec3>, Vec<Vec3>), Error> {
+    rec.with_scene((spp / 2).max(1), seed, |pool, scene, observed, settings| {
+        let b = RenderSettings {
+            seed: settings.seed ^ 0xC055_C055,
+            ..*settings
+        };
+        (
+            pixels::render_pixels(pool, scene, observed.views, pixels, settings),
+            pixels::render_pixels(pool, scene, observed.views, pixels, &b),
+        )
+    })
+}
+
+/// Stage 3: the cross contrast (`texture::cross_contrast`) of group `g` under its current
+/// model; `None` when the group has no pair of lit pixels `TEXTURE_STEP` apart.
+pub fn texture_contrast(
+    rec: &mut Recovery,
+    g: usize,
+    spp: u32,
+    seed: u64,
+) -> Result<Option<f64>, Error> {
+    let pixels = group_pixels(rec, g);
+    let (a, b) = render_twice(rec, &pixels, spp, seed)?;
+    let lum = |v: Vec3| luminance(v) as f64;
+    let rendered: Vec<f64> = a
+        .iter()
+        .zip(&b)
+        .map(|(a, b)| 0.5 * (lum(*a) + lum(*b)))
+        .collect();
+    // Pixels in shadow carry mostly noise in a log-ratio; they are left out.
+    let floor = fit::SHADOW_FRACTION * median(rendered.clone());
+    let log_ratio = |i: usize, r: Vec3| {
+        let real = lum(pixels::real_value(&rec.real, &rec.views, &pixels[i]));
+        if rendered[i] > floor && real > 0.0 && lum(r) > 0.0 {
+            Some((real / lum(r)).ln())
+        } else {
+            None
+        }
+    };
+    let la: Vec<Option<f64>> = (0..pixels.len()).map(|i| log_ratio(i, a[i])).collect();
+    let lb: Vec<Option<f64>> = (0..pixels.len()).map(|i| log_ratio(i, b[i])).collect();
+    let pairs = pixels::step_pairs(&rec.views, &pixels, fit::TEXTURE_STEP);
+    Ok(texture::cross_contrast(pairs.iter().filter_map(
+        |&(i, j)| Some((la[i]? - la[j]?, lb[i]? - lb[j]?)),
+    )))
+}
+
+/// Stage 5: the diffuse map of group `g` under a plastic lobe of `specularity` and
+/// `roughness` (0: textured-diffuse), `T = (I_real - I_specular) / E`, with E from full
+/// global-illumination renders of the recovered scene. The group's current model is the
+/// untextured stand-in whose diffuse colour starts the map. Sets the group's model to the
+/// textured one and returns what was done.
+pub fn recover_map(
+    rec: &mut Recovery,
+    g: usize,
+    specularity: f64,
+    roughness: f64,
+    spp: u32,
+    seed: u64,
+) -> Result<MapSummary, Error> {
+    let pixels = group_pixels(rec, g);
+    let uvs: Vec<Option<[Vec2; FOOTPRINT_SAMPLES]>> =
+        rec.with_scene(1, seed, |_, scene, observed, _| {
+            pixels
+                .iter()
+                .map(|p| pixels::pixel_uvs(scene, observed.views, p))
+                .collect()
+        })?;
+    // The stand-in's diffuse reflectance, as a constant map to render E against.
+    let (rho_d, _) = rec.models[g].reflectances();
+    let start = Vec3::new(rho_d[0] as f32, rho_d[1] as f32, rho_d[2] as f32).clamp(
+        Vec3::splat(0.02),
+        Vec3::splat(MAX_DIFFUSE_REFLECTANCE as f32),
+    );
+    let map = rec.maps.len();
+    rec.maps.push(RecoveredMap {
+        side: 1,
+        texels: vec![start],
+    });
+    rec.models[g] = GroupModel::Textured {
+        map,
+        specularity,
+        roughness,
+    };
+    let settings_seed = seed ^ 0x7E47;
+    let full = render_once(rec, &pixels, spp, settings_seed)?;
+    // The specular part alone: the same paths (same seed) with a black map.
+    rec.maps[map].texels[0] = Vec3::ZERO;
+    let specular = render_once(rec, &pixels, spp, settings_seed)?;
+
+    let gains: Vec<Vec3> = full
+        .iter()
+        .zip(&specular)
+        .map(|(f, s)| ((*f - *s) / start).max(Vec3::ZERO))
+        .collect();
+    let gain_floor =
+        fit::SHADOW_FRACTION * median(gains.iter().map(|v| luminance(*v) as f64).collect());
+    let (mut highlights, mut shadows) = (0, 0);
+    let observations: Vec<MapObservation> = pixels
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| {
+            let uv = uvs[i]?;
+            let real = pixels::real_value(&rec.real, &rec.views, p);
+            let highlight =
+                luminance(specular[i]) as f64 > fit::HIGHLIGHT_FRACTION * luminance(real) as f64;
+            let shadow = (luminance(gains[i]) as f64) <= gain_floor;
+            highlights += highlight as usize;
+            shadows += (shadow && !highlight) as usize;
+            Some(MapObservation {
+                uv,
+                gain: gains[i],
+                target: real - specular[i],
+                weight: if highlight || shadow { 0.0 } else { 1.0 },
+            })
+        })
+        .collect();
+    let side = texture_map::map_side(pixels.len());
+    let n = (side * side) as usize;
+    let mut texels = vec![start; n];
+    let (mut numerator, mut denominator) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
+    let unseen_texels = texture_map::solve_map(
+        &observations,
+        side,
+        side,
+        MAX_DIFFUSE_REFLECTANCE as f32,
+        &mut texels,
+        &mut numerator,
+        &mut denominator,
+    )
+    .map_err(|e| Error::core(format!("recovering the map of group {g}"), e))?;
+    rec.maps[map] = RecoveredMap { side, texels };
+    Ok(MapSummary {
+        side,
+        pixels: pixels.len(),
+        highlights,
+        shadows,
+        unseen_texels,
+    })
+}
+
+fn render_once(
+    rec: &mut Recovery,
+    pixels: &[PurePixel],
+    spp: u32,
+    seed: u64,
+) -> Result<Vec<Vec3>, Error> {
+    rec.with_scene(spp, seed, |pool, scene, observed, settings| {
+        pixels::render_pixels(pool, scene, observed.views, pixels, settings)
+    })
+}
+
+/// The texture coordinates of group `g` as an affine function of the surface point,
+/// `uv = (grad_u . (P - origin) + u0, grad_v . (P - origin) + v0)`, when every vertex of
+/// the group obeys it (a planar, affinely mapped group); what RADIANCE needs to place a
+/// `colorpict`. `None` for a curved or non-affinely mapped group.
+pub struct UvAffine {
+    pub origin: Vec3,
+    pub uv0: [f32; 2],
+    pub grad_u: Vec3,
+    pub grad_v: Vec3,
+}
+
+pub fn uv_affine(rec: &Recovery, g: usize) -> Option<UvAffine> {
+    let triangles: Vec<_> = rec
+        .owned
+        .triangles
+        .iter()
+        .filter(|t| t.surface == Surface::Group(g as u16))
+        .collect();
+    let largest = triangles
+        .iter()
+        .max_by(|a, b| a.area().total_cmp(&b.area()))?;
+    let p = largest.v.map(|v| v);
+    let uv = largest.uv.map(|t| [t.x, t.y]);
+    let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+    let (a, b, c) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let det = a * c - b * b;
+    if det.abs() <= 1e-10 || det.is_nan() {
+        return None;
+    }
+    // The in-plane gradient x e1 + y e2 whose products with the edges give the uv steps.
+    let gradient = |d1: f32, d2: f32| {
+        let x = (c * d1 - b * d2) / det;
+        let y = (a * d2 - b * d1) / det;
+        e1 * x + e2 * y
+    };
+    let affine = UvAffine {
+        origin: p[0],
+        uv0: uv[0],
+        grad_u: gradient(uv[1][0] - uv[0][0], uv[2][0] - uv[0][0]),
+        grad_v: gradient(uv[1][1] - uv[0][1], uv[2][1] - uv[0][1]),
+    };
+    let normal = e1.cross(e2).normalize();
+    let fits = triangles.iter().all(|t| {
+        (0..3).all(|k| {
+            let q = t.v[k] - affine.origin;
+            let u = affine.grad_u.dot(q) + affine.uv0[0];
+            let v = affine.grad_v.dot(q) + affine.uv0[1];
+            (u - t.uv[k].x).abs() < 1e-3
+                && (v - t.uv[k].y).abs() < 1e-3
+                && normal.dot(q).abs() < 1e-4
+        })
+    });
+    fits.then_some(affine)
+}
