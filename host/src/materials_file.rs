@@ -194,7 +194,7 @@ impl MaterialDesc {
 
     /// Checks keys against the model and values against their ranges; the message names the
     /// group and the key.
-    fn check(&self) -> Result<(), (usize, String)> {
+    pub(crate) fn check(&self) -> Result<(), (usize, String)> {
         let g = &self.group;
         let model = self.model.name();
         let present = self.present();

@@ -296,3 +296,53 @@ impl GroupModel {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stage_4_and_5_models_write_valid_entries_and_primitives() {
+        let aniso = GroupModel::Anisotropic {
+            kind: Kind::Metal,
+            color: [0.7, 0.7, 0.8],
+            specularity: 0.9,
+            roughness_u: 0.05,
+            roughness_v: 0.2,
+            direction: [0.0, 0.0, 1.0],
+        };
+        let d = aniso.material_desc("plate", None).unwrap();
+        assert_eq!(d.model, Model::Anisotropic);
+        assert_eq!((d.roughness_u, d.roughness_v), (Some(0.05), Some(0.2)));
+        assert!(d.check().is_ok());
+        let rad = aniso.radiance_primitive("plate", "void").unwrap();
+        assert!(rad.starts_with("void metal2 plate\n4 0 0 1 .\n0\n6 0.7 0.7 0.8 0.9 0.05 0.2"));
+        assert!(matches!(
+            aniso.surface_material().material,
+            Material::WardAnisotropic { .. }
+        ));
+
+        let map = Path::new("/out/textures/pic.exr");
+        let textured = GroupModel::Textured {
+            map: 2,
+            specularity: 0.05,
+            roughness: 0.08,
+        };
+        let d = textured.material_desc("pic", Some(map)).unwrap();
+        assert_eq!(d.model, Model::TexturedIsotropic);
+        assert_eq!(d.diffuse_map.as_deref(), Some(map));
+        assert!(d.check().is_ok());
+        assert_eq!(textured.surface_material().diffuse_map, Some(TextureId(2)));
+        let plain = GroupModel::Textured {
+            map: 0,
+            specularity: 0.0,
+            roughness: 0.3,
+        };
+        let d = plain.material_desc("pic", Some(map)).unwrap();
+        assert_eq!((d.model, d.roughness), (Model::TexturedDiffuse, Some(0.0)));
+        assert!(textured
+            .radiance_primitive("pic", "pict_pic")
+            .unwrap()
+            .starts_with("pict_pic plastic pic\n"));
+    }
+}
