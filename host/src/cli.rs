@@ -174,6 +174,54 @@ enum BenchCommand {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Recovery's accuracy against wall time, one knob at a time (effort, annealing
+    /// length, samples per evaluation, view resolution, Nelder-Mead against annealing):
+    /// tradeoff.csv, tradeoff.svg and a table.
+    Tradeoff {
+        scene: PathBuf,
+        /// The true materials (truth.toml) the recoveries are judged against.
+        #[arg(long)]
+        truth: PathBuf,
+        /// Output folder: the runs, the CSV and the chart.
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long)]
+        threads: Option<usize>,
+        /// The base effort level the knobs are swept from.
+        #[arg(long, value_enum, default_value_t = Effort::Fast)]
+        effort: Effort,
+        /// Two points per knob and no effort sweep (a first look, and the tests).
+        #[arg(long)]
+        quick: bool,
+    },
+    /// Recovery under perturbations (seeds, image noise, exposure, light radiance, view
+    /// size, pixels of one group): stability.csv, seed-spread.csv, stability.svg and a
+    /// verdict on the targets.
+    Stability {
+        scene: PathBuf,
+        /// The true materials (truth.toml) the recoveries are judged against.
+        #[arg(long)]
+        truth: PathBuf,
+        /// Output folder: the perturbed scenes, the runs, the CSVs and the chart.
+        #[arg(long)]
+        out: PathBuf,
+        /// The first seed; the seed family runs ten from here.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long)]
+        threads: Option<usize>,
+        #[arg(long, value_enum, default_value_t = Effort::Fast)]
+        effort: Effort,
+        /// Fewer points per family.
+        #[arg(long)]
+        quick: bool,
+        /// The group seen in fewer and fewer pixels (default: the largest one that is not
+        /// diffuse in the truth).
+        #[arg(long)]
+        group: Option<String>,
+    },
 }
 
 /// Runs the command line and returns the process exit code.
@@ -284,7 +332,7 @@ fn run(command: Command) -> Result<(), Error> {
         }) => {
             let mut owned = assemble::load_and_assemble(&scene, MaterialSource::GeometryOnly)?;
             let built = owned.build()?;
-            let args = bench::BenchRaysArgs {
+            let args = bench::rays::BenchRaysArgs {
                 scene,
                 rays,
                 hits_out: hits,
@@ -293,11 +341,66 @@ fn run(command: Command) -> Result<(), Error> {
                 threads,
                 repeats,
             };
-            bench::bench_rays(&args, &built).map(|_| ())
+            bench::rays::bench_rays(&args, &built).map(|_| ())
         }
         Command::Bench(BenchCommand::Downsample { scene, factor, out }) => {
             downsample::downsample(&scene, factor, &out)?;
             println!("wrote {}", out.join("scene.toml").display());
+            Ok(())
+        }
+        Command::Bench(BenchCommand::Tradeoff {
+            scene,
+            truth,
+            out,
+            seed,
+            threads,
+            effort,
+            quick,
+        }) => {
+            let args = bench::tradeoff::TradeoffArgs {
+                scene,
+                truth,
+                out,
+                seed,
+                threads,
+                effort,
+                quick,
+            };
+            bench::tradeoff::run(&args)?;
+            println!(
+                "wrote {} and {}",
+                args.out.join("tradeoff.csv").display(),
+                args.out.join("tradeoff.svg").display()
+            );
+            Ok(())
+        }
+        Command::Bench(BenchCommand::Stability {
+            scene,
+            truth,
+            out,
+            seed,
+            threads,
+            effort,
+            quick,
+            group,
+        }) => {
+            let args = bench::stability::StabilityArgs {
+                scene,
+                truth,
+                out,
+                seed,
+                threads,
+                effort,
+                quick,
+                group,
+            };
+            bench::stability::run(&args)?;
+            println!(
+                "wrote {}, {} and {}",
+                args.out.join("stability.csv").display(),
+                args.out.join("seed-spread.csv").display(),
+                args.out.join("stability.svg").display()
+            );
             Ok(())
         }
     }

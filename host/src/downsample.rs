@@ -49,7 +49,7 @@ fn quoted(s: &str) -> String {
 }
 
 /// scene.toml text for `desc`, with absolute paths (the file lives elsewhere).
-fn scene_toml(desc: &SceneDesc) -> String {
+pub(crate) fn scene_toml(desc: &SceneDesc) -> String {
     let mut t = String::new();
     let paths: Vec<String> = desc
         .geometry

@@ -1,0 +1,251 @@
+//! `relume bench`: figures for people.
+//!
+//! - [`rays`]: the tracer's speed on a fixed ray file.
+//! - [`tradeoff`]: recovery's accuracy against its wall time, one knob at a time.
+//! - [`stability`]: recovery under controlled perturbations of its input.
+//!
+//! The recovery benches share [`recover_and_judge`] (one recovery, judged against the
+//! truth), [`Csv`] and the SVG writer in [`chart`]; [`perturb`] writes the perturbed scenes.
+
+pub mod chart;
+pub mod perturb;
+pub mod rays;
+pub mod stability;
+pub mod tradeoff;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Instant;
+
+use crate::compare;
+use crate::error::Error;
+use crate::materials_file::{self, MaterialDesc};
+use crate::recover::{self, RecoverArgs};
+
+/// One group of one recovery, against the truth.
+#[derive(Clone, Debug)]
+pub struct GroupOutcome {
+    pub group: String,
+    pub true_model: String,
+    /// The recovered model's name; `None` when the group was not recovered (unseen).
+    pub model: Option<String>,
+    pub class_ok: bool,
+    pub diffuse_err: Option<f64>,
+    pub specularity_err: Option<f64>,
+    pub roughness_err: Option<f64>,
+    /// The report's error of the final render over the group's pure pixels.
+    pub error_final: Option<f64>,
+    pub pure_pixels: u32,
+    /// The recovered material as written to materials.toml (for spreads over seeds).
+    pub recovered: Option<MaterialDesc>,
+}
+
+impl GroupOutcome {
+    /// The mean of the parameter errors defined for this group.
+    pub fn param_err(&self) -> Option<f64> {
+        mean([self.diffuse_err, self.specularity_err, self.roughness_err])
+    }
+}
+
+/// One recovery judged against the truth.
+#[derive(Clone, Debug)]
+pub struct Judged {
+    /// Wall time of `recover::run`, outputs included.
+    pub seconds: f64,
+    pub groups: Vec<GroupOutcome>,
+}
+
+/// The figures of one recovery over all groups of the truth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Summary {
+    pub groups: usize,
+    pub classes_right: usize,
+    /// `classes_right / groups`.
+    pub class_accuracy: f64,
+    /// Means over the groups where the error is defined (both sides have the parameter).
+    pub diffuse_err: Option<f64>,
+    pub specularity_err: Option<f64>,
+    pub roughness_err: Option<f64>,
+    /// Mean over groups of each group's mean parameter error: one number per recovery.
+    pub param_err: Option<f64>,
+    /// Mean of the final render's error over groups.
+    pub image_err: Option<f64>,
+    /// The same, weighted by each group's pure pixels.
+    pub image_err_weighted: Option<f64>,
+}
+
+/// The mean of the values that are present; `None` if none is.
+pub fn mean<I: IntoIterator<Item = Option<f64>>>(values: I) -> Option<f64> {
+    let (sum, n) = values
+        .into_iter()
+        .flatten()
+        .fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    (n > 0).then(|| sum / n as f64)
+}
+
+impl Judged {
+    pub fn summary(&self) -> Summary {
+        let g = &self.groups;
+        let classes_right = g.iter().filter(|o| o.class_ok).count();
+        let (weighted, weight) = g
+            .iter()
+            .filter_map(|o| {
+                o.error_final
+                    .map(|e| (e * o.pure_pixels as f64, o.pure_pixels))
+            })
+            .fold((0.0, 0u64), |(s, w), (e, n)| (s + e, w + n as u64));
+        Summary {
+            groups: g.len(),
+            classes_right,
+            class_accuracy: classes_right as f64 / g.len().max(1) as f64,
+            diffuse_err: mean(g.iter().map(|o| o.diffuse_err)),
+            specularity_err: mean(g.iter().map(|o| o.specularity_err)),
+            roughness_err: mean(g.iter().map(|o| o.roughness_err)),
+            param_err: mean(g.iter().map(GroupOutcome::param_err)),
+            image_err: mean(g.iter().map(|o| o.error_final)),
+            image_err_weighted: (weight > 0).then(|| weighted / weight as f64),
+        }
+    }
+
+    pub fn group(&self, name: &str) -> Option<&GroupOutcome> {
+        self.groups.iter().find(|o| o.group == name)
+    }
+}
+
+/// Runs one recovery and judges its materials.toml against `truth`.
+pub fn recover_and_judge(args: &RecoverArgs, truth: &Path) -> Result<Judged, Error> {
+    let start = Instant::now();
+    let report = recover::run(args)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let materials = args.out.join("materials.toml");
+    let rows = compare::materials_report(truth, &materials)?;
+    let recovered: BTreeMap<String, MaterialDesc> = materials_file::load_materials(&materials)?
+        .materials
+        .into_iter()
+        .map(|m| (m.group.clone(), m))
+        .collect();
+    let groups = rows
+        .into_iter()
+        .map(|row| {
+            let reported = report.groups.iter().find(|g| g.group == row.group);
+            GroupOutcome {
+                recovered: recovered.get(&row.group).cloned(),
+                true_model: row.true_model,
+                model: row.model,
+                class_ok: row.class_ok,
+                diffuse_err: row.diffuse_rel_err,
+                specularity_err: row.specularity_rel_err,
+                roughness_err: row.roughness_rel_err,
+                error_final: reported.and_then(|g| g.error_final),
+                pure_pixels: reported.map_or(0, |g| g.pure_pixels),
+                group: row.group,
+            }
+        })
+        .collect();
+    Ok(Judged { seconds, groups })
+}
+
+/// A CSV table: a header and rows of already formatted fields.
+pub struct Csv {
+    pub header: Vec<String>,
+    pub rows: Vec<Vec<String>>,
+}
+
+impl Csv {
+    pub fn new(header: &[&str]) -> Csv {
+        Csv {
+            header: header.iter().map(|h| h.to_string()).collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    pub fn push(&mut self, row: Vec<String>) {
+        debug_assert_eq!(row.len(), self.header.len(), "CSV row width");
+        self.rows.push(row);
+    }
+
+    /// RFC 4180 text: fields with a comma, quote or line break are quoted.
+    pub fn to_text(&self) -> String {
+        let line = |fields: &[String]| {
+            let quoted: Vec<String> = fields
+                .iter()
+                .map(|f| {
+                    if f.contains([',', '"', '\n', '\r']) {
+                        format!("\"{}\"", f.replace('"', "\"\""))
+                    } else {
+                        f.clone()
+                    }
+                })
+                .collect();
+            quoted.join(",") + "\n"
+        };
+        let mut text = line(&self.header);
+        for r in &self.rows {
+            text.push_str(&line(r));
+        }
+        text
+    }
+}
+
+/// A CSV field for an optional number: empty when absent.
+pub fn field(v: Option<f64>) -> String {
+    v.map_or(String::new(), |v| format!("{v:.6}"))
+}
+
+/// A table cell for an optional fraction, as a percentage.
+pub fn pct(v: Option<f64>) -> String {
+    v.map_or("-".into(), |v| format!("{:.2}%", 100.0 * v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_quotes_only_what_needs_it() {
+        let mut csv = Csv::new(&["knob", "value"]);
+        csv.push(vec!["a,b".into(), "say \"hi\"".into()]);
+        csv.push(vec!["plain".into(), field(Some(0.25))]);
+        csv.push(vec!["none".into(), field(None)]);
+        assert_eq!(
+            csv.to_text(),
+            "knob,value\n\"a,b\",\"say \"\"hi\"\"\"\nplain,0.250000\nnone,\n"
+        );
+    }
+
+    fn outcome(class_ok: bool, d: Option<f64>, s: Option<f64>, e: f64, px: u32) -> GroupOutcome {
+        GroupOutcome {
+            group: "g".into(),
+            true_model: "diffuse".into(),
+            model: Some("diffuse".into()),
+            class_ok,
+            diffuse_err: d,
+            specularity_err: s,
+            roughness_err: None,
+            error_final: Some(e),
+            pure_pixels: px,
+            recovered: None,
+        }
+    }
+
+    #[test]
+    fn summary_means_skip_undefined_errors_and_weight_by_pixels() {
+        let judged = Judged {
+            seconds: 1.0,
+            groups: vec![
+                outcome(true, Some(0.02), None, 0.01, 300),
+                outcome(false, Some(0.04), Some(0.5), 0.05, 100),
+            ],
+        };
+        let s = judged.summary();
+        assert_eq!((s.groups, s.classes_right), (2, 1));
+        assert_eq!(s.class_accuracy, 0.5);
+        assert!((s.diffuse_err.unwrap() - 0.03).abs() < 1e-12);
+        assert_eq!(s.specularity_err, Some(0.5));
+        assert_eq!(s.roughness_err, None);
+        // Group means 0.02 and 0.27, then their mean.
+        assert!((s.param_err.unwrap() - 0.145).abs() < 1e-12);
+        assert!((s.image_err.unwrap() - 0.03).abs() < 1e-12);
+        assert!((s.image_err_weighted.unwrap() - 0.02).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,870 @@
+//! `relume bench stability`: recovery under controlled perturbations of its input, to show
+//! how far each stage can be trusted: other seeds, multiplicative image noise, an exposure
+//! error, an error in the first light's radiance, smaller views, and one group seen in
+//! fewer and fewer pixels. Each run is judged against the truth and against the
+//! unperturbed run (the baseline: the first seed), and the targets are checked:
+//! parameter spread over seeds <= [`SEED_SPREAD_TARGET`], classes unchanged under 1% noise
+//! and 5% exposure error.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use super::chart::{Axis, Chart, ChartPoint, Panel, Series};
+use super::perturb::{self, Perturbation};
+use super::{field, pct, recover_and_judge, Csv, GroupOutcome, Judged};
+use crate::error::Error;
+use crate::fsutil;
+use crate::materials_file::{self, MaterialDesc, Model};
+use crate::recover::{Effort, RecoverArgs};
+use crate::scene_file;
+
+/// The target for the relative spread of a recovered parameter over seeds.
+pub const SEED_SPREAD_TARGET: f64 = 0.005;
+/// Noise (relative) up to which classes must not change.
+pub const NOISE_TARGET: f64 = 1.0;
+/// Exposure error (percent, either sign) up to which classes must not change.
+pub const EXPOSURE_TARGET: f64 = 5.0;
+
+pub struct StabilityArgs {
+    pub scene: PathBuf,
+    pub truth: PathBuf,
+    pub out: PathBuf,
+    /// The first seed (the baseline); the seed family runs ten from here.
+    pub seed: u64,
+    pub threads: Option<usize>,
+    pub effort: Effort,
+    /// Fewer points per family (for tests and a first look).
+    pub quick: bool,
+    /// The group seen in fewer and fewer pixels (default: the largest one not diffuse in
+    /// the truth).
+    pub group: Option<String>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Family {
+    Seed,
+    Noise,
+    Exposure,
+    Light,
+    Resolution,
+    Pixels,
+}
+
+impl Family {
+    pub const ALL: [Family; 6] = [
+        Family::Seed,
+        Family::Noise,
+        Family::Exposure,
+        Family::Light,
+        Family::Resolution,
+        Family::Pixels,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::Seed => "seed",
+            Family::Noise => "noise",
+            Family::Exposure => "exposure",
+            Family::Light => "light",
+            Family::Resolution => "resolution",
+            Family::Pixels => "pixels",
+        }
+    }
+
+    fn x_axis(self) -> Axis {
+        let (label, log) = match self {
+            Family::Seed => ("seed", false),
+            Family::Noise => ("image noise, relative sd (%)", false),
+            Family::Exposure => ("exposure error (%)", false),
+            Family::Light => ("first light's radiance error (%)", false),
+            Family::Resolution => ("view pixels per side", true),
+            Family::Pixels => ("pure pixels of the limited group", true),
+        };
+        Axis {
+            label: label.into(),
+            log,
+            ..Axis::default()
+        }
+    }
+}
+
+/// The perturbation sizes of each family (before filtering by the scene).
+pub fn sizes(family: Family, quick: bool) -> Vec<f64> {
+    match (family, quick) {
+        (Family::Seed, false) => (0..10).map(f64::from).collect(),
+        (Family::Seed, true) => (0..3).map(f64::from).collect(),
+        (Family::Noise, false) => vec![0.5, 1.0, 2.0, 5.0, 10.0],
+        (Family::Noise, true) => vec![1.0, 5.0],
+        (Family::Exposure, false) => vec![-10.0, -5.0, -2.0, 2.0, 5.0, 10.0],
+        (Family::Light, false) => vec![-10.0, -5.0, 5.0, 10.0],
+        (Family::Exposure | Family::Light, true) => vec![-5.0, 5.0],
+        (Family::Resolution, false) => vec![16.0, 32.0, 64.0, 128.0, 256.0],
+        (Family::Resolution, true) => vec![16.0],
+        (Family::Pixels, false) => vec![4096.0, 1024.0, 256.0, 64.0, 16.0],
+        (Family::Pixels, true) => vec![256.0, 16.0],
+    }
+}
+
+/// One recovery of the study.
+#[derive(Clone, Debug)]
+pub struct StabilityRun {
+    pub family: Family,
+    /// The perturbation's size in the family's unit (seed, %, pixels).
+    pub size: f64,
+    pub seed: u64,
+    /// The run folder, relative to the output.
+    pub run: String,
+    pub judged: Judged,
+}
+
+/// Whether each group's recovered class equals the baseline's.
+fn same_class(run: &Judged, baseline: &Judged) -> Vec<bool> {
+    run.groups
+        .iter()
+        .map(|g| baseline.group(&g.group).map(|b| &b.model) == Some(&g.model))
+        .collect()
+}
+
+/// Runs the study, writes stability.csv, seed-spread.csv and stability.svg under
+/// `args.out`, prints the runs and the verdict on the targets.
+pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
+    let desc = scene_file::load_scene(&args.scene)?;
+    let truth = materials_file::load_materials(&args.truth)?;
+    let view_side = desc.views.first().map_or(0, |v| v.size[0]);
+    if view_side == 0 {
+        return Err(Error::input(&args.scene, "has no view to recover from"));
+    }
+    if let Some(g) = &args.group {
+        if !desc.groups.iter().any(|d| &d.name == g) {
+            return Err(Error::input(
+                &args.scene,
+                format!("--group names '{g}', which the scene does not have"),
+            ));
+        }
+    }
+    fsutil::create_dir(&args.out)?;
+    let budget = args.effort.budget();
+    let mut runs: Vec<StabilityRun> = Vec::new();
+    let recover = |family: Family,
+                   size: f64,
+                   seed: u64,
+                   perturbation: Option<Perturbation>,
+                   limit: Option<(String, u32)>|
+     -> Result<StabilityRun, Error> {
+        let id = format!("{}_{}", family.name(), size);
+        let scene = match perturbation {
+            Some(p) => {
+                perturb::write_perturbed(&args.scene, &p, &args.out.join("scenes").join(&id))?
+            }
+            None => args.scene.clone(),
+        };
+        let run = format!("runs/{id}");
+        let judged = recover_and_judge(
+            &RecoverArgs {
+                scene,
+                out: args.out.join(&run),
+                seed,
+                threads: args.threads,
+                budget,
+                limit_group_pixels: limit,
+            },
+            &args.truth,
+        )?;
+        let s = judged.summary();
+        eprintln!(
+            "stability {} {}: {:.1} s, classes right {}/{}, parameter error {}",
+            family.name(),
+            size,
+            judged.seconds,
+            s.classes_right,
+            s.groups,
+            pct(s.param_err)
+        );
+        Ok(StabilityRun {
+            family,
+            size,
+            seed,
+            run,
+            judged,
+        })
+    };
+
+    for k in sizes(Family::Seed, args.quick) {
+        let seed = args.seed + k as u64;
+        runs.push(recover(Family::Seed, seed as f64, seed, None, None)?);
+    }
+    let baseline = runs[0].judged.clone();
+    for family in [Family::Noise, Family::Exposure, Family::Light] {
+        for size in sizes(family, args.quick) {
+            let mut p = Perturbation::NONE;
+            match family {
+                Family::Noise => {
+                    p.noise = size / 100.0;
+                    p.noise_seed = args.seed;
+                }
+                Family::Exposure => p.exposure = (1.0 + size / 100.0) as f32,
+                _ => p.light = (1.0 + size / 100.0) as f32,
+            }
+            runs.push(recover(family, size, args.seed, Some(p), None)?);
+        }
+    }
+    let all_sizes_divide = |side: u32| {
+        desc.views
+            .iter()
+            .all(|v| v.size[0].is_multiple_of(side) && v.size[1].is_multiple_of(side))
+    };
+    for size in sizes(Family::Resolution, args.quick) {
+        let side = size as u32;
+        if side >= view_side || !all_sizes_divide(side) {
+            continue;
+        }
+        let p = Perturbation {
+            factor: view_side / side,
+            ..Perturbation::NONE
+        };
+        runs.push(recover(Family::Resolution, size, args.seed, Some(p), None)?);
+    }
+    let group = match &args.group {
+        Some(g) => g.clone(),
+        None => limited_group(&baseline, &truth.materials),
+    };
+    let group_pixels = baseline.group(&group).map_or(0, |g| g.pure_pixels);
+    for size in sizes(Family::Pixels, args.quick) {
+        if size as u32 >= group_pixels {
+            continue;
+        }
+        let limit = Some((group.clone(), size as u32));
+        runs.push(recover(Family::Pixels, size, args.seed, None, limit)?);
+    }
+
+    let spread = seed_spread(&runs, &truth.materials);
+    fsutil::write_atomic(
+        &args.out.join("stability.csv"),
+        runs_csv(&runs, &baseline).to_text().as_bytes(),
+    )?;
+    fsutil::write_atomic(
+        &args.out.join("seed-spread.csv"),
+        spread_csv(&spread).to_text().as_bytes(),
+    )?;
+    let title = format!(
+        "relume bench stability: {} ({} px per side, effort {:?}, seed {})",
+        desc.name, view_side, args.effort, args.seed
+    )
+    .to_lowercase();
+    let context = ChartContext {
+        view_side,
+        group: &group,
+        group_pixels,
+    };
+    fsutil::write_atomic(
+        &args.out.join("stability.svg"),
+        chart(&runs, &baseline, &context, &title)
+            .to_svg()
+            .as_bytes(),
+    )?;
+    print_runs(&runs, &baseline, &group);
+    print_verdict(&runs, &baseline, &spread);
+    Ok(runs)
+}
+
+/// The largest group (by pure pixels in the baseline) that is not diffuse in the truth, or
+/// the largest of all when every group is diffuse.
+pub fn limited_group(baseline: &Judged, truth: &[MaterialDesc]) -> String {
+    let diffuse = |g: &GroupOutcome| {
+        truth
+            .iter()
+            .any(|t| t.group == g.group && t.model == Model::Diffuse)
+    };
+    let largest = |candidates: &mut dyn Iterator<Item = &GroupOutcome>| {
+        candidates
+            .max_by(|a, b| {
+                a.pure_pixels
+                    .cmp(&b.pure_pixels)
+                    .then(b.group.cmp(&a.group))
+            })
+            .map(|g| g.group.clone())
+    };
+    largest(&mut baseline.groups.iter().filter(|g| !diffuse(g)))
+        .or_else(|| largest(&mut baseline.groups.iter()))
+        .unwrap_or_default()
+}
+
+/// The spread over seeds of one recovered parameter of one group.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spread {
+    pub group: String,
+    /// The model most seeds recovered (ties: the first seed's), and in how many seeds.
+    pub model: String,
+    pub seeds_with_model: usize,
+    pub seeds: usize,
+    pub parameter: &'static str,
+    pub truth: Option<f64>,
+    pub mean: f64,
+    /// Sample standard deviation over the seeds that recovered `model`.
+    pub std: f64,
+    /// `std / |mean|`; `None` when the mean is 0.
+    pub rel_std: Option<f64>,
+}
+
+/// Mean, sample standard deviation and relative standard deviation; `None` for fewer than
+/// two values.
+pub fn spread_of(values: &[f64]) -> Option<(f64, f64, Option<f64>)> {
+    if values.len() < 2 {
+        return None;
+    }
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0);
+    let std = var.sqrt();
+    Some((mean, std, (mean != 0.0).then(|| std / mean.abs())))
+}
+
+/// The parameters a material of `model` carries, as written in materials.toml.
+fn parameters(m: &MaterialDesc) -> Vec<(&'static str, Option<f64>)> {
+    let c = m.color.map(|c| c.map(f64::from));
+    let mut p = vec![
+        ("color_r", c.map(|c| c[0])),
+        ("color_g", c.map(|c| c[1])),
+        ("color_b", c.map(|c| c[2])),
+    ];
+    if m.model == Model::Isotropic {
+        p.push(("specularity", m.specularity.map(f64::from)));
+        p.push(("roughness", m.roughness.map(f64::from)));
+    }
+    p
+}
+
+/// Per group and parameter, the spread over the seed family's runs (those that recovered
+/// the group's most common model).
+pub fn seed_spread(runs: &[StabilityRun], truth: &[MaterialDesc]) -> Vec<Spread> {
+    let seeds: Vec<&Judged> = runs
+        .iter()
+        .filter(|r| r.family == Family::Seed)
+        .map(|r| &r.judged)
+        .collect();
+    let Some(first) = seeds.first() else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for g in &first.groups {
+        let recovered: Vec<&MaterialDesc> = seeds
+            .iter()
+            .filter_map(|j| j.group(&g.group)?.recovered.as_ref())
+            .collect();
+        let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
+        for m in &recovered {
+            *counts.entry(m.model.name()).or_default() += 1;
+        }
+        let Some(first_model) = recovered.first().map(|m| m.model.name()) else {
+            continue;
+        };
+        let top = counts.values().copied().max().unwrap_or(0);
+        let model = if counts[first_model] == top {
+            first_model
+        } else {
+            counts
+                .iter()
+                .find(|(_, &n)| n == top)
+                .map_or(first_model, |(m, _)| *m)
+        };
+        let same: Vec<&MaterialDesc> = recovered
+            .into_iter()
+            .filter(|m| m.model.name() == model)
+            .collect();
+        let true_m = truth.iter().find(|t| t.group == g.group);
+        let true_params: Vec<(&'static str, Option<f64>)> = true_m
+            .map(|t| {
+                let mut p = parameters(t);
+                p.push(("specularity", t.specularity.map(f64::from)));
+                p.push(("roughness", t.roughness.map(f64::from)));
+                p
+            })
+            .unwrap_or_default();
+        for (i, (name, _)) in parameters(same[0]).into_iter().enumerate() {
+            let values: Vec<f64> = same.iter().filter_map(|m| parameters(m)[i].1).collect();
+            let Some((mean, std, rel_std)) = spread_of(&values) else {
+                continue;
+            };
+            out.push(Spread {
+                group: g.group.clone(),
+                model: model.into(),
+                seeds_with_model: same.len(),
+                seeds: seeds.len(),
+                parameter: name,
+                truth: true_params
+                    .iter()
+                    .find(|(n, _)| *n == name)
+                    .and_then(|(_, v)| *v),
+                mean,
+                std,
+                rel_std,
+            });
+        }
+    }
+    out
+}
+
+fn runs_csv(runs: &[StabilityRun], baseline: &Judged) -> Csv {
+    let mut csv = Csv::new(&[
+        "family",
+        "size",
+        "seed",
+        "group",
+        "true_model",
+        "model",
+        "class_ok",
+        "class_as_baseline",
+        "diffuse_err",
+        "specularity_err",
+        "roughness_err",
+        "param_err",
+        "error_final",
+        "pure_pixels",
+        "seconds",
+        "run",
+    ]);
+    for r in runs {
+        let same = same_class(&r.judged, baseline);
+        for (g, same) in r.judged.groups.iter().zip(same) {
+            csv.push(vec![
+                r.family.name().into(),
+                r.size.to_string(),
+                r.seed.to_string(),
+                g.group.clone(),
+                g.true_model.clone(),
+                g.model.clone().unwrap_or_default(),
+                g.class_ok.to_string(),
+                same.to_string(),
+                field(g.diffuse_err),
+                field(g.specularity_err),
+                field(g.roughness_err),
+                field(g.param_err()),
+                field(g.error_final),
+                g.pure_pixels.to_string(),
+                format!("{:.3}", r.judged.seconds),
+                r.run.clone(),
+            ]);
+        }
+    }
+    csv
+}
+
+fn spread_csv(spread: &[Spread]) -> Csv {
+    let mut csv = Csv::new(&[
+        "group",
+        "model",
+        "seeds_with_model",
+        "seeds",
+        "parameter",
+        "truth",
+        "mean",
+        "std",
+        "rel_std",
+    ]);
+    for s in spread {
+        csv.push(vec![
+            s.group.clone(),
+            s.model.clone(),
+            s.seeds_with_model.to_string(),
+            s.seeds.to_string(),
+            s.parameter.into(),
+            field(s.truth),
+            field(Some(s.mean)),
+            field(Some(s.std)),
+            field(s.rel_std),
+        ]);
+    }
+    csv
+}
+
+struct ChartContext<'a> {
+    view_side: u32,
+    group: &'a str,
+    group_pixels: u32,
+}
+
+/// Per family, two panels: the fraction of classes right (against the truth) and
+/// unchanged (against the baseline), and the mean parameter error; the pixels family also
+/// shows the limited group alone.
+fn chart(runs: &[StabilityRun], baseline: &Judged, ctx: &ChartContext, title: &str) -> Chart {
+    let mut class_panels = Vec::new();
+    let mut error_panels = Vec::new();
+    for family in Family::ALL {
+        // The family's runs plus the baseline at its natural place, sorted along x.
+        let mut points: Vec<(f64, &Judged)> = runs
+            .iter()
+            .filter(|r| r.family == family)
+            .map(|r| (r.size, &r.judged))
+            .collect();
+        let baseline_x = match family {
+            Family::Seed => None,
+            Family::Resolution => Some(ctx.view_side as f64),
+            Family::Pixels => Some(ctx.group_pixels as f64),
+            _ => Some(0.0),
+        };
+        if let Some(x) = baseline_x {
+            points.push((x, baseline));
+        }
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let series = |name: String, y: &dyn Fn(&Judged) -> Option<f64>| Series {
+            name,
+            points: points
+                .iter()
+                .filter_map(|(x, j)| {
+                    Some(ChartPoint {
+                        x: *x,
+                        y: y(j)?,
+                        label: String::new(),
+                    })
+                })
+                .collect(),
+        };
+        let right = |j: &Judged| Some(j.summary().class_accuracy);
+        let unchanged = |j: &Judged| {
+            let same = same_class(j, baseline);
+            Some(same.iter().filter(|&&s| s).count() as f64 / same.len().max(1) as f64)
+        };
+        let mut class_series = vec![
+            series("right (vs truth)".into(), &right),
+            series("as baseline".into(), &unchanged),
+        ];
+        let mut error_series = vec![series("all groups".into(), &|j: &Judged| {
+            j.summary().param_err
+        })];
+        if family == Family::Pixels {
+            let own = |j: &Judged| j.group(ctx.group).map(|g| f64::from(u8::from(g.class_ok)));
+            class_series.push(series(format!("{} right", ctx.group), &own));
+            let own_err = |j: &Judged| j.group(ctx.group).and_then(GroupOutcome::param_err);
+            error_series.push(series(ctx.group.to_string(), &own_err));
+        }
+        let title = match family {
+            Family::Pixels => format!("pixels of {}", ctx.group),
+            f => f.name().to_string(),
+        };
+        class_panels.push(Panel {
+            title: format!("{title}: classes"),
+            x: family.x_axis(),
+            y: Axis {
+                label: "fraction of groups".into(),
+                log: false,
+                percent: false,
+                range: Some((0.0, 1.0)),
+            },
+            series: class_series,
+        });
+        error_panels.push(Panel {
+            title: format!("{title}: parameter error"),
+            x: family.x_axis(),
+            y: Axis {
+                label: "mean relative parameter error".into(),
+                log: true,
+                percent: true,
+                range: None,
+            },
+            series: error_series,
+        });
+    }
+    // Three families per row band: their class panels above their error panels.
+    let mut panels = Vec::new();
+    for band in 0..2 {
+        let take = |v: &Vec<Panel>| v[3 * band..3 * band + 3].to_vec();
+        panels.extend(take(&class_panels));
+        panels.extend(take(&error_panels));
+    }
+    Chart {
+        title: title.into(),
+        columns: 3,
+        panels,
+    }
+}
+
+fn print_runs(runs: &[StabilityRun], baseline: &Judged, group: &str) {
+    println!(
+        "{:<11} {:>7} {:>8} {:>7} {:>9} {:>8} {:>8}  changed classes",
+        "family", "size", "seconds", "right", "unchanged", "param", "image"
+    );
+    for r in runs {
+        let s = r.judged.summary();
+        let same = same_class(&r.judged, baseline);
+        let changed: Vec<String> = r
+            .judged
+            .groups
+            .iter()
+            .zip(&same)
+            .filter(|(_, &s)| !s)
+            .map(|(g, _)| format!("{}: {}", g.group, g.model.as_deref().unwrap_or("none")))
+            .collect();
+        let mut note = changed.join(", ");
+        if r.family == Family::Pixels {
+            if let Some(g) = r.judged.group(group) {
+                note = format!(
+                    "{group} {} param {} {note}",
+                    g.model.as_deref().unwrap_or("none"),
+                    pct(g.param_err())
+                );
+            }
+        }
+        println!(
+            "{:<11} {:>7} {:>8.1} {:>7} {:>9} {:>8} {:>8}  {}",
+            r.family.name(),
+            r.size,
+            r.judged.seconds,
+            format!("{}/{}", s.classes_right, s.groups),
+            format!("{}/{}", same.iter().filter(|&&x| x).count(), same.len()),
+            pct(s.param_err),
+            pct(s.image_err),
+            note
+        );
+    }
+}
+
+/// The groups whose class differs from the baseline in any run of `family` with
+/// `|size| <= limit`; `None` when no such run was made.
+pub fn class_changes(
+    runs: &[StabilityRun],
+    baseline: &Judged,
+    family: Family,
+    limit: f64,
+) -> Option<Vec<String>> {
+    let chosen: Vec<&StabilityRun> = runs
+        .iter()
+        .filter(|r| r.family == family && r.size.abs() <= limit)
+        .collect();
+    if chosen.is_empty() {
+        return None;
+    }
+    let mut changed = Vec::new();
+    for r in chosen {
+        for (g, same) in r.judged.groups.iter().zip(same_class(&r.judged, baseline)) {
+            if !same {
+                changed.push(format!("{} at {}", g.group, r.size));
+            }
+        }
+    }
+    Some(changed)
+}
+
+fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread]) {
+    println!();
+    let worst = spread
+        .iter()
+        .filter_map(|s| Some((s.rel_std?, s)))
+        .max_by(|a, b| a.0.total_cmp(&b.0));
+    let over: Vec<String> = spread
+        .iter()
+        .filter(|s| s.rel_std.is_some_and(|r| r > SEED_SPREAD_TARGET))
+        .map(|s| format!("{}.{}", s.group, s.parameter))
+        .collect();
+    let flips: Vec<String> = spread
+        .iter()
+        .filter(|s| s.seeds_with_model < s.seeds)
+        .map(|s| {
+            format!(
+                "{} ({} in {}/{})",
+                s.group, s.model, s.seeds_with_model, s.seeds
+            )
+        })
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    match worst {
+        Some((w, s)) => println!(
+            "target seed spread <= {}: {} (largest {} on {}.{}; {} of {} parameters above; classes varying over seeds: {})",
+            pct(Some(SEED_SPREAD_TARGET)),
+            if over.is_empty() && flips.is_empty() { "MET" } else { "MISSED" },
+            pct(Some(w)),
+            s.group,
+            s.parameter,
+            over.len(),
+            spread.len(),
+            if flips.is_empty() { "none".into() } else { flips.join(", ") }
+        ),
+        None => println!("target seed spread: not measured (fewer than two seeds)"),
+    }
+    for (family, limit, what) in [
+        (
+            Family::Noise,
+            NOISE_TARGET,
+            "classes unchanged under 1% noise",
+        ),
+        (
+            Family::Exposure,
+            EXPOSURE_TARGET,
+            "classes unchanged under 5% exposure error",
+        ),
+    ] {
+        match class_changes(runs, baseline, family, limit) {
+            Some(c) if c.is_empty() => println!("target {what}: MET"),
+            Some(c) => println!("target {what}: MISSED ({})", c.join(", ")),
+            None => println!("target {what}: not measured"),
+        }
+    }
+    for family in Family::ALL {
+        let mut broke: Vec<(f64, usize)> = runs
+            .iter()
+            .filter(|r| r.family == family)
+            .map(|r| {
+                let changed = same_class(&r.judged, baseline)
+                    .iter()
+                    .filter(|&&s| !s)
+                    .count();
+                (r.size, changed)
+            })
+            .filter(|&(_, n)| n > 0)
+            .collect();
+        broke.sort_by(|a, b| a.0.abs().total_cmp(&b.0.abs()));
+        match broke.first() {
+            Some((size, n)) => println!(
+                "{}: classes first change at {} ({} group(s))",
+                family.name(),
+                size,
+                n
+            ),
+            None => println!("{}: no class changes in the tested range", family.name()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn material(group: &str, model: Model, color: f32, s: f32) -> MaterialDesc {
+        let mut m = MaterialDesc::new(group, model);
+        m.color = Some([color, color, 2.0 * color]);
+        if model == Model::Isotropic {
+            m.specularity = Some(s);
+            m.roughness = Some(0.1);
+        }
+        m
+    }
+
+    fn outcome(group: &str, m: MaterialDesc, pixels: u32) -> GroupOutcome {
+        GroupOutcome {
+            group: group.into(),
+            true_model: "diffuse".into(),
+            model: Some(m.model.name().into()),
+            class_ok: true,
+            diffuse_err: None,
+            specularity_err: None,
+            roughness_err: None,
+            error_final: None,
+            pure_pixels: pixels,
+            recovered: Some(m),
+        }
+    }
+
+    fn seed_run(seed: u64, groups: Vec<GroupOutcome>) -> StabilityRun {
+        StabilityRun {
+            family: Family::Seed,
+            size: seed as f64,
+            seed,
+            run: String::new(),
+            judged: Judged {
+                seconds: 1.0,
+                groups,
+            },
+        }
+    }
+
+    #[test]
+    fn spread_is_the_sample_deviation_relative_to_the_mean() {
+        let (mean, std, rel) = spread_of(&[1.0, 2.0, 3.0]).unwrap();
+        assert_eq!((mean, std), (2.0, 1.0));
+        assert_eq!(rel, Some(0.5));
+        assert_eq!(spread_of(&[1.0]), None);
+        assert_eq!(spread_of(&[0.0, 0.0]).unwrap().2, None);
+    }
+
+    #[test]
+    fn seed_spread_uses_the_common_model_and_counts_the_others() {
+        let runs: Vec<StabilityRun> = [0.5f32, 0.51, 0.49]
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| {
+                let model = if i == 2 {
+                    Model::Diffuse
+                } else {
+                    Model::Isotropic
+                };
+                seed_run(
+                    i as u64,
+                    vec![
+                        outcome("a", material("a", Model::Diffuse, c, 0.0), 100),
+                        outcome("b", material("b", model, c, 0.1 + 0.01 * i as f32), 50),
+                    ],
+                )
+            })
+            .collect();
+        let truth = [material("a", Model::Diffuse, 0.5, 0.0)];
+        let spread = seed_spread(&runs, &truth);
+        let a_r = spread
+            .iter()
+            .find(|s| s.group == "a" && s.parameter == "color_r")
+            .unwrap();
+        assert_eq!((a_r.seeds_with_model, a_r.seeds), (3, 3));
+        assert_eq!(a_r.truth, Some(0.5));
+        assert!((a_r.rel_std.unwrap() - 0.01 / 0.5).abs() < 1e-6);
+        // Diffuse "a" has no specularity to spread; "b" is isotropic in 2 of 3 seeds.
+        assert!(!spread
+            .iter()
+            .any(|s| s.group == "a" && s.parameter == "specularity"));
+        let b_s = spread
+            .iter()
+            .find(|s| s.group == "b" && s.parameter == "specularity")
+            .unwrap();
+        assert_eq!((b_s.model.as_str(), b_s.seeds_with_model), ("isotropic", 2));
+        assert!((b_s.mean - 0.105).abs() < 1e-6);
+    }
+
+    #[test]
+    fn class_changes_are_found_within_the_limit_only() {
+        let base = seed_run(
+            0,
+            vec![outcome("a", material("a", Model::Diffuse, 0.5, 0.0), 10)],
+        );
+        let flipped = |size: f64, model: Model| StabilityRun {
+            family: Family::Exposure,
+            size,
+            ..seed_run(0, vec![outcome("a", material("a", model, 0.5, 0.1), 10)])
+        };
+        let runs = vec![
+            base.clone(),
+            flipped(-2.0, Model::Diffuse),
+            flipped(10.0, Model::Isotropic),
+        ];
+        assert_eq!(
+            class_changes(&runs, &base.judged, Family::Exposure, 5.0),
+            Some(vec![])
+        );
+        assert_eq!(
+            class_changes(&runs, &base.judged, Family::Exposure, 10.0),
+            Some(vec!["a at 10".to_string()])
+        );
+        assert_eq!(class_changes(&runs, &base.judged, Family::Noise, 1.0), None);
+    }
+
+    #[test]
+    fn the_limited_group_is_the_largest_not_diffuse_in_the_truth() {
+        let judged = Judged {
+            seconds: 1.0,
+            groups: vec![
+                outcome("floor", material("floor", Model::Diffuse, 0.5, 0.0), 900),
+                outcome("ball", material("ball", Model::Diffuse, 0.5, 0.0), 300),
+                outcome("cup", material("cup", Model::Diffuse, 0.5, 0.0), 200),
+            ],
+        };
+        let truth = [
+            material("floor", Model::Diffuse, 0.5, 0.0),
+            material("ball", Model::Isotropic, 0.5, 0.1),
+            material("cup", Model::Mirror, 0.5, 0.0),
+        ];
+        assert_eq!(limited_group(&judged, &truth), "ball");
+        let all_diffuse = [
+            material("floor", Model::Diffuse, 0.5, 0.0),
+            material("ball", Model::Diffuse, 0.5, 0.0),
+            material("cup", Model::Diffuse, 0.5, 0.0),
+        ];
+        assert_eq!(limited_group(&judged, &all_diffuse), "floor");
+    }
+}

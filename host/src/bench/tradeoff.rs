@@ -1,0 +1,457 @@
+//! `relume bench tradeoff`: recovery's accuracy against its wall time, sweeping one knob at
+//! a time from a base effort level: the effort level itself, the annealing's length, the
+//! samples per evaluation inside the loops, the views' resolution, and the Nelder-Mead arm
+//! at the same evaluation counts as the annealing (where the global search pays).
+//!
+//! Every point is a full `recover::run` judged against the truth; points with the same
+//! knobs (the base appears in several sweeps) run once. Results other than the times are
+//! deterministic for a seed, whatever the thread count.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use super::chart::{Axis, Chart, ChartPoint, Panel, Series};
+use super::perturb::{self, Perturbation};
+use super::{field, pct, recover_and_judge, Csv, Summary};
+use crate::error::Error;
+use crate::fsutil;
+use crate::materials_file;
+use crate::recover::{Budget, Effort, Optimiser, RecoverArgs};
+use crate::scene_file;
+
+pub struct TradeoffArgs {
+    pub scene: PathBuf,
+    pub truth: PathBuf,
+    pub out: PathBuf,
+    pub seed: u64,
+    pub threads: Option<usize>,
+    /// The base the knobs are swept from.
+    pub effort: Effort,
+    /// A few points per knob only (for tests and a first look).
+    pub quick: bool,
+}
+
+/// One point of the sweep: the base with one knob changed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepPoint {
+    pub knob: &'static str,
+    pub value: String,
+    pub budget: Budget,
+    /// Box-average the views by this factor before recovering.
+    pub factor: u32,
+}
+
+impl SweepPoint {
+    /// The folder name of the point's run.
+    pub fn id(&self) -> String {
+        format!("{}-{}", self.knob, self.value)
+    }
+}
+
+fn effort_name(e: Effort) -> &'static str {
+    match e {
+        Effort::Fast => "fast",
+        Effort::Default => "default",
+        Effort::Thorough => "thorough",
+    }
+}
+
+/// `values`, with `base` added if missing, ascending.
+fn with_base(mut values: Vec<u32>, base: u32) -> Vec<u32> {
+    if !values.contains(&base) {
+        values.push(base);
+    }
+    values.sort_unstable();
+    values
+}
+
+/// The points to run, knob by knob; `view_side` is the scene's view width in pixels (the
+/// resolution knob's values are what box-averaging gives).
+pub fn sweep(base: Effort, quick: bool, view_side: u32) -> Vec<SweepPoint> {
+    let b = base.budget();
+    let mut points = Vec::new();
+    let efforts = if quick {
+        vec![base]
+    } else {
+        vec![Effort::Fast, Effort::Default, Effort::Thorough]
+    };
+    for e in efforts {
+        points.push(SweepPoint {
+            knob: "effort",
+            value: effort_name(e).into(),
+            budget: e.budget(),
+            factor: 1,
+        });
+    }
+    let (levels, spp, factors) = if quick {
+        (
+            with_base(vec![(b.anneal_levels / 2).max(1)], b.anneal_levels),
+            with_base(vec![(b.loop_spp / 2).max(1)], b.loop_spp),
+            vec![2, 1],
+        )
+    } else {
+        (
+            with_base(vec![2, 4, 8, 16], b.anneal_levels),
+            with_base(vec![4, 8, 16, 32, 64], b.loop_spp),
+            vec![4, 2, 1],
+        )
+    };
+    for (knob, optimiser) in [
+        ("anneal-levels", Optimiser::Annealing),
+        ("nelder-mead", Optimiser::NelderMead),
+    ] {
+        for &l in &levels {
+            points.push(SweepPoint {
+                knob,
+                value: l.to_string(),
+                budget: Budget {
+                    anneal_levels: l,
+                    optimiser,
+                    ..b
+                },
+                factor: 1,
+            });
+        }
+    }
+    for &s in &spp {
+        points.push(SweepPoint {
+            knob: "loop-spp",
+            value: s.to_string(),
+            budget: Budget { loop_spp: s, ..b },
+            factor: 1,
+        });
+    }
+    for f in factors {
+        if view_side.is_multiple_of(f) {
+            points.push(SweepPoint {
+                knob: "resolution",
+                value: (view_side / f).to_string(),
+                budget: b,
+                factor: f,
+            });
+        }
+    }
+    points
+}
+
+/// One measured point.
+#[derive(Clone, Debug)]
+pub struct TradeoffRow {
+    pub point: SweepPoint,
+    pub px_per_side: u32,
+    /// The run folder (shared by points with the same knobs), relative to the output.
+    pub run: String,
+    pub seconds: f64,
+    pub summary: Summary,
+}
+
+/// Runs the sweep, writes `tradeoff.csv` and `tradeoff.svg` under `args.out`, prints the
+/// table and returns the rows.
+pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
+    let desc = scene_file::load_scene(&args.scene)?;
+    materials_file::load_materials(&args.truth)?;
+    let view_side = desc.views.first().map_or(0, |v| v.size[0]);
+    if view_side == 0 {
+        return Err(Error::input(&args.scene, "has no view to recover from"));
+    }
+    fsutil::create_dir(&args.out)?;
+    let points = sweep(args.effort, args.quick, view_side);
+    // Points with the same knobs share one run.
+    let mut done: BTreeMap<String, (String, f64, Summary)> = BTreeMap::new();
+    let mut rows = Vec::new();
+    for (i, point) in points.iter().enumerate() {
+        let key = format!("{:?} {}", point.budget, point.factor);
+        let (run, seconds, summary) = match done.get(&key) {
+            Some(found) => found.clone(),
+            None => {
+                eprintln!(
+                    "tradeoff [{}/{}] {} = {}: recovering",
+                    i + 1,
+                    points.len(),
+                    point.knob,
+                    point.value
+                );
+                let scene = scene_for(args, point.factor)?;
+                let run = format!("runs/{}", point.id());
+                let judged = recover_and_judge(
+                    &RecoverArgs {
+                        scene,
+                        out: args.out.join(&run),
+                        seed: args.seed,
+                        threads: args.threads,
+                        budget: point.budget,
+                        limit_group_pixels: None,
+                    },
+                    &args.truth,
+                )?;
+                let found = (run, judged.seconds, judged.summary());
+                done.insert(key, found.clone());
+                found
+            }
+        };
+        eprintln!(
+            "tradeoff [{}/{}] {} = {}: {:.1} s, classes {}/{}, parameter error {}, image error {}",
+            i + 1,
+            points.len(),
+            point.knob,
+            point.value,
+            seconds,
+            summary.classes_right,
+            summary.groups,
+            pct(summary.param_err),
+            pct(summary.image_err)
+        );
+        rows.push(TradeoffRow {
+            point: point.clone(),
+            px_per_side: view_side / point.factor,
+            run,
+            seconds,
+            summary,
+        });
+    }
+    fsutil::write_atomic(
+        &args.out.join("tradeoff.csv"),
+        csv(&rows).to_text().as_bytes(),
+    )?;
+    let title = format!(
+        "relume bench tradeoff: {} (base effort {}, seed {})",
+        desc.name,
+        effort_name(args.effort),
+        args.seed
+    );
+    fsutil::write_atomic(
+        &args.out.join("tradeoff.svg"),
+        chart(&rows, &title).to_svg().as_bytes(),
+    )?;
+    print_table(&rows);
+    Ok(rows)
+}
+
+/// The scene a point recovers from: the given one, or its box-averaged copy under out/.
+fn scene_for(args: &TradeoffArgs, factor: u32) -> Result<PathBuf, Error> {
+    if factor == 1 {
+        return Ok(args.scene.clone());
+    }
+    let dir = args.out.join(format!("scenes/factor-{factor}"));
+    perturb::write_perturbed(
+        &args.scene,
+        &Perturbation {
+            factor,
+            ..Perturbation::NONE
+        },
+        &dir,
+    )
+}
+
+pub const CSV_HEADER: [&str; 19] = [
+    "knob",
+    "value",
+    "loop_spp",
+    "cache_spp",
+    "anneal_levels",
+    "final_spp",
+    "optimiser",
+    "px_per_side",
+    "seconds",
+    "groups",
+    "classes_right",
+    "class_accuracy",
+    "diffuse_err",
+    "specularity_err",
+    "roughness_err",
+    "param_err",
+    "image_err",
+    "image_err_weighted",
+    "run",
+];
+
+fn optimiser_name(o: Optimiser) -> &'static str {
+    match o {
+        Optimiser::Annealing => "annealing",
+        Optimiser::NelderMead => "nelder-mead",
+    }
+}
+
+fn csv(rows: &[TradeoffRow]) -> Csv {
+    let mut csv = Csv::new(&CSV_HEADER);
+    for r in rows {
+        let (b, s) = (&r.point.budget, &r.summary);
+        csv.push(vec![
+            r.point.knob.into(),
+            r.point.value.clone(),
+            b.loop_spp.to_string(),
+            b.cache_spp.to_string(),
+            b.anneal_levels.to_string(),
+            b.final_spp.to_string(),
+            optimiser_name(b.optimiser).into(),
+            r.px_per_side.to_string(),
+            format!("{:.3}", r.seconds),
+            s.groups.to_string(),
+            s.classes_right.to_string(),
+            format!("{:.4}", s.class_accuracy),
+            field(s.diffuse_err),
+            field(s.specularity_err),
+            field(s.roughness_err),
+            field(s.param_err),
+            field(s.image_err),
+            field(s.image_err_weighted),
+            r.run.clone(),
+        ]);
+    }
+    csv
+}
+
+/// Two panels, parameter error and image error against wall time (both log), one curve
+/// per knob with each point labelled by the knob's value.
+pub fn chart(rows: &[TradeoffRow], title: &str) -> Chart {
+    let mut knobs: Vec<&str> = Vec::new();
+    for r in rows {
+        if !knobs.contains(&r.point.knob) {
+            knobs.push(r.point.knob);
+        }
+    }
+    let panel = |title: &str, y_label: &str, y: fn(&Summary) -> Option<f64>| Panel {
+        title: title.into(),
+        x: Axis {
+            label: "wall time (s)".into(),
+            log: true,
+            ..Axis::default()
+        },
+        y: Axis {
+            label: y_label.into(),
+            log: true,
+            percent: true,
+            range: None,
+        },
+        series: knobs
+            .iter()
+            .map(|&knob| Series {
+                name: knob.into(),
+                points: rows
+                    .iter()
+                    .filter(|r| r.point.knob == knob)
+                    .filter_map(|r| {
+                        Some(ChartPoint {
+                            x: r.seconds,
+                            y: y(&r.summary)?,
+                            label: r.point.value.clone(),
+                        })
+                    })
+                    .collect(),
+            })
+            .collect(),
+    };
+    Chart {
+        title: title.into(),
+        columns: 2,
+        panels: vec![
+            panel(
+                "parameter error against time",
+                "mean relative parameter error",
+                |s| s.param_err,
+            ),
+            panel(
+                "image error against time",
+                "mean relative image error (final render)",
+                |s| s.image_err,
+            ),
+        ],
+    }
+}
+
+fn print_table(rows: &[TradeoffRow]) {
+    println!(
+        "{:<14} {:>9} {:>5} {:>8} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
+        "knob",
+        "value",
+        "px",
+        "seconds",
+        "classes",
+        "diffuse",
+        "spec",
+        "rough",
+        "param",
+        "image",
+        "image_px"
+    );
+    for r in rows {
+        let s = &r.summary;
+        println!(
+            "{:<14} {:>9} {:>5} {:>8.1} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
+            r.point.knob,
+            r.point.value,
+            r.px_per_side,
+            r.seconds,
+            format!("{}/{}", s.classes_right, s.groups),
+            pct(s.diffuse_err),
+            pct(s.specularity_err),
+            pct(s.roughness_err),
+            pct(s.param_err),
+            pct(s.image_err),
+            pct(s.image_err_weighted)
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_point_changes_one_knob_of_the_base() {
+        let base = Effort::Fast.budget();
+        let points = sweep(Effort::Fast, false, 64);
+        for p in &points {
+            let b = p.budget;
+            let changed = [
+                b.loop_spp != base.loop_spp,
+                b.anneal_levels != base.anneal_levels,
+                b.optimiser != base.optimiser,
+                p.factor != 1,
+            ]
+            .iter()
+            .filter(|&&c| c)
+            .count();
+            match p.knob {
+                "effort" => assert_eq!(p.factor, 1),
+                // The Nelder-Mead arm changes the optimiser and, along its curve, the
+                // evaluation count it is matched to.
+                "nelder-mead" => assert!(b.optimiser == Optimiser::NelderMead && changed <= 2),
+                _ => assert!(changed <= 1, "{p:?}"),
+            }
+        }
+        let values = |knob: &str| -> Vec<String> {
+            points
+                .iter()
+                .filter(|p| p.knob == knob)
+                .map(|p| p.value.clone())
+                .collect()
+        };
+        assert_eq!(values("effort"), ["fast", "default", "thorough"]);
+        assert_eq!(values("anneal-levels"), ["2", "4", "8", "16"]);
+        assert_eq!(values("nelder-mead"), values("anneal-levels"));
+        assert_eq!(values("loop-spp"), ["4", "8", "16", "32", "64"]);
+        assert_eq!(values("resolution"), ["16", "32", "64"]);
+    }
+
+    #[test]
+    fn quick_sweeps_keep_the_base_and_skip_factors_that_do_not_divide() {
+        let points = sweep(Effort::Default, true, 30);
+        let values = |knob: &str| -> Vec<String> {
+            points
+                .iter()
+                .filter(|p| p.knob == knob)
+                .map(|p| p.value.clone())
+                .collect()
+        };
+        assert_eq!(values("effort"), ["default"]);
+        assert_eq!(values("anneal-levels"), ["4", "8"]);
+        assert_eq!(values("loop-spp"), ["16", "32"]);
+        assert_eq!(values("resolution"), ["15", "30"]);
+        let odd = sweep(Effort::Fast, true, 33);
+        assert!(odd
+            .iter()
+            .filter(|p| p.knob == "resolution")
+            .all(|p| p.factor == 1));
+    }
+}

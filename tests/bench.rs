@@ -1,0 +1,142 @@
+//! `relume bench tradeoff` end to end on the bundled scene (--quick): the CSV has one row
+//! per point of the sweep with figures that make sense, points with the same knobs share
+//! one run, and the chart is an SVG with a curve per knob. Bad input names the file.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use common::{path_str, relume, relume_ok, workspace};
+
+#[test]
+fn quick_tradeoff_writes_a_row_per_point_and_a_chart() {
+    let root = workspace();
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("tradeoff");
+    let output = relume_ok(
+        tmp.path(),
+        &[
+            "bench",
+            "tradeoff",
+            path_str(&root.join("scenes/cornell/scene.toml")),
+            "--truth",
+            path_str(&root.join("scenes/cornell/materials.toml")),
+            "--out",
+            path_str(&out),
+            "--quick",
+            "--threads",
+            "2",
+        ],
+    );
+    let text = std::fs::read_to_string(out.join("tradeoff.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    for r in &rows {
+        assert_eq!(r.len(), header.len(), "{r:?}");
+    }
+    let points: Vec<(&str, &str)> = rows.iter().map(|r| (r[0], r[1])).collect();
+    // The quick sweep from `fast` (levels 4, loop spp 8) on 32 px views: half and base.
+    assert_eq!(
+        points,
+        [
+            ("effort", "fast"),
+            ("anneal-levels", "2"),
+            ("anneal-levels", "4"),
+            ("nelder-mead", "2"),
+            ("nelder-mead", "4"),
+            ("loop-spp", "4"),
+            ("loop-spp", "8"),
+            ("resolution", "16"),
+            ("resolution", "32"),
+        ]
+    );
+    let num = |r: &Vec<&str>, name: &str| -> f64 { r[col(name)].parse().unwrap() };
+    for r in &rows {
+        assert!(num(r, "seconds") > 0.0);
+        assert_eq!(num(r, "groups"), 9.0, "every group of the truth is judged");
+        let accuracy = num(r, "class_accuracy");
+        assert!((0.0..=1.0).contains(&accuracy));
+        assert!((accuracy * 9.0 - num(r, "classes_right")).abs() < 1e-3);
+        for e in [
+            "param_err",
+            "image_err",
+            "image_err_weighted",
+            "diffuse_err",
+        ] {
+            assert!(num(r, e).is_finite() && num(r, e) >= 0.0, "{e} in {r:?}");
+        }
+        assert!(out.join(r[col("run")]).join("materials.toml").is_file());
+    }
+    let optimiser = |i: usize| rows[i][col("optimiser")];
+    assert_eq!((optimiser(2), optimiser(4)), ("annealing", "nelder-mead"));
+    assert_eq!(rows[7][col("px_per_side")], "16");
+    // The base point (effort fast = levels 4 = loop spp 8 = 32 px) runs once.
+    let base: Vec<&Vec<&str>> = [0, 2, 6, 8].iter().map(|&i| &rows[i]).collect();
+    assert!(base.iter().all(|r| r[col("run")] == base[0][col("run")]));
+    assert!(base
+        .iter()
+        .all(|r| r[col("param_err")] == base[0][col("param_err")]));
+    assert_ne!(rows[3][col("run")], rows[4][col("run")]);
+
+    let svg = std::fs::read_to_string(out.join("tradeoff.svg")).unwrap();
+    assert!(svg.starts_with("<svg ") && svg.trim_end().ends_with("</svg>"));
+    assert!(svg.matches("<polyline").count() >= 4, "a curve per knob");
+    for knob in [
+        "effort",
+        "anneal-levels",
+        "nelder-mead",
+        "loop-spp",
+        "resolution",
+    ] {
+        assert!(
+            svg.contains(&format!(">{knob}</text>")),
+            "legend lacks {knob}"
+        );
+    }
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(stdout.contains("nelder-mead") && stdout.contains("tradeoff.svg"));
+}
+
+#[test]
+fn a_missing_truth_is_an_error_naming_the_file() {
+    let root = workspace();
+    let tmp = tempfile::tempdir().unwrap();
+    for command in ["tradeoff", "stability"] {
+        let output = relume(
+            tmp.path(),
+            &[
+                "bench",
+                command,
+                path_str(&root.join("scenes/cornell/scene.toml")),
+                "--truth",
+                "no-such-truth.toml",
+                "--out",
+                path_str(&tmp.path().join("out")),
+            ],
+        );
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(4), "{stderr}");
+        assert!(stderr.contains("no-such-truth.toml"), "{stderr}");
+    }
+    let output = relume(
+        tmp.path(),
+        &[
+            "bench",
+            "stability",
+            path_str(&root.join("scenes/cornell/scene.toml")),
+            "--truth",
+            path_str(&root.join("scenes/cornell/materials.toml")),
+            "--out",
+            path_str(&tmp.path().join("out")),
+            "--group",
+            "no_such_group",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(3), "{stderr}");
+    assert!(
+        stderr.contains("scene.toml") && stderr.contains("no_such_group"),
+        "{stderr}"
+    );
+}
