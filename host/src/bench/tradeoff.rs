@@ -310,6 +310,16 @@ pub fn chart(rows: &[TradeoffRow], title: &str) -> Chart {
             knobs.push(r.point.knob);
         }
     }
+    // A run shared by several knobs (the base) is labelled once, as the base.
+    let label = |r: &TradeoffRow| {
+        let first = rows.iter().position(|o| o.run == r.run);
+        let shared = rows.iter().filter(|o| o.run == r.run).count() > 1;
+        match (shared, first.map(|i| std::ptr::eq(&rows[i], r))) {
+            (false, _) => r.point.value.clone(),
+            (true, Some(true)) => format!("base ({} {})", r.point.knob, r.point.value),
+            (true, _) => String::new(),
+        }
+    };
     let panel = |title: &str, y_label: &str, y: fn(&Summary) -> Option<f64>| Panel {
         title: title.into(),
         x: Axis {
@@ -334,7 +344,7 @@ pub fn chart(rows: &[TradeoffRow], title: &str) -> Chart {
                         Some(ChartPoint {
                             x: r.seconds,
                             y: y(&r.summary)?,
-                            label: r.point.value.clone(),
+                            label: label(r),
                         })
                     })
                     .collect(),
@@ -432,6 +442,54 @@ mod tests {
         assert_eq!(values("nelder-mead"), values("anneal-levels"));
         assert_eq!(values("loop-spp"), ["4", "8", "16", "32", "64"]);
         assert_eq!(values("resolution"), ["16", "32", "64"]);
+    }
+
+    fn row(knob: &'static str, value: &str, run: &str, seconds: f64) -> TradeoffRow {
+        TradeoffRow {
+            point: SweepPoint {
+                knob,
+                value: value.into(),
+                budget: Effort::Fast.budget(),
+                factor: 1,
+            },
+            px_per_side: 64,
+            run: run.into(),
+            seconds,
+            summary: Summary {
+                groups: 1,
+                classes_right: 1,
+                class_accuracy: 1.0,
+                diffuse_err: Some(0.01),
+                specularity_err: None,
+                roughness_err: None,
+                param_err: Some(0.01),
+                image_err: Some(0.02),
+                image_err_weighted: Some(0.02),
+            },
+        }
+    }
+
+    #[test]
+    fn the_chart_has_a_curve_per_knob_and_labels_the_shared_base_once() {
+        let rows = [
+            row("effort", "fast", "runs/base", 2.0),
+            row("loop-spp", "4", "runs/spp-4", 1.5),
+            row("loop-spp", "8", "runs/base", 2.0),
+        ];
+        let chart = chart(&rows, "t");
+        assert_eq!(chart.panels.len(), 2);
+        let names: Vec<&str> = chart.panels[0]
+            .series
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect();
+        assert_eq!(names, ["effort", "loop-spp"]);
+        let labels: Vec<&str> = chart.panels[0]
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter().map(|p| p.label.as_str()))
+            .collect();
+        assert_eq!(labels, ["base (effort fast)", "4", ""]);
     }
 
     #[test]
