@@ -54,6 +54,8 @@ fn quick_tradeoff_writes_a_row_per_point_and_a_chart() {
     let num = |r: &Vec<&str>, name: &str| -> f64 { r[col(name)].parse().unwrap() };
     for r in &rows {
         assert!(num(r, "seconds") > 0.0);
+        let cpu = r[col("cpu_seconds")];
+        assert!(cpu.is_empty() || cpu.parse::<f64>().unwrap() > 0.0, "{cpu}");
         assert_eq!(num(r, "groups"), 9.0, "every group of the truth is judged");
         let accuracy = num(r, "class_accuracy");
         assert!((0.0..=1.0).contains(&accuracy));

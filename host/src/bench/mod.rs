@@ -52,6 +52,9 @@ impl GroupOutcome {
 pub struct Judged {
     /// Wall time of `recover::run`, outputs included.
     pub seconds: f64,
+    /// CPU time of the same (all threads): the cost of the run, which another load on a
+    /// shared machine does not inflate as it does the wall time.
+    pub cpu_seconds: Option<f64>,
     pub groups: Vec<GroupOutcome>,
 }
 
@@ -112,11 +115,28 @@ impl Judged {
     }
 }
 
+/// CPU seconds (user + system, all threads) this process has used so far, from
+/// `/proc/self/stat` (Linux, whose user-space clock tick is 1/100 s); `None` elsewhere.
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // The command name is in parentheses and may hold spaces: count fields after it.
+    let rest = stat.get(stat.rfind(')')? + 1..)?;
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    // utime and stime are fields 14 and 15 of the line, 12th and 13th after the name.
+    let ticks: u64 = fields.get(11)?.parse::<u64>().ok()? + fields.get(12)?.parse::<u64>().ok()?;
+    Some(ticks as f64 / 100.0)
+}
+
 /// Runs one recovery and judges its materials.toml against `truth`.
 pub fn recover_and_judge(args: &RecoverArgs, truth: &Path) -> Result<Judged, Error> {
     let start = Instant::now();
+    let cpu_start = process_cpu_seconds();
     let report = recover::run(args)?;
     let seconds = start.elapsed().as_secs_f64();
+    let cpu_seconds = match (cpu_start, process_cpu_seconds()) {
+        (Some(a), Some(b)) => Some(b - a),
+        _ => None,
+    };
     let materials = args.out.join("materials.toml");
     let rows = compare::materials_report(truth, &materials)?;
     let recovered: BTreeMap<String, MaterialDesc> = materials_file::load_materials(&materials)?
@@ -142,7 +162,11 @@ pub fn recover_and_judge(args: &RecoverArgs, truth: &Path) -> Result<Judged, Err
             }
         })
         .collect();
-    Ok(Judged { seconds, groups })
+    Ok(Judged {
+        seconds,
+        cpu_seconds,
+        groups,
+    })
 }
 
 /// A CSV table: a header and rows of already formatted fields.
@@ -202,6 +226,24 @@ mod tests {
     use super::*;
 
     #[test]
+    fn cpu_time_grows_with_work() {
+        let Some(before) = process_cpu_seconds() else {
+            return; // not Linux: nothing to measure
+        };
+        let start = Instant::now();
+        let mut x = 0u64;
+        while start.elapsed().as_secs_f64() < 0.3 {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1);
+        }
+        std::hint::black_box(x);
+        let used = process_cpu_seconds().unwrap() - before;
+        assert!(
+            (0.15..5.0).contains(&used),
+            "{used} s of CPU for 0.3 s of spinning"
+        );
+    }
+
+    #[test]
     fn csv_quotes_only_what_needs_it() {
         let mut csv = Csv::new(&["knob", "value"]);
         csv.push(vec!["a,b".into(), "say \"hi\"".into()]);
@@ -232,6 +274,7 @@ mod tests {
     fn summary_means_skip_undefined_errors_and_weight_by_pixels() {
         let judged = Judged {
             seconds: 1.0,
+            cpu_seconds: None,
             groups: vec![
                 outcome(true, Some(0.02), None, 0.01, 300),
                 outcome(false, Some(0.04), Some(0.5), 0.05, 100),

@@ -421,6 +421,7 @@ fn runs_csv(runs: &[StabilityRun], baseline: &Judged) -> Csv {
         "error_final",
         "pure_pixels",
         "seconds",
+        "cpu_seconds",
         "run",
     ]);
     for r in runs {
@@ -442,6 +443,7 @@ fn runs_csv(runs: &[StabilityRun], baseline: &Judged) -> Csv {
                 field(g.error_final),
                 g.pure_pixels.to_string(),
                 format!("{:.3}", r.judged.seconds),
+                field(r.judged.cpu_seconds),
                 r.run.clone(),
             ]);
         }
@@ -578,42 +580,45 @@ fn chart(runs: &[StabilityRun], baseline: &Judged, ctx: &ChartContext, title: &s
     }
 }
 
+/// The runs as a Markdown table (readable in a terminal, pasted as is into docs/).
 fn print_runs(runs: &[StabilityRun], baseline: &Judged, group: &str) {
-    println!(
-        "{:<11} {:>7} {:>8} {:>7} {:>9} {:>8} {:>8}  changed classes",
-        "family", "size", "seconds", "right", "unchanged", "param", "image"
-    );
+    println!("| family | size | wall s | classes right | as baseline | param | image | changed classes |");
+    println!("|---|---|---|---|---|---|---|---|");
     for r in runs {
         let s = r.judged.summary();
         let same = same_class(&r.judged, baseline);
-        let changed: Vec<String> = r
+        let mut notes: Vec<String> = r
             .judged
             .groups
             .iter()
             .zip(&same)
             .filter(|(_, &s)| !s)
-            .map(|(g, _)| format!("{}: {}", g.group, g.model.as_deref().unwrap_or("none")))
+            .map(|(g, _)| format!("{} {}", g.group, g.model.as_deref().unwrap_or("none")))
             .collect();
-        let mut note = changed.join(", ");
         if r.family == Family::Pixels {
             if let Some(g) = r.judged.group(group) {
-                note = format!(
-                    "{group} {} param {} {note}",
-                    g.model.as_deref().unwrap_or("none"),
-                    pct(g.param_err())
+                notes.insert(
+                    0,
+                    format!(
+                        "({group}: {}, param {})",
+                        g.model.as_deref().unwrap_or("none"),
+                        pct(g.param_err())
+                    ),
                 );
             }
         }
         println!(
-            "{:<11} {:>7} {:>8.1} {:>7} {:>9} {:>8} {:>8}  {}",
+            "| {} | {} | {:.1} | {}/{} | {}/{} | {} | {} | {} |",
             r.family.name(),
             r.size,
             r.judged.seconds,
-            format!("{}/{}", s.classes_right, s.groups),
-            format!("{}/{}", same.iter().filter(|&&x| x).count(), same.len()),
+            s.classes_right,
+            s.groups,
+            same.iter().filter(|&&x| x).count(),
+            same.len(),
             pct(s.param_err),
             pct(s.image_err),
-            note
+            notes.join(", ")
         );
     }
 }
@@ -762,6 +767,7 @@ mod tests {
             run: String::new(),
             judged: Judged {
                 seconds: 1.0,
+                cpu_seconds: None,
                 groups,
             },
         }
@@ -848,6 +854,7 @@ mod tests {
     fn the_limited_group_is_the_largest_not_diffuse_in_the_truth() {
         let judged = Judged {
             seconds: 1.0,
+            cpu_seconds: None,
             groups: vec![
                 outcome("floor", material("floor", Model::Diffuse, 0.5, 0.0), 900),
                 outcome("ball", material("ball", Model::Diffuse, 0.5, 0.0), 300),

@@ -142,6 +142,8 @@ pub struct TradeoffRow {
     /// The run folder (shared by points with the same knobs), relative to the output.
     pub run: String,
     pub seconds: f64,
+    /// CPU seconds of the run (all threads), where the system tells.
+    pub cpu_seconds: Option<f64>,
     pub summary: Summary,
 }
 
@@ -157,11 +159,11 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
     fsutil::create_dir(&args.out)?;
     let points = sweep(args.effort, args.quick, view_side);
     // Points with the same knobs share one run.
-    let mut done: BTreeMap<String, (String, f64, Summary)> = BTreeMap::new();
+    let mut done: BTreeMap<String, (String, f64, Option<f64>, Summary)> = BTreeMap::new();
     let mut rows = Vec::new();
     for (i, point) in points.iter().enumerate() {
         let key = format!("{:?} {}", point.budget, point.factor);
-        let (run, seconds, summary) = match done.get(&key) {
+        let (run, seconds, cpu_seconds, summary) = match done.get(&key) {
             Some(found) => found.clone(),
             None => {
                 eprintln!(
@@ -184,7 +186,7 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
                     },
                     &args.truth,
                 )?;
-                let found = (run, judged.seconds, judged.summary());
+                let found = (run, judged.seconds, judged.cpu_seconds, judged.summary());
                 done.insert(key, found.clone());
                 found
             }
@@ -206,6 +208,7 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
             px_per_side: view_side / point.factor,
             run,
             seconds,
+            cpu_seconds,
             summary,
         });
     }
@@ -243,7 +246,7 @@ fn scene_for(args: &TradeoffArgs, factor: u32) -> Result<PathBuf, Error> {
     )
 }
 
-pub const CSV_HEADER: [&str; 19] = [
+pub const CSV_HEADER: [&str; 20] = [
     "knob",
     "value",
     "loop_spp",
@@ -253,6 +256,7 @@ pub const CSV_HEADER: [&str; 19] = [
     "optimiser",
     "px_per_side",
     "seconds",
+    "cpu_seconds",
     "groups",
     "classes_right",
     "class_accuracy",
@@ -286,6 +290,7 @@ fn csv(rows: &[TradeoffRow]) -> Csv {
             optimiser_name(b.optimiser).into(),
             r.px_per_side.to_string(),
             format!("{:.3}", r.seconds),
+            field(r.cpu_seconds),
             s.groups.to_string(),
             s.classes_right.to_string(),
             format!("{:.4}", s.class_accuracy),
@@ -369,30 +374,21 @@ pub fn chart(rows: &[TradeoffRow], title: &str) -> Chart {
     }
 }
 
+/// The table as Markdown (readable in a terminal, pasted as is into docs/).
 fn print_table(rows: &[TradeoffRow]) {
-    println!(
-        "{:<14} {:>9} {:>5} {:>8} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
-        "knob",
-        "value",
-        "px",
-        "seconds",
-        "classes",
-        "diffuse",
-        "spec",
-        "rough",
-        "param",
-        "image",
-        "image_px"
-    );
+    println!("| knob | value | px | wall s | CPU s | classes | diffuse | spec | rough | param | image | image (px-weighted) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in rows {
         let s = &r.summary;
         println!(
-            "{:<14} {:>9} {:>5} {:>8.1} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
+            "| {} | {} | {} | {:.1} | {} | {}/{} | {} | {} | {} | {} | {} | {} |",
             r.point.knob,
             r.point.value,
             r.px_per_side,
             r.seconds,
-            format!("{}/{}", s.classes_right, s.groups),
+            r.cpu_seconds.map_or("-".into(), |c| format!("{c:.1}")),
+            s.classes_right,
+            s.groups,
             pct(s.diffuse_err),
             pct(s.specularity_err),
             pct(s.roughness_err),
@@ -455,6 +451,7 @@ mod tests {
             px_per_side: 64,
             run: run.into(),
             seconds,
+            cpu_seconds: None,
             summary: Summary {
                 groups: 1,
                 classes_right: 1,
