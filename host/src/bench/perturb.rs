@@ -1,5 +1,5 @@
 //! Perturbed copies of a scene for `relume bench stability`: the panorama box-averaged,
-//! scaled (an exposure error) and given multiplicative Gaussian noise, and the first
+//! scaled (an exposure error) and given multiplicative Gaussian noise, and the brightest
 //! light's radiance scaled (a calibration error), written as a new scene.toml beside new
 //! views, in the style of `relume bench downsample`.
 
@@ -24,7 +24,8 @@ pub struct Perturbation {
     pub noise: f64,
     /// The noise's seed: the same seed gives the same noise, scaled by `noise`.
     pub noise_seed: u64,
-    /// Multiply the first light's radiance in the scene file by this.
+    /// Multiply the brightest light's radiance in the scene file by this (the first light
+    /// can be switched off: the living room's desk lamp is).
     pub light: f32,
 }
 
@@ -77,8 +78,8 @@ pub fn scale(image: &mut Image, factor: f32) {
 }
 
 /// Writes `out/scene.toml` and `out/views/<view>.exr`: `scene` with `p` applied. Returns
-/// the new scene file. Errors name the scene file: no light to change, a view without an
-/// image, a view size not divisible by the factor.
+/// the new scene file. Errors name the scene file: no lit light to change, a view without
+/// an image, a view size not divisible by the factor.
 pub fn write_perturbed(scene: &Path, p: &Perturbation, out: &Path) -> Result<PathBuf, Error> {
     if p.factor == 0 || !(p.exposure > 0.0 && p.light > 0.0 && p.noise >= 0.0) {
         return Err(Error::Usage(format!(
@@ -87,10 +88,18 @@ pub fn write_perturbed(scene: &Path, p: &Perturbation, out: &Path) -> Result<Pat
     }
     let mut desc = scene_file::load_scene(scene)?;
     if p.light != 1.0 {
-        let Some(light) = desc.lights.first_mut() else {
+        let brightest = desc
+            .lights
+            .iter_mut()
+            .filter(|l| l.radiance.iter().sum::<f32>() > 0.0)
+            .max_by(|a, b| {
+                let sum = |l: &scene_file::LightDesc| l.radiance.iter().sum::<f32>();
+                sum(a).total_cmp(&sum(b))
+            });
+        let Some(light) = brightest else {
             return Err(Error::input(
                 scene,
-                "has no [[light]] whose radiance could be perturbed",
+                "has no [[light]] with a radiance above 0 to perturb",
             ));
         };
         light.radiance = light.radiance.map(|r| r * p.light);
@@ -226,6 +235,35 @@ mod tests {
         assert_eq!(w.size, [v.size[0] / 2, v.size[1] / 2]);
         let got = images::read_view_image(w.image.as_ref().unwrap(), w.exposure, w.size).unwrap();
         assert_eq!(got, expected);
+    }
+
+    #[test]
+    fn the_light_changed_is_the_brightest_even_when_the_first_is_off() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut desc = scene_file::load_scene(&cornell()).unwrap();
+        let lit = desc.lights[0].clone();
+        desc.lights.insert(
+            0,
+            scene_file::LightDesc {
+                object: "lamp_off".into(),
+                radiance: [0.0; 3],
+            },
+        );
+        desc.lights.push(scene_file::LightDesc {
+            object: "lamp_dim".into(),
+            radiance: lit.radiance.map(|r| 0.5 * r),
+        });
+        let scene = dir.path().join("two-lights.toml");
+        std::fs::write(&scene, downsample::scene_toml(&desc)).unwrap();
+        let p = Perturbation {
+            light: 1.1,
+            ..Perturbation::NONE
+        };
+        let out = write_perturbed(&scene, &p, &dir.path().join("out")).unwrap();
+        let lights = scene_file::load_scene(&out).unwrap().lights;
+        assert_eq!(lights[0].radiance, [0.0; 3]);
+        assert_eq!(lights[1].radiance, lit.radiance.map(|r| r * 1.1));
+        assert_eq!(lights[2].radiance, lit.radiance.map(|r| 0.5 * r));
     }
 
     #[test]

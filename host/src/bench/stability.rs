@@ -1,6 +1,6 @@
 //! `relume bench stability`: recovery under controlled perturbations of its input, to show
 //! how far each stage can be trusted: other seeds, multiplicative image noise, an exposure
-//! error, an error in the first light's radiance, smaller views, and one group seen in
+//! error, an error in the brightest light's radiance, smaller views, and one group seen in
 //! fewer and fewer pixels. Each run is judged against the truth and against the
 //! unperturbed run (the baseline: the first seed), and the targets are checked:
 //! parameter spread over seeds <= [`SEED_SPREAD_TARGET`], classes unchanged under 1% noise
@@ -76,7 +76,7 @@ impl Family {
             Family::Seed => ("seed", false),
             Family::Noise => ("image noise, relative sd (%)", false),
             Family::Exposure => ("exposure error (%)", false),
-            Family::Light => ("first light's radiance error (%)", false),
+            Family::Light => ("brightest light's radiance error (%)", false),
             Family::Resolution => ("view pixels per side", true),
             Family::Pixels => ("pure pixels of the limited group", true),
         };
