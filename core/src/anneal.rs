@@ -79,13 +79,11 @@ impl<const D: usize> Annealer<D> {
         seed: u64,
     ) -> Result<Annealer<D>, Error> {
         schedule.check()?;
-        for d in 0..D {
-            if !(lower[d].is_finite() && upper[d].is_finite() && lower[d] < upper[d]) {
-                return Err(Error::InvalidValue {
-                    what: "annealing bounds: need finite lower < upper",
-                });
-            }
-        }
+        check_bounds(
+            &lower,
+            &upper,
+            "annealing bounds: need finite lower < upper",
+        )?;
         let start = clamp_into(start, &lower, &upper);
         let cost = if start_cost.is_nan() {
             f64::INFINITY
@@ -192,7 +190,27 @@ impl<const D: usize> Annealer<D> {
     }
 }
 
-fn clamp_into<const D: usize>(mut p: [f64; D], lower: &[f64; D], upper: &[f64; D]) -> [f64; D] {
+/// Refuses a search box that is not finite with `lower < upper` on every axis (`what`
+/// names the search). Shared by the searches of this crate.
+pub(crate) fn check_bounds<const D: usize>(
+    lower: &[f64; D],
+    upper: &[f64; D],
+    what: &'static str,
+) -> Result<(), Error> {
+    for d in 0..D {
+        if !(lower[d].is_finite() && upper[d].is_finite() && lower[d] < upper[d]) {
+            return Err(Error::InvalidValue { what });
+        }
+    }
+    Ok(())
+}
+
+/// `p` forced into the box (NaN to the lower bound).
+pub(crate) fn clamp_into<const D: usize>(
+    mut p: [f64; D],
+    lower: &[f64; D],
+    upper: &[f64; D],
+) -> [f64; D] {
     for d in 0..D {
         p[d] = if p[d].is_nan() {
             lower[d]

@@ -9,6 +9,7 @@
 //! give the same sequence. It stops when the evaluation budget is spent or the simplex has
 //! collapsed to [`COLLAPSED`] of the box in every dimension.
 
+use crate::anneal::{check_bounds, clamp_into};
 use crate::error::Error;
 
 /// Largest `D` supported: the simplex lives in fixed arrays of `MAX_DIMENSIONS + 1`
@@ -78,13 +79,11 @@ impl<const D: usize> NelderMead<D> {
                 what: "Nelder-Mead dimensions: need 1..=MAX_DIMENSIONS",
             });
         }
-        for d in 0..D {
-            if !(lower[d].is_finite() && upper[d].is_finite() && lower[d] < upper[d]) {
-                return Err(Error::InvalidValue {
-                    what: "Nelder-Mead bounds: need finite lower < upper",
-                });
-            }
-        }
+        check_bounds(
+            &lower,
+            &upper,
+            "Nelder-Mead bounds: need finite lower < upper",
+        )?;
         if !(initial_step > 0.0 && initial_step <= 1.0) {
             return Err(Error::InvalidValue {
                 what: "Nelder-Mead initial step: need a fraction of the range in (0, 1]",
@@ -284,17 +283,6 @@ fn finite_or_worst(cost: f64) -> f64 {
     } else {
         cost
     }
-}
-
-fn clamp_into<const D: usize>(mut p: [f64; D], lower: &[f64; D], upper: &[f64; D]) -> [f64; D] {
-    for d in 0..D {
-        p[d] = if p[d].is_nan() {
-            lower[d]
-        } else {
-            p[d].clamp(lower[d], upper[d])
-        };
-    }
-    p
 }
 
 #[cfg(test)]

@@ -237,6 +237,16 @@ impl Recovery {
         Ok(fits[g])
     }
 
+    /// The error a stage decides on for group `g` with `model`: bias-only (see
+    /// [`pixels::evaluate_cross`]), at `spp`, on the decisions' own seed. A subtracted
+    /// variance estimate would favour the model whose sampling is noisier (any Ward lobe,
+    /// however weak), not the better model.
+    fn decision_error(&mut self, g: usize, model: GroupModel, spp: u32) -> Result<f64, Error> {
+        self.models[g] = model;
+        let fit = self.evaluate_cross(spp, self.seed ^ 0x5E1F, g)?;
+        Ok(fit.bias_only_error().unwrap_or(f64::INFINITY))
+    }
+
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
     /// held fixed, until converged. Returns (first fits, last fits, evaluations).
     fn diffuse_iteration(
@@ -607,14 +617,6 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             _ => (ward.specularity, alpha),
         };
         let only_g = |h: u16| h as usize == g;
-        // Both alternatives are judged by the bias-only error of two independent renders
-        // (pixels::evaluate_cross): a subtracted variance estimate would favour the model
-        // whose sampling is noisier (any Ward lobe, however weak), not the better model.
-        let error_of = |rec: &mut Recovery, model: GroupModel| -> Result<f64, Error> {
-            rec.models[g] = model;
-            let fit = rec.evaluate_cross(4 * verify_spp, rec.seed ^ 0x5E1F, g)?;
-            Ok(fit.bias_only_error().unwrap_or(f64::INFINITY))
-        };
         // The diffuse alternative gets the same chance as the specular one: its colour is
         // re-fitted under the materials found so far (stage 1 saw every group diffuse).
         let stage1 = match stage1 {
@@ -637,8 +639,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             }
             other => other,
         };
-        let error_diffuse = error_of(&mut rec, stage1)?;
-        let error_specular = error_of(&mut rec, candidate.0)?;
+        let error_diffuse = rec.decision_error(g, stage1, 4 * verify_spp)?;
+        let error_specular = rec.decision_error(g, candidate.0, 4 * verify_spp)?;
         evaluations += 3;
         let gain = error_diffuse - error_specular;
         let r = &mut reports[g];
@@ -779,23 +781,17 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let bar = progress_bar(stage4.len() as u64, "4 anisotropic");
     for g in stage4 {
         let kept = rec.models[g];
-        let start = kept;
         let refined = anisotropic::anneal_anisotropic(
             &mut rec,
             g,
-            start,
+            kept,
             verify_spp,
             args.budget.anneal_levels,
         )?;
         evaluations += refined.evaluations + 2;
         bar.inc(1);
-        let error_of = |rec: &mut Recovery, model: GroupModel| -> Result<f64, Error> {
-            rec.models[g] = model;
-            let fit = rec.evaluate_cross(4 * verify_spp, rec.seed ^ 0x5E1F, g)?;
-            Ok(fit.bias_only_error().unwrap_or(f64::INFINITY))
-        };
-        let error_kept = error_of(&mut rec, kept)?;
-        let error_aniso = error_of(&mut rec, refined.model)?;
+        let error_kept = rec.decision_error(g, kept, 4 * verify_spp)?;
+        let error_aniso = rec.decision_error(g, refined.model, 4 * verify_spp)?;
         let gain = error_kept - error_aniso;
         let r = &mut reports[g];
         if let (

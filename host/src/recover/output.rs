@@ -82,9 +82,13 @@ pub(super) fn write_all(
     let mut rad = String::from("# relume: recovered materials as RADIANCE primitives\n");
     for (g, model) in rec.models.iter().enumerate() {
         let name = &names[g];
-        let mut modifier = String::from("void");
+        // What RADIANCE is given: the model itself, under the modifier of its map when
+        // it has one it can place.
+        let mut primitive = (*model, String::from("void"));
         if let GroupModel::Textured {
-            map, specularity, ..
+            map,
+            specularity,
+            roughness,
         } = *model
         {
             fsutil::create_dir(&out.join("textures"))?;
@@ -98,35 +102,29 @@ pub(super) fn write_all(
             match texture::uv_affine(rec, g) {
                 Some(affine) => {
                     write_radiance_picture(out, name, &image, specularity, &affine)?;
-                    modifier = format!("pict_{name}");
+                    primitive.1 = format!("pict_{name}");
                     rad.push_str(&format!(
-                        "\nvoid colorpict {modifier}\n7 red green blue textures/{name}.hdr textures/{name}.cal pic_u pic_v\n0\n0\n"
+                        "\nvoid colorpict {}\n7 red green blue textures/{name}.hdr textures/{name}.cal pic_u pic_v\n0\n0\n",
+                        primitive.1
                     ));
                 }
-                None => rad.push_str(&format!(
-                    "\n# {name}: its texture coordinates are not an affine function of the surface point (a curved group), which a RADIANCE colorpict on polygons cannot reproduce; the map's mean colour is used\n"
-                )),
-            }
-            if modifier == "void" {
-                let mean = map.texels.iter().fold(Vec3::ZERO, |a, b| a + *b)
-                    / map.texels.len().max(1) as f32;
-                let (s, r) = match *model {
-                    GroupModel::Textured {
+                None => {
+                    rad.push_str(&format!(
+                        "\n# {name}: its texture coordinates are not an affine function of the surface point (a curved group), which a RADIANCE colorpict on polygons cannot reproduce; the map's mean colour is used\n"
+                    ));
+                    let mean = map.texels.iter().fold(Vec3::ZERO, |a, b| a + *b)
+                        / map.texels.len().max(1) as f32;
+                    let color = mean / (1.0 - specularity as f32).max(1e-3);
+                    primitive.0 = GroupModel::Isotropic {
+                        kind: relume_core::material::Kind::Plastic,
+                        color: color.to_array().map(f64::from),
                         specularity,
                         roughness,
-                        ..
-                    } => (specularity as f32, roughness as f32),
-                    _ => (0.0, 0.0),
-                };
-                let c = mean / (1.0 - s).max(1e-3);
-                rad.push_str(&format!(
-                    "\nvoid plastic {name}\n0\n0\n5 {} {} {} {s} {r}\n",
-                    c.x, c.y, c.z
-                ));
-                continue;
+                    };
+                }
             }
         }
-        match model.radiance_primitive(name, &modifier) {
+        match primitive.0.radiance_primitive(name, &primitive.1) {
             Some(p) => {
                 rad.push('\n');
                 rad.push_str(&p);

@@ -104,15 +104,29 @@ pub fn evaluate(
     wanted: &(dyn Fn(u16) -> bool + Sync),
 ) -> Vec<GroupFit> {
     let Observed { views, real, pure } = observed;
+    sum_by_group(pool, pure, n_groups, wanted, |p, fit| {
+        let view = &views[p.view as usize];
+        let (value, variance) =
+            render::render_pixel_with_variance(scene, view, p.view, p.x, p.y, settings);
+        fit.add(real_value(real, views, p), value, variance);
+    })
+}
+
+/// Sums `add(pixel, fit of its group)` over the pure pixels of the groups `wanted`, in
+/// fixed chunks merged in order: the same sums for any thread count.
+fn sum_by_group(
+    pool: &rayon::ThreadPool,
+    pure: &[PurePixel],
+    n_groups: usize,
+    wanted: &(dyn Fn(u16) -> bool + Sync),
+    add: impl Fn(&PurePixel, &mut GroupFit) + Sync,
+) -> Vec<GroupFit> {
     let partials: Vec<Vec<GroupFit>> = pool.install(|| {
         pure.par_chunks(CHUNK)
             .map(|chunk| {
                 let mut fits = vec![GroupFit::default(); n_groups];
                 for p in chunk.iter().filter(|p| wanted(p.group)) {
-                    let view = &views[p.view as usize];
-                    let (value, variance) =
-                        render::render_pixel_with_variance(scene, view, p.view, p.x, p.y, settings);
-                    fits[p.group as usize].add(real_value(real, views, p), value, variance);
+                    add(p, &mut fits[p.group as usize]);
                 }
                 fits
             })
@@ -142,41 +156,31 @@ pub fn evaluate_cross(
     wanted: &(dyn Fn(u16) -> bool + Sync),
 ) -> Vec<GroupFit> {
     let Observed { views, real, pure } = observed;
+    let (a, b) = cross_settings(settings);
+    sum_by_group(pool, pure, n_groups, wanted, |p, fit| {
+        let view = &views[p.view as usize];
+        let ra = render::render_pixel(scene, view, p.view, p.x, p.y, &a);
+        let rb = render::render_pixel(scene, view, p.view, p.x, p.y, &b);
+        let t = real_value(real, views, p);
+        fit.pixels += 1;
+        for c in 0..3 {
+            fit.sum_real[c] += t[c] as f64;
+            fit.sum_rendered[c] += 0.5 * (ra[c] as f64 + rb[c] as f64);
+        }
+        fit.sum_sq_diff += (ra - t).dot(rb - t) as f64;
+        fit.sum_sq_real += t.dot(t) as f64;
+    })
+}
+
+/// The settings of the two independent half-renders that bias-only statistics compare:
+/// `spp / 2` samples each, on `settings.seed` and on a seed derived from it.
+pub fn cross_settings(settings: &RenderSettings) -> (RenderSettings, RenderSettings) {
     let half = |seed: u64| RenderSettings {
         spp: (settings.spp / 2).max(1),
         seed,
         ..*settings
     };
-    let (a, b) = (half(settings.seed), half(settings.seed ^ 0xC055_C055));
-    let partials: Vec<Vec<GroupFit>> = pool.install(|| {
-        pure.par_chunks(CHUNK)
-            .map(|chunk| {
-                let mut fits = vec![GroupFit::default(); n_groups];
-                for p in chunk.iter().filter(|p| wanted(p.group)) {
-                    let view = &views[p.view as usize];
-                    let ra = render::render_pixel(scene, view, p.view, p.x, p.y, &a);
-                    let rb = render::render_pixel(scene, view, p.view, p.x, p.y, &b);
-                    let t = real_value(real, views, p);
-                    let fit = &mut fits[p.group as usize];
-                    fit.pixels += 1;
-                    for c in 0..3 {
-                        fit.sum_real[c] += t[c] as f64;
-                        fit.sum_rendered[c] += 0.5 * (ra[c] as f64 + rb[c] as f64);
-                    }
-                    fit.sum_sq_diff += (ra - t).dot(rb - t) as f64;
-                    fit.sum_sq_real += t.dot(t) as f64;
-                }
-                fits
-            })
-            .collect()
-    });
-    let mut total = vec![GroupFit::default(); n_groups];
-    for part in &partials {
-        for (t, p) in total.iter_mut().zip(part) {
-            t.merge(p);
-        }
-    }
-    total
+    (half(settings.seed), half(settings.seed ^ 0xC055_C055))
 }
 
 /// The rendered value of each of `pixels`, in order (a fixed partition: the same bytes

@@ -6,7 +6,6 @@ use glam::{Vec2, Vec3};
 use relume_core::fit;
 use relume_core::geometry::Surface;
 use relume_core::math::luminance;
-use relume_core::render::RenderSettings;
 use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
 use relume_core::stages::texture;
 use relume_core::stages::texture_map::{self, MapObservation, FOOTPRINT_SAMPLES};
@@ -48,21 +47,19 @@ fn median(mut values: Vec<f64>) -> f64 {
     values[values.len() / 2]
 }
 
-/// Renders `pixels` twice with independent samples (`spp / 2` each) under the current
-/// models: the two renders that noise-free statistics need.
+/// Renders `pixels` twice with independent samples (`spp / 2` each,
+/// `pixels::cross_settings`) under the current models: the two renders that noise-free
+/// statistics need.
 fn render_twice(
     rec: &mut Recovery,
     pixels: &[PurePixel],
     spp: u32,
     seed: u64,
 ) -> Result<(Vec<Vec3>, Vec<Vec3>), Error> {
-    rec.with_scene((spp / 2).max(1), seed, |pool, scene, observed, settings| {
-        let b = RenderSettings {
-            seed: settings.seed ^ 0xC055_C055,
-            ..*settings
-        };
+    rec.with_scene(spp, seed, |pool, scene, observed, settings| {
+        let (a, b) = pixels::cross_settings(settings);
         (
-            pixels::render_pixels(pool, scene, observed.views, pixels, settings),
+            pixels::render_pixels(pool, scene, observed.views, pixels, &a),
             pixels::render_pixels(pool, scene, observed.views, pixels, &b),
         )
     })
