@@ -2,7 +2,7 @@
 //! and channel, repeated (each step a full global-illumination render) until no
 //! reflectance moves by more than [`crate::fit::DIFFUSE_CONVERGED`].
 
-use crate::fit::{GroupFit, DIFFUSE_THRESHOLD, MIN_PIXELS_FOR_MODEL_CHOICE};
+use crate::fit::{ErrorEstimate, GroupFit, MIN_PIXELS_FOR_MODEL_CHOICE, SPECULAR_GAIN_THRESHOLD};
 
 /// Reflectances are kept below this: a diffuse reflectance of 1 or more is unphysical and
 /// would make the global illumination diverge while the iteration overshoots.
@@ -91,9 +91,10 @@ pub fn converged(step: u32, change: f64, previous: f64) -> bool {
 /// What stage 1 concludes about a group.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DiffuseVerdict {
-    /// The diffuse model explains the group within [`DIFFUSE_THRESHOLD`].
+    /// The diffuse model leaves no more error than a specular lobe would have to remove to
+    /// be kept ([`SPECULAR_GAIN_THRESHOLD`]), within the error's own standard error.
     Diffuse,
-    /// The error stays above the threshold: the group goes on to the isotropic stage.
+    /// Measurably more error is left: the group goes on to the isotropic stage.
     NeedsSpecular,
     /// Too few pure pixels to choose a model: kept diffuse, and reported.
     BarelySeen,
@@ -101,17 +102,14 @@ pub enum DiffuseVerdict {
     Unseen,
 }
 
-pub fn verdict(fit: &GroupFit) -> DiffuseVerdict {
-    if fit.pixels == 0 {
-        return DiffuseVerdict::Unseen;
-    }
-    if fit.pixels < MIN_PIXELS_FOR_MODEL_CHOICE {
-        return DiffuseVerdict::BarelySeen;
-    }
-    match fit.relative_error() {
-        Some(e) if e > DIFFUSE_THRESHOLD => DiffuseVerdict::NeedsSpecular,
-        Some(_) => DiffuseVerdict::Diffuse,
+/// Stage 1's verdict on a group of `pixels` pure pixels whose diffuse fit left `error`.
+pub fn verdict(pixels: u32, error: Option<ErrorEstimate>) -> DiffuseVerdict {
+    match error {
+        _ if pixels == 0 => DiffuseVerdict::Unseen,
+        _ if pixels < MIN_PIXELS_FOR_MODEL_CHOICE => DiffuseVerdict::BarelySeen,
         None => DiffuseVerdict::Unseen,
+        Some(e) if e.exceeds(SPECULAR_GAIN_THRESHOLD) => DiffuseVerdict::NeedsSpecular,
+        Some(_) => DiffuseVerdict::Diffuse,
     }
 }
 
@@ -193,13 +191,14 @@ mod tests {
     }
 
     #[test]
-    fn verdicts_follow_the_threshold_and_pixel_counts() {
-        assert_eq!(verdict(&fit_of(1.0, 1.01, 100)), DiffuseVerdict::Diffuse);
-        assert_eq!(
-            verdict(&fit_of(1.0, 1.2, 100)),
-            DiffuseVerdict::NeedsSpecular
-        );
-        assert_eq!(verdict(&fit_of(1.0, 1.2, 3)), DiffuseVerdict::BarelySeen);
-        assert_eq!(verdict(&GroupFit::default()), DiffuseVerdict::Unseen);
+    fn verdicts_follow_the_threshold_its_noise_and_pixel_counts() {
+        let e = |error, sigma| Some(ErrorEstimate { error, sigma });
+        assert_eq!(verdict(100, e(0.005, 0.001)), DiffuseVerdict::Diffuse);
+        assert_eq!(verdict(100, e(0.2, 0.01)), DiffuseVerdict::NeedsSpecular);
+        // 3% of error measured with a 2.5% standard error: not shown to be above 1%.
+        assert_eq!(verdict(100, e(0.03, 0.025)), DiffuseVerdict::Diffuse);
+        assert_eq!(verdict(3, e(0.2, 0.01)), DiffuseVerdict::BarelySeen);
+        assert_eq!(verdict(0, None), DiffuseVerdict::Unseen);
+        assert_eq!(verdict(100, None), DiffuseVerdict::Unseen);
     }
 }

@@ -46,6 +46,23 @@ pub fn cross_contrast(pairs: impl Iterator<Item = (f64, f64)>) -> Option<f64> {
     (n > 0).then(|| libm::sqrt((sum / n as f64).max(0.0)))
 }
 
+/// The cross contrast with the panorama's own noise taken out. The two renders' noises
+/// cancel in [`cross_contrast`], the panorama's does not: it is in both log-ratios, and
+/// adds `2 sigma^2` to the squared contrast for a relative pixel noise `sigma`. With
+/// `panorama_noise` an upper bound on `sigma`, what is left is texture (or misfit) that
+/// noise cannot explain.
+pub fn noise_corrected_contrast(contrast: f64, panorama_noise: f64) -> f64 {
+    libm::sqrt((contrast * contrast - 2.0 * panorama_noise * panorama_noise).max(0.0))
+}
+
+/// An upper bound on the panorama's relative pixel noise: the smallest bias-only error of
+/// any group. A group's bias-only squared error is its model's squared bias plus the
+/// panorama's noise variance (both pooled over its pixels), so no group's error is below
+/// the noise. `None` without groups.
+pub fn panorama_noise_bound(errors: impl Iterator<Item = f64>) -> Option<f64> {
+    errors.filter(|e| e.is_finite()).reduce(f64::min)
+}
+
 /// Whether the cross contrast says "textured".
 pub fn has_texture_contrast(contrast: f64) -> bool {
     contrast > crate::fit::TEXTURE_CONTRAST_THRESHOLD
@@ -77,6 +94,29 @@ mod tests {
         diffs.extend([1.0, 0.8, 0.6]);
         let f = texture_feature(&diffs).unwrap();
         assert!(f < 0.1 && !is_textured(f), "{f}");
+    }
+
+    #[test]
+    fn the_panoramas_noise_is_taken_out_of_the_contrast() {
+        // A uniform group under a panorama with 10% relative noise: its log-ratio steps
+        // have a contrast of sqrt(2) * 10% from the noise alone.
+        let noisy_uniform = 0.1 * libm::sqrt(2.0);
+        assert!(has_texture_contrast(noisy_uniform));
+        assert!(!has_texture_contrast(noise_corrected_contrast(
+            noisy_uniform,
+            0.1
+        )));
+        // A picture's contrast of 0.3 under the same noise keeps most of it.
+        let noisy_picture = libm::sqrt(0.3 * 0.3 + 2.0 * 0.1 * 0.1);
+        let corrected = noise_corrected_contrast(noisy_picture, 0.1);
+        assert!((corrected - 0.3).abs() < 1e-9 && has_texture_contrast(corrected));
+        // A clean panorama: nothing to take out.
+        assert_eq!(noise_corrected_contrast(0.2, 0.0), 0.2);
+        assert_eq!(
+            panorama_noise_bound([0.3, 0.02, 0.1].into_iter()),
+            Some(0.02)
+        );
+        assert_eq!(panorama_noise_bound(core::iter::empty()), None);
     }
 
     #[test]

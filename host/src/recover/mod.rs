@@ -116,7 +116,7 @@ pub struct GroupReport {
     pub decisions: Vec<String>,
     /// Error of the first all-diffuse render.
     pub error_initial: Option<f64>,
-    /// Error after stage 1 (diffuse).
+    /// Bias-only error after stage 1 (diffuse), which decides whether the group goes on.
     pub error_diffuse: Option<f64>,
     /// Relative error of the diffuse and the Ward fit on the group's transport cache.
     pub cache_error_diffuse: Option<f64>,
@@ -132,6 +132,48 @@ pub struct GroupReport {
     /// The bias-only error of the group's model when stage 2 or 5 decided (see
     /// `pixels::evaluate_cross`).
     pub error_decided: Option<f64>,
+    /// Every comparison of a simpler with a more complex model (stages 2 and 4).
+    pub comparisons: Vec<ComparisonReport>,
+}
+
+/// One keep-or-reject comparison of two models of a group ([`fit::ModelComparison`]).
+#[derive(Serialize, Clone, Debug)]
+pub struct ComparisonReport {
+    pub stage: String,
+    pub simple: String,
+    pub complex: String,
+    pub error_simple: f64,
+    pub error_complex: f64,
+    pub gain: f64,
+    /// The gain's standard error.
+    pub gain_sigma: f64,
+    pub z: f64,
+    pub kept_complex: bool,
+    /// Samples per pixel of the measurement that decided.
+    pub samples_per_pixel: u32,
+}
+
+impl ComparisonReport {
+    fn new(
+        stage: &str,
+        simple: &str,
+        complex: &str,
+        c: &fit::ModelComparison,
+        samples_per_pixel: u32,
+    ) -> Self {
+        ComparisonReport {
+            stage: stage.into(),
+            simple: simple.into(),
+            complex: complex.into(),
+            error_simple: c.error_simple,
+            error_complex: c.error_complex,
+            gain: c.gain,
+            gain_sigma: c.gain_sigma,
+            z: c.z(),
+            kept_complex: c.favours_complex(),
+            samples_per_pixel,
+        }
+    }
 }
 
 #[derive(Serialize, Debug)]
@@ -150,6 +192,9 @@ pub struct RecoverReport {
     pub budget: Budget,
     pub error_definition: &'static str,
     pub thresholds: serde_json::Value,
+    /// An upper bound on the panorama's relative pixel noise: the smallest bias-only error
+    /// of any group seen in enough pixels (`relume_core::stages::texture::panorama_noise_bound`).
+    pub panorama_noise_bound: f64,
     pub stages: Vec<StageReport>,
     pub groups: Vec<GroupReport>,
     pub warnings: Vec<String>,
@@ -228,23 +273,122 @@ impl Recovery {
         })
     }
 
-    /// The bias-only error of group `g` (see [`pixels::evaluate_cross`]).
+    /// The bias-only fit of group `g` (see [`pixels::evaluate_cross`]).
     fn evaluate_cross(&mut self, spp: u32, seed: u64, g: usize) -> Result<GroupFit, Error> {
-        let n = self.n_groups();
-        let fits = self.with_scene(spp, seed, |pool, scene, observed, settings| {
-            pixels::evaluate_cross(pool, scene, observed, settings, n, &|h| h as usize == g)
-        })?;
-        Ok(fits[g])
+        Ok(self.evaluate_cross_all(spp, seed, &|h| h as usize == g)?[g])
     }
 
-    /// The error a stage decides on for group `g` with `model`: bias-only (see
-    /// [`pixels::evaluate_cross`]), at `spp`, on the decisions' own seed. A subtracted
-    /// variance estimate would favour the model whose sampling is noisier (any Ward lobe,
-    /// however weak), not the better model.
-    fn decision_error(&mut self, g: usize, model: GroupModel, spp: u32) -> Result<f64, Error> {
-        self.models[g] = model;
-        let fit = self.evaluate_cross(spp, self.seed ^ 0x5E1F, g)?;
-        Ok(fit.bias_only_error().unwrap_or(f64::INFINITY))
+    /// The bias-only fits of the groups `wanted` (see [`pixels::evaluate_cross`]).
+    fn evaluate_cross_all(
+        &mut self,
+        spp: u32,
+        seed: u64,
+        wanted: &(dyn Fn(u16) -> bool + Sync),
+    ) -> Result<Vec<GroupFit>, Error> {
+        let n = self.n_groups();
+        self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            pixels::evaluate_cross(pool, scene, observed, settings, n, wanted)
+        })
+    }
+
+    /// Every group's bias-only error with its standard error, with the current models, on
+    /// the decisions' seed (see [`fit::ErrorEstimate`]). `None` for a group without lit
+    /// pure pixels.
+    fn error_estimates(&mut self, spp: u32) -> Result<Vec<Option<fit::ErrorEstimate>>, Error> {
+        let seed = self.decision_seed();
+        let pure = self.pure.clone();
+        let terms = self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            pixels::paired_cross_terms(pool, scene, observed, &pure, settings)
+        })?;
+        Ok((0..self.n_groups())
+            .map(|g| {
+                let of_g = || {
+                    pure.iter()
+                        .zip(&terms)
+                        .filter(move |(p, _)| p.group as usize == g)
+                        .map(|(_, t)| t)
+                };
+                let sum_sq_real: f64 = of_g().map(|t| t.1).sum();
+                fit::ErrorEstimate::from_cross_terms(of_g().map(|t| t.0), sum_sq_real)
+            })
+            .collect())
+    }
+
+    /// The seed of every keep-or-reject measurement.
+    fn decision_seed(&self) -> u64 {
+        self.seed ^ 0x5E1F
+    }
+
+    /// What a stage decides on for group `g`: the `simple` model against the `complex` one
+    /// on all the group's pure pixels, both with bias-only errors (see
+    /// [`pixels::evaluate_cross`]) on the decisions' own seed, paired pixel by pixel
+    /// ([`fit::ModelComparison`]), from `spp` samples per pixel up while the comparison is
+    /// undecided ([`fit::DECISION_SPP_GROWTH`]). A subtracted variance
+    /// estimate would favour the model whose sampling is noisier (any Ward lobe, however
+    /// weak), not the better model. Leaves the group's model as it was. Returns the last
+    /// comparison and its samples per pixel; `None` for a group without lit pixels.
+    fn compare_models(
+        &mut self,
+        g: usize,
+        simple: GroupModel,
+        complex: GroupModel,
+        spp: u32,
+    ) -> Result<Option<(fit::ModelComparison, u32)>, Error> {
+        let pixels: Vec<PurePixel> = self
+            .pure
+            .iter()
+            .filter(|p| p.group as usize == g)
+            .copied()
+            .collect();
+        let mut spp = spp;
+        let mut round = 0;
+        loop {
+            let seed = self.decision_seed() ^ ((round as u64) << 32);
+            let Some(c) = self.compare_once(g, simple, complex, &pixels, spp, seed)? else {
+                return Ok(None);
+            };
+            let next_spp = spp.saturating_mul(fit::DECISION_SPP_GROWTH);
+            let affordable = pixels.len() as u64 * next_spp as u64 <= fit::DECISION_MAX_SAMPLES;
+            if !c.is_undecided() || round == fit::DECISION_MAX_ROUNDS || !affordable {
+                return Ok(Some((c, spp)));
+            }
+            spp = next_spp;
+            round += 1;
+        }
+    }
+
+    /// One measurement of [`Recovery::compare_models`].
+    fn compare_once(
+        &mut self,
+        g: usize,
+        simple: GroupModel,
+        complex: GroupModel,
+        pixels: &[PurePixel],
+        spp: u32,
+        seed: u64,
+    ) -> Result<Option<fit::ModelComparison>, Error> {
+        let before = self.models[g];
+        let terms_of = |rec: &mut Recovery, model: GroupModel| {
+            rec.models[g] = model;
+            rec.with_scene(spp, seed, |pool, scene, observed, settings| {
+                pixels::paired_cross_terms(pool, scene, observed, pixels, settings)
+            })
+        };
+        let simple_terms = terms_of(self, simple);
+        let complex_terms = terms_of(self, complex);
+        self.models[g] = before;
+        let (simple_terms, complex_terms) = (simple_terms?, complex_terms?);
+        let sum_sq_real: f64 = simple_terms.iter().map(|t| t.1).sum();
+        Ok(fit::ModelComparison::from_cross_terms(
+            simple_terms
+                .iter()
+                .zip(&complex_terms)
+                .map(|(s, c)| fit::PairedTerms {
+                    simple: s.0,
+                    complex: c.0,
+                }),
+            sum_sq_real,
+        ))
     }
 
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
@@ -450,6 +594,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             texture_feature: None,
             texture_contrast: None,
             error_decided: None,
+            comparisons: Vec::new(),
         })
         .collect();
 
@@ -459,10 +604,14 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "1 diffuse");
     let all = vec![true; n_groups];
     let (first, fits, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
+    // Which groups go on is decided on the bias-only error, at the decisions' samples and
+    // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
+    // own noise (heavy-tailed paths), by whole percents either way.
+    let decided = rec.error_estimates(4 * spp)?;
     bar.finish_and_clear();
     let mut stages = vec![StageReport {
         stage: "1 diffuse".into(),
-        evaluations,
+        evaluations: evaluations + 1,
         samples_per_pixel: spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![format!(
@@ -476,9 +625,10 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         let r = &mut reports[g];
         r.pure_pixels = fits[g].pixels;
         r.error_initial = first[g].relative_error();
-        r.error_diffuse = fits[g].relative_error();
-        let e = fits[g].relative_error().unwrap_or(0.0);
-        match diffuse::verdict(&fits[g]) {
+        r.error_diffuse = decided[g].map(|e| e.error);
+        let e = decided[g].map_or(0.0, |e| e.error);
+        let sigma = decided[g].map_or(0.0, |e| e.sigma);
+        match diffuse::verdict(fits[g].pixels, decided[g]) {
             DiffuseVerdict::Unseen => {
                 rec.models[g] = GroupModel::Unseen;
                 r.decisions
@@ -500,23 +650,22 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 ));
             }
             DiffuseVerdict::Diffuse => {
-                if e <= fit::SPECULAR_GAIN_THRESHOLD {
-                    // A specular lobe cannot remove more error than there is.
-                    r.decisions.push(format!(
-                        "stage 1: diffuse, error {e:.4} <= SPECULAR_GAIN_THRESHOLD {}: no specular model could gain more",
-                        fit::SPECULAR_GAIN_THRESHOLD
-                    ));
-                } else {
-                    r.decisions.push(format!(
-                        "stage 1: diffuse error {e:.4} <= DIFFUSE_THRESHOLD {}; tested for a weak specular",
-                        fit::DIFFUSE_THRESHOLD
-                    ));
-                    candidates.push((g, e));
-                }
+                // A specular lobe cannot remove more error than there is.
+                r.decisions.push(format!(
+                    "stage 1: diffuse, error {e:.4} +- {sigma:.4} not above SPECULAR_GAIN_THRESHOLD {} by one standard error: no specular model could gain more",
+                    fit::SPECULAR_GAIN_THRESHOLD
+                ));
             }
             DiffuseVerdict::NeedsSpecular => {
+                let how = if e > fit::DIFFUSE_THRESHOLD {
+                    "on to isotropic"
+                } else {
+                    "tested for a weak specular"
+                };
                 r.decisions.push(format!(
-                    "stage 1: diffuse error {e:.4} > DIFFUSE_THRESHOLD {}: on to isotropic",
+                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than one standard error ({} DIFFUSE_THRESHOLD {}): {how}",
+                    fit::SPECULAR_GAIN_THRESHOLD,
+                    if e > fit::DIFFUSE_THRESHOLD { ">" } else { "<=" },
                     fit::DIFFUSE_THRESHOLD
                 ));
                 candidates.push((g, e));
@@ -626,7 +775,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 let mut previous = None;
                 for _ in 0..REFIT_MAX_STEPS {
                     rec.models[g] = GroupModel::Diffuse { color };
-                    let fits = rec.evaluate(verify_spp, rec.seed ^ 0x5E1F, &only_g)?;
+                    let fits = rec.evaluate(verify_spp, rec.decision_seed(), &only_g)?;
                     evaluations += 1;
                     let (next, change) = diffuse::update_with_slope(color, &fits[g], previous);
                     previous = Some((color, fits[g].mean_rendered()));
@@ -639,31 +788,52 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             }
             other => other,
         };
-        let error_diffuse = rec.decision_error(g, stage1, 4 * verify_spp)?;
-        let error_specular = rec.decision_error(g, candidate.0, 4 * verify_spp)?;
-        evaluations += 3;
-        let gain = error_diffuse - error_specular;
+        let comparison = rec.compare_models(g, stage1, candidate.0, 4 * verify_spp)?;
+        evaluations += 2;
         let r = &mut reports[g];
-        if gain > fit::SPECULAR_GAIN_THRESHOLD {
+        let Some((c, decision_spp)) = comparison else {
+            r.decisions
+                .push("stage 2: stays diffuse: no lit pixel to compare the models on".into());
+            rec.models[g] = stage1;
+            continue;
+        };
+        r.comparisons.push(ComparisonReport::new(
+            "2 isotropic",
+            stage1.name(),
+            candidate.0.name(),
+            &c,
+            decision_spp,
+        ));
+        let measured = format!(
+            "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; diffuse {:.4}, specular {:.4})",
+            c.gain,
+            c.gain_sigma,
+            c.z(),
+            c.error_simple,
+            c.error_complex
+        );
+        if c.favours_complex() {
             r.decisions.push(format!(
-                "stage 2: {} {:?} (s {specularity:.4}, roughness {alpha:.4}; cache proposed s {:.4}) removes {gain:.4} of relative error in a render > SPECULAR_GAIN_THRESHOLD {} (diffuse {error_diffuse:.4}, specular {error_specular:.4})",
+                "stage 2: {} {:?} (s {specularity:.4}, roughness {alpha:.4}; cache proposed s {:.4}) {measured}: > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
                 candidate.0.name(),
                 kind,
                 ward.specularity,
                 fit::SPECULAR_GAIN_THRESHOLD,
+                fit::GAIN_SIGNIFICANCE,
             ).to_lowercase());
             if let Some(why) = candidate.1 {
                 r.decisions.push(format!("stage 2: {why}"));
             }
             rec.models[g] = candidate.0;
-            r.error_decided = Some(error_specular);
+            r.error_decided = Some(c.error_complex);
         } else {
             r.decisions.push(format!(
-                "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) removes only {gain:.4} of relative error in a render <= SPECULAR_GAIN_THRESHOLD {} (diffuse {error_diffuse:.4}, specular {error_specular:.4})",
-                fit::SPECULAR_GAIN_THRESHOLD
+                "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
+                fit::SPECULAR_GAIN_THRESHOLD,
+                fit::GAIN_SIGNIFICANCE,
             ));
             rec.models[g] = stage1;
-            r.error_decided = Some(error_diffuse);
+            r.error_decided = Some(c.error_simple);
         }
     }
     bar.finish_and_clear();
@@ -698,21 +868,32 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 }
         })
         .collect();
+    let noise_bound = texture_stage::panorama_noise_bound(
+        reports
+            .iter()
+            .filter(|r| r.pure_pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE)
+            .filter_map(|r| r.error_decided.or(r.error_diffuse)),
+    )
+    .unwrap_or(0.0);
     let bar = progress_bar(tested.len() as u64, "3+5 textures");
     for g in tested {
-        let contrast = texture::texture_contrast(&mut rec, g, 4 * verify_spp, args.seed ^ 0x7E57)?;
+        let raw = texture::texture_contrast(&mut rec, g, 4 * verify_spp, args.seed ^ 0x7E57)?;
         evaluations += 1;
         bar.inc(1);
         let r = &mut reports[g];
-        r.texture_contrast = contrast;
-        let Some(contrast) = contrast else {
+        let Some(raw) = raw else {
             r.decisions
                 .push("stage 3: no pair of lit pixels 3 apart; texture not tested".into());
             continue;
         };
+        let contrast = texture_stage::noise_corrected_contrast(raw, noise_bound);
+        r.texture_contrast = Some(contrast);
+        let measured = format!(
+            "step contrast {contrast:.4} (measured {raw:.4}, less the panorama's noise bound {noise_bound:.4})"
+        );
         if !texture_stage::has_texture_contrast(contrast) {
             r.decisions.push(format!(
-                "stage 3: untextured: step contrast {contrast:.4} <= TEXTURE_CONTRAST_THRESHOLD {}",
+                "stage 3: untextured: {measured} <= TEXTURE_CONTRAST_THRESHOLD {}",
                 fit::TEXTURE_CONTRAST_THRESHOLD
             ));
             continue;
@@ -737,7 +918,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         evaluations += 2;
         let r = &mut reports[g];
         r.decisions.push(format!(
-            "stage 3: textured: step contrast {contrast:.4} > TEXTURE_CONTRAST_THRESHOLD {}",
+            "stage 3: textured: {measured} > TEXTURE_CONTRAST_THRESHOLD {}",
             fit::TEXTURE_CONTRAST_THRESHOLD
         ));
         r.decisions.push(format!(
@@ -790,10 +971,28 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         )?;
         evaluations += refined.evaluations + 2;
         bar.inc(1);
-        let error_kept = rec.decision_error(g, kept, 4 * verify_spp)?;
-        let error_aniso = rec.decision_error(g, refined.model, 4 * verify_spp)?;
-        let gain = error_kept - error_aniso;
+        let comparison = rec.compare_models(g, kept, refined.model, 4 * verify_spp)?;
         let r = &mut reports[g];
+        rec.models[g] = kept;
+        let Some((c, decision_spp)) = comparison else {
+            continue;
+        };
+        r.comparisons.push(ComparisonReport::new(
+            "4 anisotropic",
+            kept.name(),
+            refined.model.name(),
+            &c,
+            decision_spp,
+        ));
+        let measured = format!(
+            "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; {} {:.4}, anisotropic {:.4})",
+            c.gain,
+            c.gain_sigma,
+            c.z(),
+            kept.name(),
+            c.error_simple,
+            c.error_complex
+        );
         if let (
             true,
             GroupModel::Anisotropic {
@@ -802,24 +1001,23 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 direction: d,
                 ..
             },
-        ) = (gain > fit::SPECULAR_GAIN_THRESHOLD, refined.model)
+        ) = (c.favours_complex(), refined.model)
         {
             r.decisions.push(format!(
-                "stage 4: anisotropic (roughness_u {roughness_u:.4}, roughness_v {roughness_v:.4}, direction [{:.3}, {:.3}, {:.3}]) removes {gain:.4} of relative error in a render > SPECULAR_GAIN_THRESHOLD {} ({} {error_kept:.4}, anisotropic {error_aniso:.4})",
+                "stage 4: anisotropic (roughness_u {roughness_u:.4}, roughness_v {roughness_v:.4}, direction [{:.3}, {:.3}, {:.3}]) {measured}: > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
                 d[0], d[1], d[2],
                 fit::SPECULAR_GAIN_THRESHOLD,
-                kept.name()
+                fit::GAIN_SIGNIFICANCE,
             ));
             rec.models[g] = refined.model;
-            r.error_decided = Some(error_aniso);
+            r.error_decided = Some(c.error_complex);
         } else {
             r.decisions.push(format!(
-                "stage 4: stays {}: the best anisotropic fit removes only {gain:.4} of relative error in a render <= SPECULAR_GAIN_THRESHOLD {} ({} {error_kept:.4}, anisotropic {error_aniso:.4})",
+                "stage 4: stays {}: the best anisotropic fit {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
                 kept.name(),
                 fit::SPECULAR_GAIN_THRESHOLD,
-                kept.name()
+                fit::GAIN_SIGNIFICANCE,
             ));
-            rec.models[g] = kept;
         }
     }
     bar.finish_and_clear();
@@ -905,6 +1103,10 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "DIFFUSE_THRESHOLD": fit::DIFFUSE_THRESHOLD,
             "DIFFUSE_CONVERGED": fit::DIFFUSE_CONVERGED,
             "SPECULAR_GAIN_THRESHOLD": fit::SPECULAR_GAIN_THRESHOLD,
+            "GAIN_SIGNIFICANCE": fit::GAIN_SIGNIFICANCE,
+            "DECISION_SPP_GROWTH": fit::DECISION_SPP_GROWTH,
+            "DECISION_MAX_ROUNDS": fit::DECISION_MAX_ROUNDS,
+            "DECISION_MAX_SAMPLES": fit::DECISION_MAX_SAMPLES,
             "MIRROR_SPECULAR_FRACTION": fit::MIRROR_SPECULAR_FRACTION,
             "MIRROR_MAX_ROUGHNESS": fit::MIRROR_MAX_ROUGHNESS,
             "MIRROR_MAX_TINT": fit::MIRROR_MAX_TINT,
@@ -916,6 +1118,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "HIGHLIGHT_FRACTION": fit::HIGHLIGHT_FRACTION,
             "SHADOW_FRACTION": fit::SHADOW_FRACTION,
         }),
+        panorama_noise_bound: noise_bound,
         stages,
         groups: reports,
         warnings,

@@ -172,6 +172,50 @@ pub fn evaluate_cross(
     })
 }
 
+/// Per pixel of `pixels`, in order: two independent measurements of the bias-only squared
+/// error, `(A - T) . (B - T)` from four quarter-renders (1, 2 and 3, 4; see
+/// `relume_core::fit::ModelComparison`), and `|T|^2`. The same seeds for every model, and a
+/// fixed partition: the same values for any thread count.
+pub fn paired_cross_terms(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    observed: Observed,
+    pixels: &[PurePixel],
+    settings: &RenderSettings,
+) -> Vec<([f64; 2], f64)> {
+    let Observed { views, real, .. } = observed;
+    // Four independent quarter-renders: the two halves of `cross_settings`, each split
+    // again on a seed of its own.
+    let (half_a, half_b) = cross_settings(settings);
+    let quarter = |half: &RenderSettings, key: u64| {
+        let (first, _) = cross_settings(half);
+        let second = RenderSettings {
+            seed: half.seed ^ key,
+            ..first
+        };
+        (first, second)
+    };
+    let (a1, a2) = quarter(&half_a, 0x0A0A_5EED);
+    let (b1, b2) = quarter(&half_b, 0x0B0B_5EED);
+    pool.install(|| {
+        pixels
+            .par_chunks(CHUNK)
+            .flat_map_iter(|chunk| {
+                chunk.iter().map(|p| {
+                    let view = &views[p.view as usize];
+                    let t = real_value(real, views, p);
+                    let render =
+                        |s: &RenderSettings| render::render_pixel(scene, view, p.view, p.x, p.y, s);
+                    let cross = |s: &RenderSettings, u: &RenderSettings| {
+                        (render(s) - t).dot(render(u) - t) as f64
+                    };
+                    ([cross(&a1, &a2), cross(&b1, &b2)], t.dot(t) as f64)
+                })
+            })
+            .collect()
+    })
+}
+
 /// The settings of the two independent half-renders that bias-only statistics compare:
 /// `spp / 2` samples each, on `settings.seed` and on a seed derived from it.
 pub fn cross_settings(settings: &RenderSettings) -> (RenderSettings, RenderSettings) {
