@@ -18,6 +18,7 @@ mod output;
 mod pixels;
 mod refine;
 mod texture;
+mod warnings;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -1094,6 +1095,18 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         ],
     });
 
+    warnings.extend(warnings::stability_warnings(&warnings::Inputs {
+        groups: &reports,
+        models: &rec.models,
+        panorama_noise_bound: noise_bound,
+        smallest_view_side: rec
+            .views
+            .iter()
+            .map(|v| v.width.min(v.height))
+            .min()
+            .unwrap_or(0),
+        budget: &args.budget,
+    }));
     let report = RecoverReport {
         scene: args.scene.display().to_string(),
         seed: args.seed,

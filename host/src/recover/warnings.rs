@@ -1,0 +1,217 @@
+//! Warnings in report.json where a recovery's input or result falls in a region where
+//! `relume bench stability` saw recovery fail (docs/stability.md): a user should know
+//! which parts of the answer the study says not to trust, from the report alone.
+
+use relume_core::fit;
+
+use super::model::GroupModel;
+use super::{Budget, GroupReport};
+
+/// Fewer pure pixels than this: specular parameters spread 10-100% over seeds, and the
+/// mirror turned isotropic at 64 pixels (docs/stability.md, "few pixels").
+pub const FEW_PIXELS: u32 = 256;
+/// A lobe weaker than this (specularity) flipped class with the seed or with 1-2%
+/// perturbations (glossy's box_teal, box_yellow, sphere_white).
+pub const WEAK_SPECULARITY: f64 = 0.1;
+/// A decision this close (in standard errors) to `GAIN_SIGNIFICANCE`, or with a gain
+/// below twice `SPECULAR_GAIN_THRESHOLD`, could go the other way on another seed.
+pub const BORDERLINE_Z: f64 = 2.0;
+/// Image noise above this: texture detection broke between 5% and 10% before the noise
+/// allowance, and diffuse groups gained invented lobes at 2%.
+pub const NOISY_PANORAMA: f64 = 0.02;
+/// Views smaller than this per side lost speculars and small groups.
+pub const SMALL_VIEW: u32 = 32;
+/// Loop samples below this (effort fast): diffuse reflectances spread up to ~1% over
+/// seeds on box-diffuse, against 0.31% at the default effort's 32.
+pub const FEW_LOOP_SAMPLES: u32 = 32;
+
+/// What the warnings look at.
+pub struct Inputs<'a> {
+    pub groups: &'a [GroupReport],
+    pub models: &'a [GroupModel],
+    pub panorama_noise_bound: f64,
+    /// The smallest side, in pixels, of any view.
+    pub smallest_view_side: u32,
+    pub budget: &'a Budget,
+}
+
+/// The warnings, input-wide first, then group by group.
+pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
+    let mut warnings = Vec::new();
+    const SEE: &str = "(docs/stability.md)";
+    if inputs.panorama_noise_bound > NOISY_PANORAMA {
+        warnings.push(format!(
+            "the panorama's relative noise may be up to {:.1}% (every group's error is at least that): above {:.0}% recovery was seen to invent specular lobes and, before the noise allowance, to call uniform groups textured {SEE}",
+            100.0 * inputs.panorama_noise_bound,
+            100.0 * NOISY_PANORAMA
+        ));
+    }
+    if inputs.smallest_view_side < SMALL_VIEW {
+        warnings.push(format!(
+            "a view is only {} pixels on a side: below {SMALL_VIEW} speculars and small groups were lost {SEE}",
+            inputs.smallest_view_side
+        ));
+    }
+    if inputs.budget.loop_spp < FEW_LOOP_SAMPLES {
+        warnings.push(format!(
+            "{} samples per pixel in the loop (effort fast): diffuse reflectances were seen to spread up to about 1% over seeds, 0.3% at {FEW_LOOP_SAMPLES} (effort default) {SEE}",
+            inputs.budget.loop_spp
+        ));
+    }
+    for (report, model) in inputs.groups.iter().zip(inputs.models) {
+        let name = &report.group;
+        let specular = !matches!(model, GroupModel::Diffuse { .. } | GroupModel::Unseen);
+        if specular && report.pure_pixels < FEW_PIXELS {
+            warnings.push(format!(
+                "group '{name}': {} model from only {} pure pixels (< {FEW_PIXELS}): its class and specular parameters were seen to change with the seed {SEE}",
+                model.name(),
+                report.pure_pixels
+            ));
+        }
+        if let Some(s) = specularity(model).filter(|&s| s > 0.0 && s < WEAK_SPECULARITY) {
+            warnings.push(format!(
+                "group '{name}': weak specular lobe (specularity {s:.3} < {WEAK_SPECULARITY}): such lobes were found or missed depending on the seed, their parameters off by 10-100% {SEE}"
+            ));
+        }
+        for c in &report.comparisons {
+            let near_significance = (c.z - fit::GAIN_SIGNIFICANCE).abs() < BORDERLINE_Z;
+            let small_gain = c.kept_complex && c.gain < 2.0 * fit::SPECULAR_GAIN_THRESHOLD;
+            if c.gain > fit::SPECULAR_GAIN_THRESHOLD && (near_significance || small_gain) {
+                warnings.push(format!(
+                    "group '{name}': stage {} {} the {} model on a borderline measurement (gain {:.4} +- {:.4}, z {:.1}): another seed or a higher effort may decide otherwise",
+                    c.stage,
+                    if c.kept_complex { "kept" } else { "rejected" },
+                    c.complex,
+                    c.gain,
+                    c.gain_sigma,
+                    c.z
+                ));
+            }
+        }
+    }
+    warnings
+}
+
+fn specularity(model: &GroupModel) -> Option<f64> {
+    match *model {
+        GroupModel::Isotropic { specularity, .. }
+        | GroupModel::Anisotropic { specularity, .. }
+        | GroupModel::Textured { specularity, .. } => Some(specularity),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recover::{ComparisonReport, Effort};
+    use relume_core::material::Kind;
+
+    fn group(name: &str, pixels: u32, comparisons: Vec<ComparisonReport>) -> GroupReport {
+        GroupReport {
+            group: name.into(),
+            kind: "plastic".into(),
+            pure_pixels: pixels,
+            model: String::new(),
+            decisions: Vec::new(),
+            error_initial: None,
+            error_diffuse: None,
+            cache_error_diffuse: None,
+            cache_error_specular: None,
+            error_final: None,
+            texture_feature: None,
+            texture_contrast: None,
+            error_decided: None,
+            comparisons,
+        }
+    }
+
+    fn comparison(gain: f64, sigma: f64) -> ComparisonReport {
+        ComparisonReport {
+            stage: "2 isotropic".into(),
+            simple: "diffuse".into(),
+            complex: "isotropic".into(),
+            error_simple: 0.1,
+            error_complex: 0.1 - gain,
+            gain,
+            gain_sigma: sigma,
+            z: gain / sigma,
+            kept_complex: gain > fit::SPECULAR_GAIN_THRESHOLD
+                && gain / sigma >= fit::GAIN_SIGNIFICANCE,
+            samples_per_pixel: 32,
+        }
+    }
+
+    fn warnings_for(
+        groups: &[GroupReport],
+        models: &[GroupModel],
+        noise: f64,
+        side: u32,
+        effort: Effort,
+    ) -> Vec<String> {
+        stability_warnings(&Inputs {
+            groups,
+            models,
+            panorama_noise_bound: noise,
+            smallest_view_side: side,
+            budget: &effort.budget(),
+        })
+    }
+
+    #[test]
+    fn a_clean_well_seen_recovery_gets_no_warning() {
+        let groups = [
+            group("wall", 5000, vec![comparison(-0.01, 0.01)]),
+            group("ball", 900, vec![comparison(0.2, 0.01)]),
+        ];
+        let models = [
+            GroupModel::Diffuse { color: [0.5; 3] },
+            GroupModel::Isotropic {
+                kind: Kind::Plastic,
+                color: [0.3; 3],
+                specularity: 0.3,
+                roughness: 0.1,
+            },
+        ];
+        let w = warnings_for(&groups, &models, 0.0, 64, Effort::Default);
+        assert!(w.is_empty(), "{w:?}");
+    }
+
+    #[test]
+    fn each_failure_region_is_named() {
+        let groups = [
+            group("statue", 40, vec![comparison(0.3, 0.05)]),
+            group("box", 900, vec![comparison(0.015, 0.005)]),
+        ];
+        let models = [
+            GroupModel::Isotropic {
+                kind: Kind::Plastic,
+                color: [0.3; 3],
+                specularity: 0.3,
+                roughness: 0.1,
+            },
+            GroupModel::Isotropic {
+                kind: Kind::Plastic,
+                color: [0.3; 3],
+                specularity: 0.04,
+                roughness: 0.1,
+            },
+        ];
+        let w = warnings_for(&groups, &models, 0.05, 16, Effort::Fast);
+        let has = |needle: &str| w.iter().any(|s| s.contains(needle));
+        assert!(has("relative noise may be up to 5.0%"), "{w:?}");
+        assert!(has("only 16 pixels on a side"), "{w:?}");
+        assert!(has("effort fast"), "{w:?}");
+        assert!(
+            has("'statue': isotropic model from only 40 pure pixels"),
+            "{w:?}"
+        );
+        assert!(has("'box': weak specular lobe"), "{w:?}");
+        assert!(
+            has("'box': stage 2 isotropic kept the isotropic model on a borderline"),
+            "{w:?}"
+        );
+        assert!(!has("'statue': stage"), "{w:?}");
+        assert_eq!(w.len(), 6, "{w:?}");
+    }
+}
