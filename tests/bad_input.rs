@@ -467,3 +467,28 @@ fn scene_file_missing() {
         "{stderr}"
     );
 }
+
+#[test]
+fn uncertainty_of_a_file_that_is_not_a_report() {
+    let case = Case::new();
+    case.write();
+    let not_a_report = case.path("report.json");
+    std::fs::write(&not_a_report, "{\"groups\": 3}").unwrap();
+    let out = relume(
+        case.dir.path(),
+        &[
+            "compare",
+            "uncertainty",
+            path_str(&case.path("m.toml")),
+            path_str(&not_a_report),
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("report.json")
+            && stderr.contains("not a recover report.json")
+            && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+}

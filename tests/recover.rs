@@ -77,4 +77,15 @@ fn box_diffuse_small_comes_out_diffuse() {
             100.0 * err
         );
     }
+    // The reported standard errors cover the truth about as often as they claim: every
+    // reflectance has one, none is more than 3 sigma off, and most are within 2.
+    let coverage =
+        relume::coverage::coverage_rows(&bench.join("truth.toml"), &out.join("report.json"))
+            .unwrap();
+    assert_eq!(coverage.len(), 18, "{coverage:?}");
+    for row in &coverage {
+        assert!(row.sigma > 0.0 && row.z <= 3.0, "{row:?}");
+    }
+    let (_, within_two) = relume::coverage::fractions(&coverage);
+    assert!(within_two >= 0.8, "{within_two}");
 }

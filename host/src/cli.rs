@@ -141,6 +141,14 @@ enum CompareCommand {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Whether a recovery's reported standard errors (report.json) cover the truth as
+    /// often as they claim, over the groups recovered in their true class.
+    Uncertainty {
+        truth: PathBuf,
+        report: PathBuf,
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -321,6 +329,11 @@ fn run(command: Command) -> Result<(), Error> {
             materials,
             json,
         }) => compare::compare_materials(&truth, &materials, json.as_deref()),
+        Command::Compare(CompareCommand::Uncertainty {
+            truth,
+            report,
+            json,
+        }) => crate::coverage::compare_uncertainty(&truth, &report, json.as_deref()),
         Command::Bench(BenchCommand::Rays {
             scene,
             rays,

@@ -14,6 +14,7 @@ pub mod assemble;
 pub mod bench;
 pub mod cli;
 pub mod compare;
+pub mod coverage;
 pub mod downsample;
 pub mod error;
 pub mod fsutil;

@@ -18,6 +18,7 @@ mod output;
 mod pixels;
 mod refine;
 mod texture;
+mod uncertainty;
 mod warnings;
 
 use std::path::PathBuf;
@@ -135,6 +136,8 @@ pub struct GroupReport {
     pub error_decided: Option<f64>,
     /// Every comparison of a simpler with a more complex model (stages 2 and 4).
     pub comparisons: Vec<ComparisonReport>,
+    /// Each recovered parameter with its standard error (see `uncertainty`).
+    pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
 }
 
 /// One keep-or-reject comparison of two models of a group ([`fit::ModelComparison`]).
@@ -596,6 +599,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             texture_contrast: None,
             error_decided: None,
             comparisons: Vec::new(),
+            uncertainty: Vec::new(),
         })
         .collect();
 
@@ -1093,6 +1097,28 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         notes: vec![
             "every view rendered with the recovered model; error_final comes from it".into(),
         ],
+    });
+
+    let stage_start = Instant::now();
+    let uncertainty_spp = 4 * args.budget.loop_spp;
+    for (g, r) in reports.iter_mut().enumerate() {
+        r.uncertainty = uncertainty::parameter_uncertainty(
+            &mut rec,
+            g,
+            uncertainty_spp,
+            args.budget.loop_spp,
+            args.seed ^ 0x5160,
+        )?;
+    }
+    stages.push(StageReport {
+        stage: "uncertainty".into(),
+        evaluations: n_groups as u32,
+        samples_per_pixel: uncertainty_spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "standard error of every parameter: cluster-robust least squares over tiles of {0}x{0} pixels, derivatives by finite differences on common random numbers",
+            uncertainty::TILE
+        )],
     });
 
     warnings.extend(warnings::stability_warnings(&warnings::Inputs {

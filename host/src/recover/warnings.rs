@@ -123,6 +123,7 @@ mod tests {
             texture_contrast: None,
             error_decided: None,
             comparisons,
+            uncertainty: Vec::new(),
         }
     }
 

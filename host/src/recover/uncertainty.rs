@@ -1,0 +1,346 @@
+//! The uncertainty of every recovered parameter: a cluster-robust ("sandwich") standard
+//! error of the least-squares fit of the group's pure pixels, with pixels clustered in
+//! tiles of `TILE` x `TILE` pixels of a view.
+//!
+//! With `J` the derivative of the rendered pixels by the parameters (finite differences
+//! on common random numbers) and `r` the residual `R - T`,
+//! `cov = A^-1 M A^-1`, `A = sum_i J_i^T J_i`, `M = sum_tiles g g^T`, `g = sum_{i in tile} J_i^T r_i`.
+//! Unlike the textbook `s^2 A^-1`, it does not assume the residuals independent: a misfit
+//! that spans a region (a highlight's shape, an interreflection the model gets wrong) moves
+//! the estimate as one tile, not as many independent pixels, and the parameters' mutual
+//! dependence (a lobe's specularity against its diffuse colour) is in `A^-1`. What it
+//! cannot see is an error common to every pixel (the light's radiance, the camera's
+//! exposure, our renderer against RADIANCE): docs/stability.md measures those separately.
+
+use glam::Vec3;
+use serde::Serialize;
+
+use super::model::GroupModel;
+use super::pixels::{self, PurePixel};
+use super::Recovery;
+use crate::error::Error;
+
+/// Side of the square tiles of pixels that are taken to share their misfit.
+pub const TILE: u32 = 8;
+/// Relative step of the finite differences.
+const STEP: f64 = 0.05;
+
+/// One recovered parameter with its standard error.
+#[derive(Serialize, Clone, Debug, PartialEq)]
+pub struct ParameterUncertainty {
+    /// The name of the field in materials.toml (`color` is given per channel).
+    pub parameter: String,
+    pub value: f64,
+    pub sigma: f64,
+}
+
+/// A perturbation of the model, and the parameters whose derivative it gives.
+enum Perturbation {
+    /// All colour channels scaled together: rendering is channel by channel, so channel
+    /// `c` of the change is the derivative by `color[c]` alone.
+    Colour([f64; 3]),
+    Scalar(&'static str, f64),
+}
+
+fn perturbations(model: &GroupModel) -> Vec<Perturbation> {
+    use Perturbation::*;
+    match *model {
+        GroupModel::Diffuse { color } | GroupModel::Mirror { color } => vec![Colour(color)],
+        GroupModel::Isotropic {
+            color,
+            specularity,
+            roughness,
+            ..
+        } => vec![
+            Colour(color),
+            Scalar("specularity", specularity),
+            Scalar("roughness", roughness),
+        ],
+        GroupModel::Anisotropic {
+            color,
+            specularity,
+            roughness_u,
+            roughness_v,
+            ..
+        } => vec![
+            Colour(color),
+            Scalar("specularity", specularity),
+            Scalar("roughness_u", roughness_u),
+            Scalar("roughness_v", roughness_v),
+        ],
+        GroupModel::Textured {
+            specularity,
+            roughness,
+            ..
+        } if specularity > 0.0 => vec![
+            Scalar("specularity", specularity),
+            Scalar("roughness", roughness),
+        ],
+        GroupModel::Textured { .. } | GroupModel::Unseen => Vec::new(),
+    }
+}
+
+/// `model` with the parameter(s) of `perturbation` scaled by `1 + STEP`.
+fn perturbed(model: GroupModel, perturbation: &Perturbation) -> GroupModel {
+    let up = 1.0 + STEP;
+    let mut m = model;
+    match (perturbation, &mut m) {
+        (
+            Perturbation::Colour(_),
+            GroupModel::Diffuse { color }
+            | GroupModel::Mirror { color }
+            | GroupModel::Isotropic { color, .. }
+            | GroupModel::Anisotropic { color, .. },
+        ) => *color = color.map(|c| c * up),
+        (
+            Perturbation::Scalar("specularity", _),
+            GroupModel::Isotropic { specularity, .. }
+            | GroupModel::Anisotropic { specularity, .. }
+            | GroupModel::Textured { specularity, .. },
+        ) => *specularity *= up,
+        (
+            Perturbation::Scalar("roughness", _),
+            GroupModel::Isotropic { roughness, .. } | GroupModel::Textured { roughness, .. },
+        ) => *roughness *= up,
+        (Perturbation::Scalar("roughness_u", _), GroupModel::Anisotropic { roughness_u, .. }) => {
+            *roughness_u *= up
+        }
+        (Perturbation::Scalar("roughness_v", _), GroupModel::Anisotropic { roughness_v, .. }) => {
+            *roughness_v *= up
+        }
+        _ => {}
+    }
+    m
+}
+
+/// The standard errors of group `g`'s parameters under its current model, from renders of
+/// its pure pixels at `spp` samples on `seed` (the same samples for every perturbation).
+///
+/// The colours also carry the noise of their own estimate: the diffuse update sets them
+/// from a render at `loop_spp`, whose mean carries Monte Carlo noise the misfit does not
+/// show. It is measured from two independent half-renders and added in quadrature.
+pub fn parameter_uncertainty(
+    rec: &mut Recovery,
+    g: usize,
+    spp: u32,
+    loop_spp: u32,
+    seed: u64,
+) -> Result<Vec<ParameterUncertainty>, Error> {
+    let model = rec.models[g];
+    let steps = perturbations(&model);
+    let group_pixels: Vec<PurePixel> = rec
+        .pure
+        .iter()
+        .filter(|p| p.group as usize == g)
+        .copied()
+        .collect();
+    if steps.is_empty() || group_pixels.len() < 2 {
+        return Ok(Vec::new());
+    }
+    let half_spp = (spp / 2).max(1);
+    let render = |rec: &mut Recovery, m: GroupModel, seed: u64| {
+        rec.models[g] = m;
+        rec.with_scene(half_spp, seed, |pool, scene, observed, settings| {
+            pixels::render_pixels(pool, scene, observed.views, &group_pixels, settings)
+        })
+    };
+    let first = render(rec, model, seed);
+    let second = render(rec, model, seed ^ 0x2D_2D2D);
+    let changed: Result<Vec<Vec<Vec3>>, Error> = steps
+        .iter()
+        .map(|p| render(rec, perturbed(model, p), seed))
+        .collect();
+    rec.models[g] = model;
+    let (first, second, changed) = (first?, second?, changed?);
+    let base: Vec<Vec3> = first
+        .iter()
+        .zip(&second)
+        .map(|(a, b)| 0.5 * (*a + *b))
+        .collect();
+    // Noise of the group's mean radiance per channel at the loop's samples, relative.
+    let loop_noise: [f64; 3] = std::array::from_fn(|c| {
+        let half_variance: f64 = first
+            .iter()
+            .zip(&second)
+            .map(|(a, b)| 0.5 * ((a[c] - b[c]) as f64).powi(2))
+            .sum();
+        let sum: f64 = base.iter().map(|v| v[c] as f64).sum();
+        let variance = half_variance * half_spp as f64 / loop_spp.max(1) as f64;
+        if sum > 0.0 {
+            variance.sqrt() / sum
+        } else {
+            0.0
+        }
+    });
+
+    // Parameter names and values, and per pixel the derivative (per unit of the
+    // parameter) of the pixel's RGB by each.
+    let mut names = Vec::new();
+    let mut values = Vec::new();
+    for p in &steps {
+        match p {
+            Perturbation::Colour(c) => {
+                for (ch, name) in ["color_r", "color_g", "color_b"].into_iter().enumerate() {
+                    names.push(name.to_string());
+                    values.push(c[ch]);
+                }
+            }
+            Perturbation::Scalar(name, v) => {
+                names.push(name.to_string());
+                values.push(*v);
+            }
+        }
+    }
+    let n_params = names.len();
+    let jacobian = |i: usize| -> Vec<Vec3> {
+        let mut columns = Vec::with_capacity(n_params);
+        for (p, after) in steps.iter().zip(&changed) {
+            // Against the render on the same samples: common random numbers.
+            let delta = after[i] - first[i];
+            match p {
+                Perturbation::Colour(c) => {
+                    for ch in 0..3 {
+                        let mut column = Vec3::ZERO;
+                        let h = (STEP * c[ch]) as f32;
+                        if h > 0.0 {
+                            column[ch] = delta[ch] / h;
+                        }
+                        columns.push(column);
+                    }
+                }
+                Perturbation::Scalar(_, v) => {
+                    let h = (STEP * v) as f32;
+                    columns.push(if h > 0.0 { delta / h } else { Vec3::ZERO });
+                }
+            }
+        }
+        columns
+    };
+
+    let mut normal = vec![vec![0.0f64; n_params]; n_params];
+    let mut tiles: std::collections::BTreeMap<(u32, u32, u32), Vec<f64>> = Default::default();
+    for (i, p) in group_pixels.iter().enumerate() {
+        let j = jacobian(i);
+        let residual = base[i] - pixels::real_value(&rec.real, &rec.views, p);
+        let score = tiles
+            .entry((p.view, p.x / TILE, p.y / TILE))
+            .or_insert_with(|| vec![0.0; n_params]);
+        for k in 0..n_params {
+            score[k] += j[k].dot(residual) as f64;
+            for l in 0..n_params {
+                normal[k][l] += j[k].dot(j[l]) as f64;
+            }
+        }
+    }
+    let Some(inverse) = invert(&normal) else {
+        return Ok(Vec::new());
+    };
+    Ok((0..n_params)
+        .map(|k| {
+            // (A^-1 M A^-1)_kk = sum_tiles ((A^-1 g)_k)^2
+            let variance: f64 = tiles
+                .values()
+                .map(|g| {
+                    let projected: f64 = (0..n_params).map(|l| inverse[k][l] * g[l]).sum();
+                    projected * projected
+                })
+                .sum();
+            let estimate_noise = match names[k].as_str() {
+                "color_r" => values[k] * loop_noise[0],
+                "color_g" => values[k] * loop_noise[1],
+                "color_b" => values[k] * loop_noise[2],
+                _ => 0.0,
+            };
+            ParameterUncertainty {
+                parameter: names[k].clone(),
+                value: values[k],
+                sigma: (variance + estimate_noise * estimate_noise).sqrt(),
+            }
+        })
+        .collect())
+}
+
+/// The inverse of a small symmetric positive-definite matrix by Gauss-Jordan elimination
+/// with partial pivoting; `None` when it is singular (a parameter the pixels do not see).
+fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    let n = a.len();
+    let scale = (0..n).map(|i| a[i][i].abs()).fold(0.0, f64::max);
+    if !scale.is_finite() || scale <= 0.0 {
+        return None;
+    }
+    let mut m: Vec<Vec<f64>> = a
+        .iter()
+        .enumerate()
+        .map(|(i, row)| {
+            let mut r = row.clone();
+            r.extend((0..n).map(|j| if i == j { 1.0 } else { 0.0 }));
+            r
+        })
+        .collect();
+    for col in 0..n {
+        let pivot = (col..n).max_by(|&x, &y| m[x][col].abs().total_cmp(&m[y][col].abs()))?;
+        if m[pivot][col].abs() <= 1e-12 * scale {
+            return None;
+        }
+        m.swap(col, pivot);
+        let p = m[col][col];
+        m[col].iter_mut().for_each(|v| *v /= p);
+        for row in 0..n {
+            if row != col {
+                let f = m[row][col];
+                if f != 0.0 {
+                    let pivot_row = m[col].clone();
+                    m[row]
+                        .iter_mut()
+                        .zip(&pivot_row)
+                        .for_each(|(v, pv)| *v -= f * pv);
+                }
+            }
+        }
+    }
+    Some(m.into_iter().map(|r| r[n..].to_vec()).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inverting_a_small_matrix() {
+        let a = vec![
+            vec![4.0, 1.0, 0.0],
+            vec![1.0, 3.0, 1.0],
+            vec![0.0, 1.0, 2.0],
+        ];
+        let inv = invert(&a).unwrap();
+        let product = |i: usize, j: usize| -> f64 { (0..3).map(|k| a[i][k] * inv[k][j]).sum() };
+        for (i, j) in (0..3).flat_map(|i| (0..3).map(move |j| (i, j))) {
+            let expected = if i == j { 1.0 } else { 0.0 };
+            assert!((product(i, j) - expected).abs() < 1e-12, "{i} {j}");
+        }
+        assert!(invert(&[vec![1.0, 2.0], vec![2.0, 4.0]]).is_none());
+        assert!(invert(&[vec![0.0]]).is_none());
+    }
+
+    #[test]
+    fn every_model_parameter_is_perturbed_and_only_it() {
+        let model = GroupModel::Anisotropic {
+            kind: relume_core::material::Kind::Plastic,
+            color: [0.2, 0.4, 0.6],
+            specularity: 0.1,
+            roughness_u: 0.05,
+            roughness_v: 0.2,
+            direction: [1.0, 0.0, 0.0],
+        };
+        let steps = perturbations(&model);
+        assert_eq!(steps.len(), 4);
+        let changed: Vec<GroupModel> = steps.iter().map(|p| perturbed(model, p)).collect();
+        for (i, m) in changed.iter().enumerate() {
+            assert_ne!(*m, model, "perturbation {i} changed nothing");
+            for (j, other) in changed.iter().enumerate() {
+                assert!(i == j || m != other);
+            }
+        }
+        assert!(perturbations(&GroupModel::Unseen).is_empty());
+    }
+}
