@@ -318,6 +318,30 @@ impl Recovery {
             .collect())
     }
 
+    /// Group `g`'s bias-only error with its standard error, with the current models, at
+    /// `spp` on `seed` (see [`fit::ErrorEstimate`]).
+    fn error_estimate(
+        &mut self,
+        g: usize,
+        spp: u32,
+        seed: u64,
+    ) -> Result<Option<fit::ErrorEstimate>, Error> {
+        let of_g: Vec<PurePixel> = self
+            .pure
+            .iter()
+            .filter(|p| p.group as usize == g)
+            .copied()
+            .collect();
+        let terms = self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            pixels::paired_cross_terms(pool, scene, observed, &of_g, settings)
+        })?;
+        let sum_sq_real: f64 = terms.iter().map(|t| t.1).sum();
+        Ok(fit::ErrorEstimate::from_cross_terms(
+            terms.iter().map(|t| t.0),
+            sum_sq_real,
+        ))
+    }
+
     /// The seed of every keep-or-reject measurement.
     fn decision_seed(&self) -> u64 {
         self.seed ^ 0x5E1F
