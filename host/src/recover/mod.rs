@@ -990,7 +990,21 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .collect();
     let bar = progress_bar(stage4.len() as u64, "4 anisotropic");
     for g in stage4 {
-        let kept = rec.models[g];
+        let stage2 = rec.models[g];
+        let isotropic = anisotropic::refit_isotropic_roughness(
+            &mut rec,
+            g,
+            stage2,
+            verify_spp,
+            args.budget.anneal_levels,
+        )?;
+        evaluations += isotropic.evaluations;
+        // The refitted roughness replaces stage 2's only if a render shows it better.
+        let kept = match rec.compare_models(g, stage2, isotropic.model, 4 * verify_spp)? {
+            Some((c, _)) if c.gain > 0.0 => isotropic.model,
+            _ => stage2,
+        };
+        evaluations += 2;
         let refined = anisotropic::anneal_anisotropic(
             &mut rec,
             g,

@@ -16,7 +16,6 @@
 //! `relume bench tradeoff` can show what the global search buys.
 
 use relume_core::anneal::{Annealer, Schedule};
-use relume_core::fit::GroupFit;
 use relume_core::nelder_mead::NelderMead;
 use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
 use relume_core::stages::isotropic::{ROUGHNESS_MAX, ROUGHNESS_MIN};
@@ -30,24 +29,13 @@ use crate::error::Error;
 /// bounds reflectances by [0, 1]).
 const SPECULARITY_MAX: f64 = 1.0;
 
-/// The search's cost: the squared relative bias from two independent renders
-/// (`pixels::evaluate_cross`), signed. Noise neither lowers it (as subtracting an estimated
-/// variance does for sharp lobes, whose heavy-tailed noise inflates that estimate) nor
-/// raises it (as a plain squared error does, which pushes the search away from sharp lobes).
-pub(super) fn search_cost(fit: &GroupFit) -> f64 {
-    if fit.pixels == 0 || fit.sum_sq_real <= 0.0 {
-        return f64::INFINITY;
-    }
-    fit.sum_sq_diff / fit.sum_sq_real
-}
-
 /// The cost the search and its race minimise: the bias-only error plus one standard error
 /// of it, squared. Every cost of a search is on the same samples, and a sharp lobe's cost
 /// is far noisier than a broad one's, so the plain lowest cost is most often a sharp lobe
 /// its samples happen to favour (glossy's sphere_red, s 0.05 and roughness 0.05 in the
 /// truth, came out s 0.2, roughness 0.03 in half the seeds); charging each point its own
 /// noise chooses what the pixels show, not what the dice did.
-fn pessimistic_cost(estimate: Option<relume_core::fit::ErrorEstimate>) -> f64 {
+pub(super) fn pessimistic_cost(estimate: Option<relume_core::fit::ErrorEstimate>) -> f64 {
     estimate.map_or(f64::INFINITY, |e| (e.error + e.sigma).powi(2))
 }
 
