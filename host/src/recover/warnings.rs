@@ -60,7 +60,11 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
     }
     for (report, model) in inputs.groups.iter().zip(inputs.models) {
         let name = &report.group;
-        let specular = !matches!(model, GroupModel::Diffuse { .. } | GroupModel::Unseen);
+        let specular = match model {
+            GroupModel::Diffuse { .. } | GroupModel::Unseen => false,
+            GroupModel::Textured { specularity, .. } => *specularity > 0.0,
+            _ => true,
+        };
         if specular && report.pure_pixels < FEW_PIXELS {
             warnings.push(format!(
                 "group '{name}': {} model from only {} pure pixels (< {FEW_PIXELS}): its class and specular parameters were seen to change with the seed {SEE}",
