@@ -530,10 +530,7 @@ fn mirror_test(model: &GroupModel) -> Option<String> {
     let total: f64 = (0..3).map(|c| rho_d[c] + rho_s[c]).sum();
     let spec: f64 = rho_s.iter().sum();
     let fraction = if total > 0.0 { spec / total } else { 0.0 };
-    let (lo, hi) = rho_s
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(l, h), &v| (l.min(v), h.max(v)));
-    let tint = if hi > 0.0 { (hi - lo) / hi } else { 1.0 };
+    let tint = model::tint(rho_s);
     if fraction > fit::MIRROR_SPECULAR_FRACTION
         && roughness <= fit::MIRROR_MAX_ROUGHNESS
         && tint <= fit::MIRROR_MAX_TINT
@@ -780,6 +777,13 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         )?;
         evaluations += refined.evaluations;
         let candidate = match mirror_test(&refined.model) {
+            _ if matches!(refined.model, GroupModel::Mirror { .. }) => (
+                refined.model,
+                Some(format!(
+                    "mirror: a perfect mirror (tint <= MIRROR_MAX_TINT {}) measured best among the search's finalists",
+                    fit::MIRROR_MAX_TINT
+                )),
+            ),
             Some(why) => {
                 let (_, rho_s) = refined.model.reflectances();
                 (GroupModel::Mirror { color: rho_s }, Some(why))

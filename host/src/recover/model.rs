@@ -44,6 +44,19 @@ pub enum GroupModel {
     Unseen,
 }
 
+/// How far a reflectance is from grey: `(max - min) / max` over the channels (1 for black).
+/// The paper's mirror test wants the reflected colour close to the incident one.
+pub fn tint(rho: [f64; 3]) -> f64 {
+    let (lo, hi) = rho
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), &v| (l.min(v), h.max(v)));
+    if hi > 0.0 {
+        (hi - lo) / hi
+    } else {
+        1.0
+    }
+}
+
 fn v3(c: [f64; 3]) -> Vec3 {
     Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32)
 }
