@@ -49,10 +49,7 @@ pub fn anneal_anisotropic(
         Some((t, b)),
     ) = (start, tangent_basis(rec, g))
     else {
-        return Ok(Refined {
-            model: start,
-            evaluations: 0,
-        });
+        return Ok(Refined::unchanged(start));
     };
     let model_at = |x: [f64; 3]| {
         let (sin, cos) = x[2].sin_cos();
@@ -94,10 +91,7 @@ pub fn refit_isotropic_roughness(
         roughness,
     } = start
     else {
-        return Ok(Refined {
-            model: start,
-            evaluations: 0,
-        });
+        return Ok(Refined::unchanged(start));
     };
     let model_at = |x: [f64; 1]| GroupModel::Isotropic {
         kind,

@@ -140,6 +140,29 @@ pub struct GroupReport {
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
 }
 
+impl GroupReport {
+    /// An empty report for group `group` of kind `kind`, filled in as the stages run.
+    fn new(group: &str, kind: &str) -> Self {
+        GroupReport {
+            group: group.into(),
+            kind: kind.into(),
+            pure_pixels: 0,
+            model: String::new(),
+            decisions: Vec::new(),
+            error_initial: None,
+            error_diffuse: None,
+            cache_error_diffuse: None,
+            cache_error_specular: None,
+            error_final: None,
+            texture_feature: None,
+            texture_contrast: None,
+            error_decided: None,
+            comparisons: Vec::new(),
+            uncertainty: Vec::new(),
+        }
+    }
+}
+
 /// One keep-or-reject comparison of two models of a group ([`fit::ModelComparison`]).
 #[derive(Serialize, Clone, Debug)]
 pub struct ComparisonReport {
@@ -326,12 +349,7 @@ impl Recovery {
         spp: u32,
         seed: u64,
     ) -> Result<Option<fit::ErrorEstimate>, Error> {
-        let of_g: Vec<PurePixel> = self
-            .pure
-            .iter()
-            .filter(|p| p.group as usize == g)
-            .copied()
-            .collect();
+        let of_g = pixels::of_group(&self.pure, g);
         let terms = self.with_scene(spp, seed, |pool, scene, observed, settings| {
             pixels::paired_cross_terms(pool, scene, observed, &of_g, settings)
         })?;
@@ -362,12 +380,7 @@ impl Recovery {
         complex: GroupModel,
         spp: u32,
     ) -> Result<Option<(fit::ModelComparison, u32)>, Error> {
-        let pixels: Vec<PurePixel> = self
-            .pure
-            .iter()
-            .filter(|p| p.group as usize == g)
-            .copied()
-            .collect();
+        let pixels = pixels::of_group(&self.pure, g);
         let mut spp = spp;
         let mut round = 0;
         loop {
@@ -608,23 +621,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         seed: args.seed,
     };
     let mut reports: Vec<GroupReport> = (0..n_groups)
-        .map(|g| GroupReport {
-            group: names[g].clone(),
-            kind: format!("{:?}", kinds[g]).to_lowercase(),
-            pure_pixels: 0,
-            model: String::new(),
-            decisions: Vec::new(),
-            error_initial: None,
-            error_diffuse: None,
-            cache_error_diffuse: None,
-            cache_error_specular: None,
-            error_final: None,
-            texture_feature: None,
-            texture_contrast: None,
-            error_decided: None,
-            comparisons: Vec::new(),
-            uncertainty: Vec::new(),
-        })
+        .map(|g| GroupReport::new(&names[g], &format!("{:?}", kinds[g]).to_lowercase()))
         .collect();
 
     // Stage 1: all diffuse.

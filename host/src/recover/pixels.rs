@@ -79,6 +79,29 @@ pub fn find_pure_pixels(
     (pure, empty_views)
 }
 
+/// The pure pixels of group `g`, in their order.
+pub fn of_group(pure: &[PurePixel], g: usize) -> Vec<PurePixel> {
+    pure.iter()
+        .filter(|p| p.group as usize == g)
+        .copied()
+        .collect()
+}
+
+/// `f` of each of `pixels`, in order, in parallel over a fixed partition (the same values
+/// for any thread count).
+fn map_in_order<T: Send>(
+    pool: &rayon::ThreadPool,
+    pixels: &[PurePixel],
+    f: impl Fn(&PurePixel) -> T + Sync,
+) -> Vec<T> {
+    pool.install(|| {
+        pixels
+            .par_chunks(CHUNK)
+            .flat_map_iter(|chunk| chunk.iter().map(&f))
+            .collect()
+    })
+}
+
 /// The panorama's value at a pure pixel.
 pub fn real_value(real: &[Image], views: &[View], p: &PurePixel) -> Vec3 {
     let view = &views[p.view as usize];
@@ -197,22 +220,13 @@ pub fn paired_cross_terms(
     };
     let (a1, a2) = quarter(&half_a, 0x0A0A_5EED);
     let (b1, b2) = quarter(&half_b, 0x0B0B_5EED);
-    pool.install(|| {
-        pixels
-            .par_chunks(CHUNK)
-            .flat_map_iter(|chunk| {
-                chunk.iter().map(|p| {
-                    let view = &views[p.view as usize];
-                    let t = real_value(real, views, p);
-                    let render =
-                        |s: &RenderSettings| render::render_pixel(scene, view, p.view, p.x, p.y, s);
-                    let cross = |s: &RenderSettings, u: &RenderSettings| {
-                        (render(s) - t).dot(render(u) - t) as f64
-                    };
-                    ([cross(&a1, &a2), cross(&b1, &b2)], t.dot(t) as f64)
-                })
-            })
-            .collect()
+    map_in_order(pool, pixels, |p| {
+        let view = &views[p.view as usize];
+        let t = real_value(real, views, p);
+        let render = |s: &RenderSettings| render::render_pixel(scene, view, p.view, p.x, p.y, s);
+        let cross =
+            |s: &RenderSettings, u: &RenderSettings| (render(s) - t).dot(render(u) - t) as f64;
+        ([cross(&a1, &a2), cross(&b1, &b2)], t.dot(t) as f64)
     })
 }
 
@@ -236,16 +250,9 @@ pub fn render_pixels(
     pixels: &[PurePixel],
     settings: &RenderSettings,
 ) -> Vec<Vec3> {
-    pool.install(|| {
-        pixels
-            .par_chunks(CHUNK)
-            .flat_map_iter(|chunk| {
-                chunk.iter().map(|p| {
-                    let view = &views[p.view as usize];
-                    render::render_pixel(scene, view, p.view, p.x, p.y, settings)
-                })
-            })
-            .collect()
+    map_in_order(pool, pixels, |p| {
+        let view = &views[p.view as usize];
+        render::render_pixel(scene, view, p.view, p.x, p.y, settings)
     })
 }
 

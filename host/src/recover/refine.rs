@@ -48,11 +48,7 @@ pub const MAX_SEARCH_PIXELS: usize = 1024;
 
 /// Every `k`-th pure pixel of group `g`, so that at most [`MAX_SEARCH_PIXELS`] remain.
 pub(super) fn search_subset(pure: &[PurePixel], g: usize) -> Vec<PurePixel> {
-    let of_g: Vec<PurePixel> = pure
-        .iter()
-        .filter(|p| p.group as usize == g)
-        .copied()
-        .collect();
+    let of_g = super::pixels::of_group(pure, g);
     let stride = of_g.len().div_ceil(MAX_SEARCH_PIXELS).max(1);
     of_g.into_iter().step_by(stride).collect()
 }
@@ -61,6 +57,16 @@ pub(super) fn search_subset(pure: &[PurePixel], g: usize) -> Vec<PurePixel> {
 pub struct Refined {
     pub model: GroupModel,
     pub evaluations: u32,
+}
+
+impl Refined {
+    /// No search: `model` is not one the search applies to.
+    pub fn unchanged(model: GroupModel) -> Self {
+        Refined {
+            model,
+            evaluations: 0,
+        }
+    }
 }
 
 /// How many of the search's best points are measured again before one is chosen.
@@ -152,10 +158,7 @@ fn anneal_on_pixels(
         roughness,
     } = start
     else {
-        return Ok(Refined {
-            model: start,
-            evaluations: 0,
-        });
+        return Ok(Refined::unchanged(start));
     };
     let seed = rec.seed ^ 0xA11E_A1ED ^ g as u64;
     let mut evaluations = 0u32;

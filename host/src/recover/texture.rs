@@ -32,11 +32,7 @@ pub struct MapSummary {
 }
 
 fn group_pixels(rec: &Recovery, g: usize) -> Vec<PurePixel> {
-    rec.pure
-        .iter()
-        .filter(|p| p.group as usize == g)
-        .copied()
-        .collect()
+    pixels::of_group(&rec.pure, g)
 }
 
 fn median(mut values: Vec<f64>) -> f64 {

@@ -16,7 +16,7 @@ use glam::Vec3;
 use serde::Serialize;
 
 use super::model::GroupModel;
-use super::pixels::{self, PurePixel};
+use super::pixels;
 use super::Recovery;
 use crate::error::Error;
 
@@ -128,12 +128,7 @@ pub fn parameter_uncertainty(
 ) -> Result<Vec<ParameterUncertainty>, Error> {
     let model = rec.models[g];
     let steps = perturbations(&model);
-    let group_pixels: Vec<PurePixel> = rec
-        .pure
-        .iter()
-        .filter(|p| p.group as usize == g)
-        .copied()
-        .collect();
+    let group_pixels = pixels::of_group(&rec.pure, g);
     if steps.is_empty() || group_pixels.len() < 2 {
         return Ok(Vec::new());
     }

@@ -113,21 +113,9 @@ mod tests {
 
     fn group(name: &str, pixels: u32, comparisons: Vec<ComparisonReport>) -> GroupReport {
         GroupReport {
-            group: name.into(),
-            kind: "plastic".into(),
             pure_pixels: pixels,
-            model: String::new(),
-            decisions: Vec::new(),
-            error_initial: None,
-            error_diffuse: None,
-            cache_error_diffuse: None,
-            cache_error_specular: None,
-            error_final: None,
-            texture_feature: None,
-            texture_contrast: None,
-            error_decided: None,
             comparisons,
-            uncertainty: Vec::new(),
+            ..GroupReport::new(name, "plastic")
         }
     }
 
