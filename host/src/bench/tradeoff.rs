@@ -403,6 +403,15 @@ fn print_table(rows: &[TradeoffRow]) {
 mod tests {
     use super::*;
 
+    /// The values a sweep gives one knob, in order.
+    fn values_of(points: &[SweepPoint], knob: &str) -> Vec<String> {
+        points
+            .iter()
+            .filter(|p| p.knob == knob)
+            .map(|p| p.value.clone())
+            .collect()
+    }
+
     #[test]
     fn each_point_changes_one_knob_of_the_base() {
         let base = Effort::Fast.budget();
@@ -426,13 +435,7 @@ mod tests {
                 _ => assert!(changed <= 1, "{p:?}"),
             }
         }
-        let values = |knob: &str| -> Vec<String> {
-            points
-                .iter()
-                .filter(|p| p.knob == knob)
-                .map(|p| p.value.clone())
-                .collect()
-        };
+        let values = |knob: &str| values_of(&points, knob);
         assert_eq!(values("effort"), ["fast", "default", "thorough"]);
         assert_eq!(values("anneal-levels"), ["2", "4", "8", "16"]);
         assert_eq!(values("nelder-mead"), values("anneal-levels"));
@@ -492,13 +495,7 @@ mod tests {
     #[test]
     fn quick_sweeps_keep_the_base_and_skip_factors_that_do_not_divide() {
         let points = sweep(Effort::Default, true, 30);
-        let values = |knob: &str| -> Vec<String> {
-            points
-                .iter()
-                .filter(|p| p.knob == knob)
-                .map(|p| p.value.clone())
-                .collect()
-        };
+        let values = |knob: &str| values_of(&points, knob);
         assert_eq!(values("effort"), ["default"]);
         assert_eq!(values("anneal-levels"), ["4", "8"]);
         assert_eq!(values("loop-spp"), ["16", "32"]);

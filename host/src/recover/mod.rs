@@ -302,19 +302,23 @@ impl Recovery {
 
     /// The bias-only fit of group `g` (see [`pixels::evaluate_cross`]).
     fn evaluate_cross(&mut self, spp: u32, seed: u64, g: usize) -> Result<GroupFit, Error> {
-        Ok(self.evaluate_cross_all(spp, seed, &|h| h as usize == g)?[g])
+        let n = self.n_groups();
+        let fits = self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            pixels::evaluate_cross(pool, scene, observed, settings, n, &|h| h as usize == g)
+        })?;
+        Ok(fits[g])
     }
 
-    /// The bias-only fits of the groups `wanted` (see [`pixels::evaluate_cross`]).
-    fn evaluate_cross_all(
+    /// The paired cross terms of `pixels` under the current models, at `spp` on `seed`
+    /// (see [`pixels::paired_cross_terms`]).
+    fn paired_terms(
         &mut self,
+        pixels: &[PurePixel],
         spp: u32,
         seed: u64,
-        wanted: &(dyn Fn(u16) -> bool + Sync),
-    ) -> Result<Vec<GroupFit>, Error> {
-        let n = self.n_groups();
+    ) -> Result<Vec<([f64; 2], f64)>, Error> {
         self.with_scene(spp, seed, |pool, scene, observed, settings| {
-            pixels::evaluate_cross(pool, scene, observed, settings, n, wanted)
+            pixels::paired_cross_terms(pool, scene, observed, pixels, settings)
         })
     }
 
@@ -323,21 +327,16 @@ impl Recovery {
     /// pure pixels.
     fn error_estimates(&mut self, spp: u32) -> Result<Vec<Option<fit::ErrorEstimate>>, Error> {
         let seed = self.decision_seed();
-        let pure = self.pure.clone();
-        let terms = self.with_scene(spp, seed, |pool, scene, observed, settings| {
-            pixels::paired_cross_terms(pool, scene, observed, &pure, settings)
+        let mut by_group = vec![Vec::new(); self.n_groups()];
+        self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            let terms = pixels::paired_cross_terms(pool, scene, observed, observed.pure, settings);
+            for (p, t) in observed.pure.iter().zip(terms) {
+                by_group[p.group as usize].push(t);
+            }
         })?;
-        Ok((0..self.n_groups())
-            .map(|g| {
-                let of_g = || {
-                    pure.iter()
-                        .zip(&terms)
-                        .filter(move |(p, _)| p.group as usize == g)
-                        .map(|(_, t)| t)
-                };
-                let sum_sq_real: f64 = of_g().map(|t| t.1).sum();
-                fit::ErrorEstimate::from_cross_terms(of_g().map(|t| t.0), sum_sq_real)
-            })
+        Ok(by_group
+            .iter()
+            .map(|terms| error_estimate_of(terms))
             .collect())
     }
 
@@ -350,14 +349,7 @@ impl Recovery {
         seed: u64,
     ) -> Result<Option<fit::ErrorEstimate>, Error> {
         let of_g = pixels::of_group(&self.pure, g);
-        let terms = self.with_scene(spp, seed, |pool, scene, observed, settings| {
-            pixels::paired_cross_terms(pool, scene, observed, &of_g, settings)
-        })?;
-        let sum_sq_real: f64 = terms.iter().map(|t| t.1).sum();
-        Ok(fit::ErrorEstimate::from_cross_terms(
-            terms.iter().map(|t| t.0),
-            sum_sq_real,
-        ))
+        Ok(error_estimate_of(&self.paired_terms(&of_g, spp, seed)?))
     }
 
     /// The seed of every keep-or-reject measurement.
@@ -411,9 +403,7 @@ impl Recovery {
         let before = self.models[g];
         let terms_of = |rec: &mut Recovery, model: GroupModel| {
             rec.models[g] = model;
-            rec.with_scene(spp, seed, |pool, scene, observed, settings| {
-                pixels::paired_cross_terms(pool, scene, observed, pixels, settings)
-            })
+            rec.paired_terms(pixels, spp, seed)
         };
         let simple_terms = terms_of(self, simple);
         let complex_terms = terms_of(self, complex);
@@ -469,6 +459,12 @@ impl Recovery {
             previous_change = max_change;
         }
     }
+}
+
+/// The error estimate of one group's paired cross terms (see [`fit::ErrorEstimate`]).
+fn error_estimate_of(terms: &[([f64; 2], f64)]) -> Option<fit::ErrorEstimate> {
+    let sum_sq_real: f64 = terms.iter().map(|t| t.1).sum();
+    fit::ErrorEstimate::from_cross_terms(terms.iter().map(|t| t.0), sum_sq_real)
 }
 
 fn progress_bar(len: u64, what: &str) -> ProgressBar {

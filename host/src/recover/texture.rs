@@ -31,10 +31,6 @@ pub struct MapSummary {
     pub unseen_texels: usize,
 }
 
-fn group_pixels(rec: &Recovery, g: usize) -> Vec<PurePixel> {
-    pixels::of_group(&rec.pure, g)
-}
-
 fn median(mut values: Vec<f64>) -> f64 {
     if values.is_empty() {
         return 0.0;
@@ -69,7 +65,7 @@ pub fn texture_contrast(
     spp: u32,
     seed: u64,
 ) -> Result<Option<f64>, Error> {
-    let pixels = group_pixels(rec, g);
+    let pixels = pixels::of_group(&rec.pure, g);
     let (a, b) = render_twice(rec, &pixels, spp, seed)?;
     let lum = |v: Vec3| luminance(v) as f64;
     let rendered: Vec<f64> = a
@@ -108,7 +104,7 @@ pub fn recover_map(
     spp: u32,
     seed: u64,
 ) -> Result<MapSummary, Error> {
-    let pixels = group_pixels(rec, g);
+    let pixels = pixels::of_group(&rec.pure, g);
     let uvs: Vec<Option<[Vec2; FOOTPRINT_SAMPLES]>> =
         rec.with_scene(1, seed, |_, scene, observed, _| {
             pixels
