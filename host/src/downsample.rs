@@ -5,7 +5,7 @@
 //! several resolutions from one panorama.
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::error::Error;
 use crate::fsutil;
@@ -112,17 +112,33 @@ pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<(), Error> {
     if factor == 0 {
         return Err(Error::Usage("--factor must be at least 1".into()));
     }
-    let mut desc = scene_file::load_scene(scene)?;
+    let desc = scene_file::load_scene(scene)?;
+    write_derived_scene(scene, desc, factor, out, "downsample", |_, _| {}).map(|_| ())
+}
+
+/// Writes `desc` (read from `scene`) as `out/scene.toml`, every view's panorama read with
+/// its exposure applied, box-averaged by `factor`, passed through `edit(view index, image)`
+/// and written to `out/views/<view>.exr` at exposure 1 (radiance in, radiance out); the
+/// geometry paths made absolute. `doing` names the operation in errors. Returns the scene
+/// file's path. Errors: a view without image, a size not divisible by `factor`.
+pub fn write_derived_scene(
+    scene: &Path,
+    mut desc: SceneDesc,
+    factor: u32,
+    out: &Path,
+    doing: &str,
+    mut edit: impl FnMut(usize, &mut Image),
+) -> Result<PathBuf, Error> {
     let views_dir = out.join("views");
     fsutil::create_dir(&views_dir)?;
-    for v in &mut desc.views {
+    for (vi, v) in desc.views.iter_mut().enumerate() {
         let Some(path) = v.image.clone() else {
             return Err(Error::input(
                 scene,
-                format!("view '{}' has no image to downsample", v.name),
+                format!("view '{}' has no image to {doing}", v.name),
             ));
         };
-        if v.size[0] % factor != 0 || v.size[1] % factor != 0 {
+        if !(v.size[0].is_multiple_of(factor) && v.size[1].is_multiple_of(factor)) {
             return Err(Error::input(
                 scene,
                 format!(
@@ -131,11 +147,13 @@ pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<(), Error> {
                 ),
             ));
         }
-        // Radiance in, radiance out: the exposure is applied here and written as 1.
-        let image = images::read_view_image(&path, v.exposure, v.size)?;
-        let small = box_average(&image, factor);
+        let mut image = images::read_view_image(&path, v.exposure, v.size)?;
+        if factor > 1 {
+            image = box_average(&image, factor);
+        }
+        edit(vi, &mut image);
         let target = views_dir.join(format!("{}.exr", v.name));
-        images::write_exr(&target, &small)?;
+        images::write_exr(&target, &image)?;
         v.image = Some(std::fs::canonicalize(&target).map_err(|e| Error::io(&target, e))?);
         v.size = [v.size[0] / factor, v.size[1] / factor];
         v.exposure = 1.0;
@@ -145,7 +163,9 @@ pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<(), Error> {
         .iter()
         .map(|g| std::fs::canonicalize(g).map_err(|e| Error::io(g, e)))
         .collect::<Result<_, _>>()?;
-    fsutil::write_atomic(&out.join("scene.toml"), scene_toml(&desc).as_bytes())
+    let path = out.join("scene.toml");
+    fsutil::write_atomic(&path, scene_toml(&desc).as_bytes())?;
+    Ok(path)
 }
 
 #[cfg(test)]

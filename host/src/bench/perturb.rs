@@ -9,8 +9,7 @@ use relume_core::rng::{stream_key, Sampler};
 
 use crate::downsample;
 use crate::error::Error;
-use crate::fsutil;
-use crate::images::{self, Image};
+use crate::images::Image;
 use crate::scene_file;
 
 /// What to change; [`Perturbation::NONE`] copies the scene.
@@ -104,52 +103,18 @@ pub fn write_perturbed(scene: &Path, p: &Perturbation, out: &Path) -> Result<Pat
         };
         light.radiance = light.radiance.map(|r| r * p.light);
     }
-    let views_dir = out.join("views");
-    fsutil::create_dir(&views_dir)?;
-    for (vi, v) in desc.views.iter_mut().enumerate() {
-        let Some(path) = v.image.clone() else {
-            return Err(Error::input(
-                scene,
-                format!("view '{}' has no image to perturb", v.name),
-            ));
-        };
-        if !(v.size[0].is_multiple_of(p.factor) && v.size[1].is_multiple_of(p.factor)) {
-            return Err(Error::input(
-                scene,
-                format!(
-                    "view '{}' is {}x{}, not a multiple of factor {}",
-                    v.name, v.size[0], v.size[1], p.factor
-                ),
-            ));
-        }
-        // Radiance in, radiance out: the view's exposure is applied here and written as 1.
-        let mut image = images::read_view_image(&path, v.exposure, v.size)?;
-        if p.factor > 1 {
-            image = downsample::box_average(&image, p.factor);
-        }
+    downsample::write_derived_scene(scene, desc, p.factor, out, "perturb", |vi, image| {
         if p.exposure != 1.0 {
-            scale(&mut image, p.exposure);
+            scale(image, p.exposure);
         }
-        add_noise(&mut image, p.noise, p.noise_seed, vi);
-        let target = views_dir.join(format!("{}.exr", v.name));
-        images::write_exr(&target, &image)?;
-        v.image = Some(std::fs::canonicalize(&target).map_err(|e| Error::io(&target, e))?);
-        v.size = [v.size[0] / p.factor, v.size[1] / p.factor];
-        v.exposure = 1.0;
-    }
-    desc.geometry = desc
-        .geometry
-        .iter()
-        .map(|g| std::fs::canonicalize(g).map_err(|e| Error::io(g, e)))
-        .collect::<Result<_, _>>()?;
-    let path = out.join("scene.toml");
-    fsutil::write_atomic(&path, downsample::scene_toml(&desc).as_bytes())?;
-    Ok(path)
+        add_noise(image, p.noise, p.noise_seed, vi);
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::images;
 
     fn flat(n: u32, v: f32) -> Image {
         Image {
