@@ -230,6 +230,31 @@ enum BenchCommand {
         #[arg(long)]
         group: Option<String>,
     },
+    /// Edited scenes (other lights, a new viewpoint, objects removed or added) rendered
+    /// from recovered materials and from the true ones, each against the edit's reference
+    /// images: edits.csv, edits.json and a table. Materials for added objects come from a
+    /// materials.toml beside the edit's scene.toml.
+    Edits {
+        /// The edits' scene.toml files; their view images are the references.
+        #[arg(required = true, num_args = 1..)]
+        edits: Vec<PathBuf>,
+        /// The recovered materials.toml.
+        #[arg(long)]
+        recovered: PathBuf,
+        /// The true materials (truth.toml).
+        #[arg(long)]
+        truth: PathBuf,
+        /// Output folder: the renders, the CSV and the JSON.
+        #[arg(long)]
+        out: PathBuf,
+        /// Samples per pixel of both renders.
+        #[arg(long, default_value_t = 256)]
+        spp: u32,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long)]
+        threads: Option<usize>,
+    },
 }
 
 /// Runs the command line and returns the process exit code.
@@ -413,6 +438,36 @@ fn run(command: Command) -> Result<(), Error> {
                 args.out.join("stability.csv").display(),
                 args.out.join("seed-spread.csv").display(),
                 args.out.join("stability.svg").display()
+            );
+            Ok(())
+        }
+        Command::Bench(BenchCommand::Edits {
+            edits,
+            recovered,
+            truth,
+            out,
+            spp,
+            seed,
+            threads,
+        }) => {
+            if spp == 0 {
+                return Err(Error::Usage("--spp must be at least 1".into()));
+            }
+            let args = bench::edits::EditsArgs {
+                edits,
+                recovered,
+                truth,
+                out,
+                spp,
+                seed,
+                threads,
+            };
+            let outcomes = bench::edits::run(&args)?;
+            bench::edits::print_table(&outcomes);
+            println!(
+                "wrote {} and {}",
+                args.out.join("edits.csv").display(),
+                args.out.join("edits.json").display()
             );
             Ok(())
         }

@@ -13,6 +13,7 @@ use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
 use crate::images;
 use crate::materials_file::{self, MaterialDesc, Model};
+use crate::scene_file::ViewDesc;
 use crate::{fsutil, parallel};
 
 /// Sub-rays per pixel side used to decide that a pixel's whole footprint sees one group.
@@ -73,11 +74,36 @@ pub struct ViewsRow {
     pub rel_rms: f64,
 }
 
-#[derive(Serialize, Debug)]
+#[derive(Serialize, Clone, Debug)]
 pub struct ViewsReport {
     pub groups: Vec<ViewsRow>,
     pub views: Vec<ViewsRow>,
     pub all: ViewsRow,
+}
+
+/// Where a set of view images comes from.
+#[derive(Clone, Copy, Debug)]
+pub enum ViewImages<'a> {
+    /// `<folder>/<view>.exr`, as `relume render` writes them (exposure 1).
+    Folder(&'a Path),
+    /// The images the scene file names for its views (the panorama), with their exposure.
+    Scene,
+}
+
+impl ViewImages<'_> {
+    fn read(&self, desc: &ViewDesc, scene_path: &Path) -> Result<images::Image, Error> {
+        match self {
+            ViewImages::Folder(dir) => {
+                images::read_view_image(&dir.join(format!("{}.exr", desc.name)), 1.0, desc.size)
+            }
+            ViewImages::Scene => {
+                let path = desc.image.as_ref().ok_or_else(|| {
+                    Error::input(scene_path, format!("view '{}' names no image", desc.name))
+                })?;
+                images::read_view_image(path, desc.exposure, desc.size)
+            }
+        }
+    }
 }
 
 /// Compares `dir_a/<view>.exr` with `dir_b/<view>.exr` for every view of the scene over
@@ -86,6 +112,21 @@ pub fn views_report(
     scene_path: &Path,
     dir_a: &Path,
     dir_b: &Path,
+    threads: Option<usize>,
+) -> Result<ViewsReport, Error> {
+    views_report_of(
+        scene_path,
+        ViewImages::Folder(dir_a),
+        ViewImages::Folder(dir_b),
+        threads,
+    )
+}
+
+/// [`views_report`] for images from anywhere: A is the reference.
+pub fn views_report_of(
+    scene_path: &Path,
+    a: ViewImages<'_>,
+    b: ViewImages<'_>,
     threads: Option<usize>,
 ) -> Result<ViewsReport, Error> {
     let mut owned = assemble::load_and_assemble(scene_path, MaterialSource::GeometryOnly)?;
@@ -99,9 +140,8 @@ pub fn views_report(
     let mut per_view = Vec::new();
     let mut all = Sums::default();
     for (desc, view) in descs.iter().zip(&views) {
-        let file = format!("{}.exr", desc.name);
-        let a = images::read_view_image(&dir_a.join(&file), 1.0, desc.size)?;
-        let b = images::read_view_image(&dir_b.join(&file), 1.0, desc.size)?;
+        let a = a.read(desc, scene_path)?;
+        let b = b.read(desc, scene_path)?;
         let labels = parallel::map_pixels(&pool, view, |x, y| {
             render::pixel_surface(&scene, view, x, y, LABEL_RAYS_PER_SIDE)
         });

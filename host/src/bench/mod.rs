@@ -3,11 +3,13 @@
 //! - [`rays`]: the tracer's speed on a fixed ray file.
 //! - [`tradeoff`]: recovery's accuracy against its wall time, one knob at a time.
 //! - [`stability`]: recovery under controlled perturbations of its input.
+//! - [`edits`]: edited scenes rendered from a recovered model against reference renders.
 //!
 //! The recovery benches share [`recover_and_judge`] (one recovery, judged against the
 //! truth), [`Csv`] and the SVG writer in [`chart`]; [`perturb`] writes the perturbed scenes.
 
 pub mod chart;
+pub mod edits;
 pub mod perturb;
 pub mod rays;
 pub mod stability;
