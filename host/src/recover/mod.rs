@@ -526,6 +526,12 @@ const MAP_SPP_FACTOR: u32 = 8;
 /// The diffuse refinement's last step renders at this many times the loop's samples.
 const POLISH_SPP_FACTOR: u32 = 8;
 
+/// The metal colour polish renders each metal or mirror group with at least this many
+/// samples in all (more per pixel for small groups): a mirror's pixels carry the heavy-
+/// tailed noise of the light paths it reflects, and the living room's 192-pixel mirror
+/// took 10-15% colour errors from the search's renders without it.
+const METAL_POLISH_MIN_SAMPLES: u64 = 1 << 16;
+
 /// Colour steps at most when a diffuse alternative is re-fitted in stage 2.
 const REFIT_MAX_STEPS: u32 = 6;
 /// The relative colour change at which that re-fit stops.
@@ -1075,6 +1081,43 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         )],
     });
 
+    // Metal colour polish: a metal's or a mirror's reflected radiance is proportional to its
+    // colour (diffuse c (1 - s), specular c s), so one ratio step at many samples sets it
+    // exactly to the group's mean. Before the diffuse refinement, which sees these groups.
+    let stage_start = Instant::now();
+    let mut evaluations = 0;
+    for (g, report) in reports.iter_mut().enumerate() {
+        let pixels = report.pure_pixels as u64;
+        let Some(color) = metal_color(&rec.models[g]) else {
+            continue;
+        };
+        if pixels == 0 {
+            continue;
+        }
+        let group_spp = (POLISH_SPP_FACTOR as u64 * spp as u64)
+            .max(METAL_POLISH_MIN_SAMPLES.div_ceil(pixels))
+            .min(u32::MAX as u64) as u32;
+        let fit = rec.evaluate(group_spp, rec.seed ^ 0x3E7A_1C01 ^ g as u64, &|h| {
+            h as usize == g
+        })?[g];
+        evaluations += 1;
+        let (polished, change) = diffuse::update(color, &fit);
+        set_metal_color(&mut rec.models[g], polished);
+        report.decisions.push(format!(
+            "metal colour polish: colour scaled by the mean ratio of a render at {group_spp} spp (at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
+            100.0 * change
+        ));
+    }
+    stages.push(StageReport {
+        stage: "metal colour polish".into(),
+        evaluations,
+        samples_per_pixel: POLISH_SPP_FACTOR * spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "metal and mirror groups: one colour step at POLISH_SPP_FACTOR {POLISH_SPP_FACTOR}x the loop's samples, at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} per group"
+        )],
+    });
+
     // Diffuse refinement: the diffuse groups again, under the specular materials now known.
     let stage_start = Instant::now();
     let active: Vec<bool> = rec
@@ -1217,4 +1260,31 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     };
     output::write_all(&args.out, &rec, &renders, &report)?;
     Ok(report)
+}
+
+/// The colour of a metal or mirror model, whose whole reflection scales with it.
+fn metal_color(model: &GroupModel) -> Option<[f64; 3]> {
+    match *model {
+        GroupModel::Mirror { color }
+        | GroupModel::Isotropic {
+            kind: Kind::Metal,
+            color,
+            ..
+        }
+        | GroupModel::Anisotropic {
+            kind: Kind::Metal,
+            color,
+            ..
+        } => Some(color),
+        _ => None,
+    }
+}
+
+fn set_metal_color(model: &mut GroupModel, new: [f64; 3]) {
+    match model {
+        GroupModel::Mirror { color }
+        | GroupModel::Isotropic { color, .. }
+        | GroupModel::Anisotropic { color, .. } => *color = new,
+        _ => {}
+    }
 }
