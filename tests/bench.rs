@@ -5,6 +5,8 @@
 #[path = "common/mod.rs"]
 mod common;
 
+use std::path::PathBuf;
+
 use common::{path_str, relume, relume_ok, workspace};
 
 #[test]
@@ -141,4 +143,144 @@ fn a_missing_truth_is_an_error_naming_the_file() {
         stderr.contains("scene.toml") && stderr.contains("no_such_group"),
         "{stderr}"
     );
+}
+
+/// Writes an edit of the bundled scene into `dir/<name>/scene.toml`: its geometry plus
+/// `extra_obj`, its panorama as the reference images, and `extra_group` appended.
+fn cornell_edit(dir: &std::path::Path, name: &str, extra_obj: &str, extra_group: &str) -> PathBuf {
+    let cornell = workspace().join("scenes/cornell");
+    let mut text = std::fs::read_to_string(cornell.join("scene.toml")).unwrap();
+    let geometry = cornell.join("geometry.obj");
+    let mut files = vec![format!("\"{}\"", path_str(&geometry))];
+    if !extra_obj.is_empty() {
+        files.push(format!("\"{extra_obj}\""));
+    }
+    text = text.replace(
+        "geometry = [\"geometry.obj\"]",
+        &format!("geometry = [{}]", files.join(", ")),
+    );
+    text = text.replace(
+        "image = \"views/",
+        &format!("image = \"{}/", path_str(&cornell.join("views"))),
+    );
+    text.push_str(extra_group);
+    let edit = dir.join(name);
+    std::fs::create_dir_all(&edit).unwrap();
+    std::fs::write(edit.join("scene.toml"), text).unwrap();
+    edit.join("scene.toml")
+}
+
+/// The edits.csv rows as (edit, column -> value).
+fn edits_csv(out: &std::path::Path) -> Vec<std::collections::BTreeMap<String, String>> {
+    let text = std::fs::read_to_string(out.join("edits.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .cloned()
+                .zip(l.split(',').map(String::from))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn edits_judge_a_model_by_the_error_it_adds_to_the_true_materials() {
+    let root = workspace();
+    let tmp = tempfile::tempdir().unwrap();
+    let truth = root.join("scenes/cornell/materials.toml");
+    // The identity edit (the panorama itself), and one that puts the vase in, whose
+    // material comes from a materials.toml beside its scene.toml.
+    let same = cornell_edit(tmp.path(), "same", "", "");
+    let vase = root.join("scenes/cornell-insert/vase.obj");
+    let insert = cornell_edit(
+        tmp.path(),
+        "insert",
+        path_str(&vase),
+        "\n[[group]]\nname = \"vase\"\nkind = \"plastic\"\nobjects = [\"vase\"]\n",
+    );
+    // Without the vase's material the edit is an input error naming the group.
+    let missing = relume(
+        tmp.path(),
+        &[
+            "bench",
+            "edits",
+            path_str(&insert),
+            "--recovered",
+            path_str(&truth),
+            "--truth",
+            path_str(&truth),
+            "--out",
+            "out-missing",
+            "--spp",
+            "4",
+        ],
+    );
+    assert_eq!(missing.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("'vase'"));
+    std::fs::copy(
+        root.join("scenes/cornell-insert/inserted-materials.toml"),
+        tmp.path().join("insert/materials.toml"),
+    )
+    .unwrap();
+
+    // A model whose red wall is 30% too bright.
+    let text = std::fs::read_to_string(&truth).unwrap();
+    let bright = text.replace("color = [0.63, 0.12, 0.1]", "color = [0.819, 0.156, 0.13]");
+    assert_ne!(bright, text, "the red wall's colour is in the truth file");
+    let wrong = tmp.path().join("bright-red.toml");
+    std::fs::write(&wrong, bright).unwrap();
+
+    let run = |recovered: &std::path::Path, out: &str| {
+        let output = relume_ok(
+            tmp.path(),
+            &[
+                "bench",
+                "edits",
+                path_str(&same),
+                path_str(&insert),
+                "--recovered",
+                path_str(recovered),
+                "--truth",
+                path_str(&truth),
+                "--out",
+                out,
+                "--spp",
+                "16",
+                "--threads",
+                "2",
+            ],
+        );
+        (
+            edits_csv(&tmp.path().join(out)),
+            String::from_utf8_lossy(&output.stdout).to_string(),
+        )
+    };
+
+    // The true materials as the "recovered" model: the same renders, a ratio of 1.
+    let (rows, _) = run(&truth, "out-truth");
+    assert_eq!(rows.len(), 2);
+    for row in &rows {
+        assert_eq!(row["rms_ratio"], "1.000000", "{row:?}");
+        assert_eq!(row["within_goal"], "true", "{row:?}");
+        assert!(
+            row["rel_rms_truth"].parse::<f64>().unwrap() > 0.0,
+            "{row:?}"
+        );
+    }
+    assert!(tmp
+        .path()
+        .join("out-truth/insert/recovered/px.exr")
+        .is_file());
+
+    // The bright wall adds error in both edits, and the table names the wall.
+    let (rows, table) = run(&wrong, "out-wrong");
+    for row in &rows {
+        let ratio: f64 = row["group_mean_ratio"].parse().unwrap();
+        assert!(ratio > 1.2, "{row:?}");
+        assert_eq!(row["within_goal"], "false", "{row:?}");
+    }
+    assert!(table.contains("most added error in wall_red"), "{table}");
 }
