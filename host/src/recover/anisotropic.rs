@@ -14,7 +14,9 @@ use relume_core::geometry::Surface;
 use relume_core::stages::isotropic::{ROUGHNESS_MAX, ROUGHNESS_MIN};
 
 use super::model::GroupModel;
-use super::refine::{pessimistic_cost, schedule, search_subset, Refined};
+use super::refine::{
+    pessimistic_cost, race, schedule, search_subset, Finalists, Refined, RACE_SPP_FACTOR,
+};
 use super::Recovery;
 use crate::error::Error;
 
@@ -72,6 +74,27 @@ pub fn anneal_anisotropic(
     anneal_model(rec, g, spp, levels, seed, (lower, upper, x0), model_at)
 }
 
+/// The isotropic model with an anisotropic one's colour, specularity and the geometric
+/// mean of its roughnesses (`None` for any other model).
+pub fn isotropic_projection(model: GroupModel) -> Option<GroupModel> {
+    match model {
+        GroupModel::Anisotropic {
+            kind,
+            color,
+            specularity,
+            roughness_u,
+            roughness_v,
+            ..
+        } => Some(GroupModel::Isotropic {
+            kind,
+            color,
+            specularity,
+            roughness: (roughness_u * roughness_v).sqrt(),
+        }),
+        _ => None,
+    }
+}
+
 /// The best isotropic roughness of group `g` for `start`'s colour and specularity, by the
 /// same search, cost and budget as [`anneal_anisotropic`]: the fair alternative for stage
 /// 4's decision. Stage 2 chose its roughness together with a colour and specularity that
@@ -109,7 +132,10 @@ pub fn refit_isotropic_roughness(
 }
 
 /// Anneals `model_at(x)` for group `g` within `(lower, upper)` from `x0`, every cost a
-/// render of a fixed subset of the group's pixels on one seed, and returns the best.
+/// render of a fixed subset of the group's pixels on one seed, then races the best few
+/// points on fresh samples as stage 2 does (`refine::race`): the lowest cost on the
+/// search's own samples is partly the point those samples favour, and both sides of stage
+/// 4's comparison should be chosen alike.
 fn anneal_model<const D: usize>(
     rec: &mut Recovery,
     g: usize,
@@ -121,28 +147,79 @@ fn anneal_model<const D: usize>(
 ) -> Result<Refined, Error> {
     let subset = search_subset(&rec.pure, g);
     let all_pixels = std::mem::replace(&mut rec.pure, subset);
+    let result = search_and_race(rec, g, spp, levels, seed, (lower, upper, x0), &model_at);
+    rec.pure = all_pixels;
+    let (model, evaluations) = result?;
+    rec.models[g] = model;
+    Ok(Refined { model, evaluations })
+}
+
+/// [`anneal_model`] on the pixels in `rec.pure`: the race's winner and the evaluations.
+fn search_and_race<const D: usize>(
+    rec: &mut Recovery,
+    g: usize,
+    spp: u32,
+    levels: u32,
+    seed: u64,
+    (lower, upper, x0): ([f64; D], [f64; D], [f64; D]),
+    model_at: &impl Fn([f64; D]) -> GroupModel,
+) -> Result<(GroupModel, u32), Error> {
+    let mut finalists = Finalists::new();
     let mut evaluations = 0u32;
     let mut cost_of = |rec: &mut Recovery, x: [f64; D]| -> Result<f64, Error> {
         rec.models[g] = model_at(x);
         evaluations += 1;
-        Ok(pessimistic_cost(rec.error_estimate(g, spp, seed)?))
+        let cost = pessimistic_cost(rec.error_estimate(g, spp, seed)?);
+        finalists.offer(cost, model_at(x));
+        Ok(cost)
     };
-    let result = (|| {
-        let cost0 = cost_of(rec, x0)?;
-        let mut annealer = Annealer::new(lower, upper, x0, cost0, schedule(levels), seed)
-            .map_err(|e| Error::core("annealing", e))?;
-        while !annealer.is_done() {
-            let x = annealer.propose();
-            let cost = cost_of(rec, x)?;
-            annealer.tell(cost);
-        }
-        Ok(annealer.best().0)
-    })();
-    rec.pure = all_pixels;
-    let best = result?;
-    rec.models[g] = model_at(best);
-    Ok(Refined {
-        model: model_at(best),
-        evaluations,
-    })
+    let cost0 = cost_of(rec, x0)?;
+    let mut annealer = Annealer::new(lower, upper, x0, cost0, schedule(levels), seed)
+        .map_err(|e| Error::core("annealing", e))?;
+    while !annealer.is_done() {
+        let x = annealer.propose();
+        let cost = cost_of(rec, x)?;
+        annealer.tell(cost);
+    }
+    let (winner, raced) = race(
+        rec,
+        g,
+        &finalists.models(),
+        RACE_SPP_FACTOR * spp,
+        seed ^ 0x2ACE_0004,
+    )?;
+    Ok((winner, evaluations + raced))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use relume_core::material::Kind;
+
+    #[test]
+    fn the_isotropic_shadow_keeps_colour_and_takes_the_mean_roughness() {
+        let aniso = GroupModel::Anisotropic {
+            kind: Kind::Metal,
+            color: [0.8, 0.7, 0.3],
+            specularity: 0.9,
+            roughness_u: 0.05,
+            roughness_v: 0.2,
+            direction: [1.0, 0.0, 0.0],
+        };
+        let Some(GroupModel::Isotropic {
+            kind,
+            color,
+            specularity,
+            roughness,
+        }) = isotropic_projection(aniso)
+        else {
+            panic!("an anisotropic model has an isotropic shadow");
+        };
+        assert_eq!(
+            (kind, color, specularity),
+            (Kind::Metal, [0.8, 0.7, 0.3], 0.9)
+        );
+        assert!((roughness - 0.1).abs() < 1e-12, "{roughness}");
+        assert_eq!(isotropic_projection(GroupModel::Unseen), None);
+    }
 }

@@ -1019,6 +1019,17 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             args.budget.anneal_levels,
         )?;
         evaluations += refined.evaluations + 2;
+        // The anisotropic fit's own isotropic shadow (roughness sqrt(u v)) is an isotropic
+        // alternative too: a fit with roughness_u close to roughness_v gains only by where
+        // its mean roughness sits, which the 1-D refit on a few pixels can miss.
+        let kept = match anisotropic::isotropic_projection(refined.model) {
+            Some(shadow) => match rec.compare_models(g, kept, shadow, 4 * verify_spp)? {
+                Some((c, _)) if c.gain > 0.0 => shadow,
+                _ => kept,
+            },
+            None => kept,
+        };
+        evaluations += 2;
         bar.inc(1);
         let comparison = rec.compare_models(g, kept, refined.model, 4 * verify_spp)?;
         let r = &mut reports[g];

@@ -76,10 +76,19 @@ pub const FINALISTS: usize = 4;
 /// is on the same samples, so the lowest is partly the point those samples happen to
 /// favour (for a sharp lobe on a few hundred pixels at 8 samples, a different lobe);
 /// measuring the finalists again on fresh samples and more of them chooses on the model.
-struct Finalists(Vec<(f64, GroupModel)>);
+pub(super) struct Finalists(Vec<(f64, GroupModel)>);
 
 impl Finalists {
-    fn offer(&mut self, cost: f64, model: GroupModel) {
+    pub(super) fn new() -> Finalists {
+        Finalists(Vec::new())
+    }
+
+    /// The finalists, lowest cost first.
+    pub(super) fn models(&self) -> Vec<GroupModel> {
+        self.0.iter().map(|(_, m)| *m).collect()
+    }
+
+    pub(super) fn offer(&mut self, cost: f64, model: GroupModel) {
         if !cost.is_finite() || self.0.iter().any(|(_, m)| *m == model) {
             return;
         }
@@ -93,7 +102,7 @@ impl Finalists {
 
 /// The finalist with the lowest search cost measured again on the search's pixels at
 /// `spp`, on `seed` (fresh samples). Returns it and the evaluations spent.
-fn race(
+pub(super) fn race(
     rec: &mut Recovery,
     g: usize,
     finalists: &[GroupModel],
@@ -191,7 +200,7 @@ fn anneal_on_pixels(
         libm::log(roughness.clamp(ROUGHNESS_MIN, ROUGHNESS_MAX)),
     ];
     let (cost0, model0) = cost_at(rec, x0, &mut color)?;
-    let mut finalists = Finalists(Vec::new());
+    let mut finalists = Finalists::new();
     finalists.offer(cost0, model0);
     let mut best_cost = cost0;
     match optimiser {
@@ -238,7 +247,7 @@ fn anneal_on_pixels(
             }
         }
     }
-    let mut finalists: Vec<GroupModel> = finalists.0.into_iter().map(|(_, m)| m).collect();
+    let mut finalists = finalists.models();
     // A metal also races as a perfect mirror with the best point's specular colour: the
     // charge for noise falls hardest on the sharpest lobes, and a mirror renders without
     // sampling its lobe, so it is judged on its fit alone (the living room's mirror lost
