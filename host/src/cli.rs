@@ -247,8 +247,9 @@ enum BenchCommand {
         /// Output folder: the renders, the CSV and the JSON.
         #[arg(long)]
         out: PathBuf,
-        /// Samples per pixel of both renders.
-        #[arg(long, default_value_t = 256)]
+        /// Samples per pixel of both renders (relume's noise is in both errors: enough
+        /// that it does not hide the recovered model's own).
+        #[arg(long, default_value_t = 1024)]
         spp: u32,
         #[arg(long, default_value_t = 1)]
         seed: u64,
