@@ -42,6 +42,11 @@ QUICK = ("-ps 1 -pt 0 -pa 0 -dc 1 -dt 0 -dr 3 -dp 4096 -st 0 -lr -16 -lw 1e-5 -b
          "-aw 0 -ab 8 -aa 0.2 -ad 256 -as 128 -ar 64 -ds 0.15 -dj 0.9 -ss 1 -pj 0.9").split()
 QUALITY = {"main": MAIN, "quick": QUICK}
 SUPERSAMPLE = 3
+# A face that takes longer than this is left out of its edit. Now and then rpict spends
+# tens of minutes on one scanline of the living room without writing an ambient value or a
+# pixel (seen on faces that the same options rendered in seconds in another run); an edit
+# with five faces is still an edit.
+FACE_TIMEOUT_S = 300
 
 CUBE = [  # name, direction, up: the faces of the references' panoramas
     ("px", (1, 0, 0), (0, 0, 1)),
@@ -77,6 +82,10 @@ EDITS = {
 
 def run(cmd, **kw):
     return subprocess.run(cmd, check=True, **kw)
+
+
+class FaceTimeout(Exception):
+    pass
 
 
 def box_faces(lo, hi):
@@ -152,8 +161,12 @@ def render_face(bindir, options, octree, ambient, position, direction, up, size,
             "-vu", *map(str, up), "-vh", "90", "-vv", "90"]
     pic = os.path.join(workdir, "face.hdr")
     with open(pic, "wb") as f:
-        run([os.path.join(bindir, "rpict"), *options, *view, "-x", str(res), "-y", str(res),
-             "-t", "30", "-af", ambient, octree], stdout=f, cwd=workdir)
+        try:
+            run([os.path.join(bindir, "rpict"), *options, *view, "-x", str(res), "-y", str(res),
+                 "-t", "30", "-af", ambient, octree], stdout=f, cwd=workdir,
+                timeout=FACE_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            raise FaceTimeout()
     raw = run([os.path.join(bindir, "pvalue"), "-o", "-df", "-h", "-H", pic],
               stdout=subprocess.PIPE, cwd=workdir).stdout
     rgb = np.frombuffer(raw, dtype=np.float32).reshape(res, res, 3)
@@ -165,7 +178,7 @@ def write_exr(path, rgb):
     OpenEXR.File(header, {"RGB": np.ascontiguousarray(rgb)}).write(path)
 
 
-def scene_toml(name, edit, reference, position, size, lights, quality):
+def scene_toml(name, edit, reference, position, size, lights, quality, faces):
     geometry = os.path.relpath(os.path.join(reference, "geometry.obj"), os.path.join(HERE, name))
     files = [geometry] + (["added_box.obj"] if edit.get("add_box") else [])
     out = [f"# {name}: an edit of the reference living room, made by ../make_edits.py.",
@@ -175,7 +188,13 @@ def scene_toml(name, edit, reference, position, size, lights, quality):
            "format = 1", f'name = "living-room-{name}"',
            "geometry = [%s]" % ", ".join(f'"{g}"' for g in files),
            "hide = [%s]" % ", ".join(f'"{h}"' for h in edit.get("hide", [])), ""]
+    left_out = [f for f, _, _ in CUBE if f not in faces]
+    if left_out:
+        out += ["# Left out: RADIANCE did not finish %s within %d s (make_edits.py)."
+                % (", ".join(left_out), FACE_TIMEOUT_S), ""]
     for face, direction, up in CUBE:
+        if face not in faces:
+            continue
         out += ["[[view]]", f'name = "{face}"', f'image = "views/{face}.exr"',
                 "position = [%s]" % ", ".join("%g" % c for c in position),
                 "direction = [%s]" % ", ".join("%.1f" % c for c in direction),
@@ -201,11 +220,18 @@ def render_views(bindir, args, work, scene, edit, out_dir):
         run([os.path.join(bindir, "oconv"), *scene], stdout=f, cwd=work)
     position = edit.get("position", ORIGINAL_POSITION)
     ambient = os.path.join(work, "scene.amb")
+    rendered = []
     for face, direction, up in CUBE:
         print(f"{name}: {face}", file=sys.stderr, flush=True)
-        rgb = render_face(bindir, QUALITY[args.quality], octree, ambient, position,
-                          direction, up, args.size, work)
+        try:
+            rgb = render_face(bindir, QUALITY[args.quality], octree, ambient, position,
+                              direction, up, args.size, work)
+        except FaceTimeout:
+            print(f"{name}: {face} left out after {FACE_TIMEOUT_S} s", file=sys.stderr)
+            continue
         write_exr(os.path.join(out_dir, "views", f"{face}.exr"), rgb)
+        rendered.append(face)
+    return rendered
 
 
 def scale_views(source_dir, out_dir, lights, original_lights):
@@ -216,13 +242,15 @@ def scale_views(source_dir, out_dir, lights, original_lights):
     if len(changed) != 1 or lit != changed or not all(original_lights[changed[0]]):
         sys.exit("scale_of needs one light on, the same one, whose radiance changes")
     ratio = np.array(lights[changed[0]]) / np.array(original_lights[changed[0]])
-    for face, _, _ in CUBE:
+    faces = [f for f, _, _ in CUBE if os.path.exists(os.path.join(source_dir, "views", f"{f}.exr"))]
+    for face in faces:
         channels = OpenEXR.File(os.path.join(source_dir, "views", f"{face}.exr")).channels()
         if "RGB" in channels:
             rgb = channels["RGB"].pixels.astype(np.float64)
         else:
             rgb = np.stack([channels[c].pixels for c in "RGB"], axis=-1).astype(np.float64)
         write_exr(os.path.join(out_dir, "views", f"{face}.exr"), (rgb * ratio).astype(np.float32))
+    return faces
 
 
 def main():
@@ -271,14 +299,14 @@ def main():
                 groups += (f'\n[[group]]\nname = "{ADDED_BOX["name"]}"\nkind = "plastic"\n'
                            f'objects = ["{ADDED_BOX["name"]}"]\n')
             if "scale_of" in edit:
-                scale_views(os.path.join(HERE, edit["scale_of"]), out_dir, lights,
-                            light_radiances(lights_text))
+                faces = scale_views(os.path.join(HERE, edit["scale_of"]), out_dir, lights,
+                                    light_radiances(lights_text))
             else:
-                render_views(bindir, args, work, scene, edit, out_dir)
+                faces = render_views(bindir, args, work, scene, edit, out_dir)
         position = edit.get("position", ORIGINAL_POSITION)
         with open(os.path.join(out_dir, "scene.toml"), "w") as f:
             f.write(scene_toml(name, edit, reference, position, args.size, lights,
-                               args.quality) + groups)
+                               args.quality, faces) + groups)
 
 
 if __name__ == "__main__":
