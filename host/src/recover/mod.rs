@@ -1092,58 +1092,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         )],
     });
 
-    // Metal colour polish: a metal's or a mirror's reflected radiance is proportional to its
-    // colour (diffuse c (1 - s), specular c s), so one ratio step at many samples sets it
-    // exactly to the group's mean. Before the diffuse refinement, which sees these groups.
-    let stage_start = Instant::now();
-    let mut evaluations = 0;
-    for (g, report) in reports.iter_mut().enumerate() {
-        let pixels = report.pure_pixels as u64;
-        let Some(color) = metal_color(&rec.models[g]) else {
-            continue;
-        };
-        if pixels == 0 {
-            continue;
-        }
-        let group_spp = (POLISH_SPP_FACTOR as u64 * spp as u64)
-            .max(METAL_POLISH_MIN_SAMPLES.div_ceil(pixels))
-            .min(u32::MAX as u64) as u32;
-        let fit = rec.evaluate(group_spp, rec.seed ^ 0x3E7A_1C01 ^ g as u64, &|h| {
-            h as usize == g
-        })?[g];
-        evaluations += 1;
-        let (polished, change) = diffuse::update(color, &fit);
-        set_metal_color(&mut rec.models[g], polished);
-        report.decisions.push(format!(
-            "metal colour polish: colour scaled by the mean ratio of a render at {group_spp} spp (at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
-            100.0 * change
-        ));
-        // The paper's mirror test once more, on the polished colour: stage 2 tested a
-        // colour whose channels carried the search's noise, and a sharp, strong lobe failed
-        // the tint limit by that noise alone (the living room's mirror, seed 8: tint above
-        // 0.1 before the polish, 0.07 after). The mirror's colour is then polished too.
-        if let Some(why) = mirror_test(&rec.models[g]) {
-            let (_, rho_s) = rec.models[g].reflectances();
-            rec.models[g] = GroupModel::Mirror { color: rho_s };
-            let fit = rec.evaluate(group_spp, rec.seed ^ 0x3E7A_1C02 ^ g as u64, &|h| {
-                h as usize == g
-            })?[g];
-            evaluations += 1;
-            rec.models[g] = GroupModel::Mirror {
-                color: diffuse::update(rho_s, &fit).0,
-            };
-            report.decisions.push(format!("metal colour polish: {why}"));
-        }
-    }
-    stages.push(StageReport {
-        stage: "metal colour polish".into(),
-        evaluations,
-        samples_per_pixel: POLISH_SPP_FACTOR * spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![format!(
-            "metal and mirror groups: one colour step at POLISH_SPP_FACTOR {POLISH_SPP_FACTOR}x the loop's samples, at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} per group"
-        )],
-    });
+    stages.push(polish_metal_colours(&mut rec, &mut reports, spp)?);
 
     // Diffuse refinement: the diffuse groups again, under the specular materials now known.
     let stage_start = Instant::now();
@@ -1287,6 +1236,67 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     };
     output::write_all(&args.out, &rec, &renders, &report)?;
     Ok(report)
+}
+
+/// After stage 4: one colour step for every metal and mirror group, then the paper's mirror
+/// test once more on the polished colour (see the comments inside).
+fn polish_metal_colours(
+    rec: &mut Recovery,
+    reports: &mut [GroupReport],
+    spp: u32,
+) -> Result<StageReport, Error> {
+    // Metal colour polish: a metal's or a mirror's reflected radiance is proportional to its
+    // colour (diffuse c (1 - s), specular c s), so one ratio step at many samples sets it
+    // exactly to the group's mean. Before the diffuse refinement, which sees these groups.
+    let stage_start = Instant::now();
+    let mut evaluations = 0;
+    for (g, report) in reports.iter_mut().enumerate() {
+        let pixels = report.pure_pixels as u64;
+        let Some(color) = metal_color(&rec.models[g]) else {
+            continue;
+        };
+        if pixels == 0 {
+            continue;
+        }
+        let group_spp = (POLISH_SPP_FACTOR as u64 * spp as u64)
+            .max(METAL_POLISH_MIN_SAMPLES.div_ceil(pixels))
+            .min(u32::MAX as u64) as u32;
+        let fit = rec.evaluate(group_spp, rec.seed ^ 0x3E7A_1C01 ^ g as u64, &|h| {
+            h as usize == g
+        })?[g];
+        evaluations += 1;
+        let (polished, change) = diffuse::update(color, &fit);
+        set_metal_color(&mut rec.models[g], polished);
+        report.decisions.push(format!(
+            "metal colour polish: colour scaled by the mean ratio of a render at {group_spp} spp (at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
+            100.0 * change
+        ));
+        // The paper's mirror test once more, on the polished colour: stage 2 tested a
+        // colour whose channels carried the search's noise, and a sharp, strong lobe failed
+        // the tint limit by that noise alone (the living room's mirror, seed 8: tint above
+        // 0.1 before the polish, 0.07 after). The mirror's colour is then polished too.
+        if let Some(why) = mirror_test(&rec.models[g]) {
+            let (_, rho_s) = rec.models[g].reflectances();
+            rec.models[g] = GroupModel::Mirror { color: rho_s };
+            let fit = rec.evaluate(group_spp, rec.seed ^ 0x3E7A_1C02 ^ g as u64, &|h| {
+                h as usize == g
+            })?[g];
+            evaluations += 1;
+            rec.models[g] = GroupModel::Mirror {
+                color: diffuse::update(rho_s, &fit).0,
+            };
+            report.decisions.push(format!("metal colour polish: {why}"));
+        }
+    }
+    Ok(StageReport {
+        stage: "metal colour polish".into(),
+        evaluations,
+        samples_per_pixel: POLISH_SPP_FACTOR * spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "metal and mirror groups: one colour step at POLISH_SPP_FACTOR {POLISH_SPP_FACTOR}x the loop's samples, at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} per group"
+        )],
+    })
 }
 
 /// The colour of a metal or mirror model, whose whole reflection scales with it.
