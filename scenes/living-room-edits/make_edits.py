@@ -222,6 +222,10 @@ def render_views(bindir, args, work, scene, edit, out_dir):
     ambient = os.path.join(work, "scene.amb")
     rendered = []
     for face, direction, up in CUBE:
+        if face not in args.faces:
+            if os.path.exists(os.path.join(out_dir, "views", f"{face}.exr")):
+                rendered.append(face)
+            continue
         print(f"{name}: {face}", file=sys.stderr, flush=True)
         try:
             rgb = render_face(bindir, QUALITY[args.quality], octree, ambient, position,
@@ -259,6 +263,8 @@ def main():
     ap.add_argument("--only", nargs="*", default=list(EDITS))
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--quality", choices=list(QUALITY), default="quick")
+    ap.add_argument("--faces", nargs="*", default=[f for f, _, _ in CUBE],
+                    help="render only these faces, keeping the edit's other rendered ones")
     args = ap.parse_args()
     import pyradiance
     bindir = os.path.join(os.path.dirname(pyradiance.__file__), "bin")
