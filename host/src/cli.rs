@@ -249,7 +249,7 @@ enum BenchCommand {
         out: PathBuf,
         /// Samples per pixel of both renders (relume's noise is in both errors: enough
         /// that it does not hide the recovered model's own).
-        #[arg(long, default_value_t = 1024)]
+        #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
         spp: u32,
         #[arg(long, default_value_t = 1)]
         seed: u64,
@@ -451,9 +451,6 @@ fn run(command: Command) -> Result<(), Error> {
             seed,
             threads,
         }) => {
-            if spp == 0 {
-                return Err(Error::Usage("--spp must be at least 1".into()));
-            }
             let args = bench::edits::EditsArgs {
                 edits,
                 recovered,

@@ -122,18 +122,19 @@ def box_rad(box, material):
     return "\n".join(out)
 
 
+def block_object(block):
+    """The OBJ object of a geometry.rad block headed `<modifier> polygon <object>.<face>`."""
+    header = block.strip().split("\n", 1)[0].split()
+    return header[2].rsplit(".", 1)[0] if len(header) == 3 else None
+
+
 def edited_geometry(text, hide):
-    """geometry.rad without the polygons of hidden objects (`<object>.<face>` names)."""
-    blocks = text.split("\n\n")
-    keep = [b for b in blocks if not any(
-        line.split()[2].rsplit(".", 1)[0] in hide
-        for line in b.strip().splitlines()[:1] if len(line.split()) == 3)]
-    return "\n\n".join(keep)
+    """geometry.rad without the polygons of hidden objects."""
+    return "\n\n".join(b for b in text.split("\n\n") if block_object(b) not in hide)
 
 
 def edited_lights(text, radiances):
     """lights.rad with new radiances for the named light objects."""
-    out = []
     lines = text.splitlines()
     for i, line in enumerate(lines):
         parts = line.split()
@@ -141,7 +142,6 @@ def edited_lights(text, radiances):
             name = parts[2][2:]  # l_<object>
             if name in radiances:
                 lines[i + 3] = "3 %g %g %g" % radiances[name]
-        out.append(lines[i])
     return "\n".join(lines) + "\n"
 
 

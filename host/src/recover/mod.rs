@@ -1261,11 +1261,8 @@ fn polish_metal_colours(
         let group_spp = (POLISH_SPP_FACTOR as u64 * spp as u64)
             .max(METAL_POLISH_MIN_SAMPLES.div_ceil(pixels))
             .min(u32::MAX as u64) as u32;
-        let fit = rec.evaluate(group_spp, rec.seed ^ 0x3E7A_1C01 ^ g as u64, &|h| {
-            h as usize == g
-        })?[g];
+        let (polished, change) = colour_step(rec, g, color, group_spp, 0x3E7A_1C01)?;
         evaluations += 1;
-        let (polished, change) = diffuse::update(color, &fit);
         set_metal_color(&mut rec.models[g], polished);
         report.decisions.push(format!(
             "metal colour polish: colour scaled by the mean ratio of a render at {group_spp} spp (at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
@@ -1278,13 +1275,9 @@ fn polish_metal_colours(
         if let Some(why) = mirror_test(&rec.models[g]) {
             let (_, rho_s) = rec.models[g].reflectances();
             rec.models[g] = GroupModel::Mirror { color: rho_s };
-            let fit = rec.evaluate(group_spp, rec.seed ^ 0x3E7A_1C02 ^ g as u64, &|h| {
-                h as usize == g
-            })?[g];
+            let (polished, _) = colour_step(rec, g, rho_s, group_spp, 0x3E7A_1C02)?;
             evaluations += 1;
-            rec.models[g] = GroupModel::Mirror {
-                color: diffuse::update(rho_s, &fit).0,
-            };
+            rec.models[g] = GroupModel::Mirror { color: polished };
             report.decisions.push(format!("metal colour polish: {why}"));
         }
     }
@@ -1297,6 +1290,20 @@ fn polish_metal_colours(
             "metal and mirror groups: one colour step at POLISH_SPP_FACTOR {POLISH_SPP_FACTOR}x the loop's samples, at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} per group"
         )],
     })
+}
+
+/// One ratio step of group `g`'s `color` from a render of its pixels alone at `spp`, on
+/// the recovery's seed with `key` and the group: the new colour and its largest relative
+/// change.
+fn colour_step(
+    rec: &mut Recovery,
+    g: usize,
+    color: [f64; 3],
+    spp: u32,
+    key: u64,
+) -> Result<([f64; 3], f64), Error> {
+    let fit = rec.evaluate(spp, rec.seed ^ key ^ g as u64, &|h| h as usize == g)?[g];
+    Ok(diffuse::update(color, &fit))
 }
 
 /// The colour of a metal or mirror model, whose whole reflection scales with it.
