@@ -52,6 +52,19 @@ fn cornell_recovery_is_deterministic_and_matches_its_golden() {
     for file in ["materials.rad", "report.json"] {
         assert!(tmp.path().join("t1").join(file).is_file(), "{file} missing");
     }
+    // Beside the bytes, what they mean: every group in its true class, the anisotropic
+    // plate included (its lobe found on stage 4's cache), its direction near the truth's.
+    let rows = relume::compare::materials_report(
+        &root.join("scenes/cornell/materials.toml"),
+        &tmp.path().join("t1/materials.toml"),
+    )
+    .unwrap();
+    for row in &rows {
+        println!("{row:?}");
+        assert!(row.class_ok, "{}: wrong class", row.group);
+    }
+    let plate = rows.iter().find(|r| r.group == "plate").unwrap();
+    assert!(plate.direction_err_deg.unwrap() < 20.0, "{plate:?}");
 }
 
 /// An all-diffuse room must come out all diffuse, with every reflectance within 1% of

@@ -531,6 +531,29 @@ const POLISH_SPP_FACTOR: u32 = 8;
 /// tailed noise of the light paths it reflects, and the living room's 192-pixel mirror
 /// took 10-15% colour errors from the search's renders without it.
 const METAL_POLISH_MIN_SAMPLES: u64 = 1 << 16;
+/// A group's transport cache holds at least this many pixel samples: a small group's
+/// lobe is seen in a few pixels, and a cache of the effort level's samples per pixel
+/// alone (16 at fast) cannot tell its specularity and shape from noise (the living
+/// room's 20-pixel statue: specularity 0.85 and roughness 0.15 against a true 0.9 and
+/// 0.1; 0.92 and 0.10 at this many samples).
+const CACHE_MIN_SAMPLES: u64 = 1 << 16;
+
+/// The cache settings for a group of `pixels` pure pixels: the effort level's samples
+/// per pixel, more for a small group (see [`CACHE_MIN_SAMPLES`]).
+fn group_cache_settings(base: &RenderSettings, pixels: u32) -> RenderSettings {
+    RenderSettings {
+        spp: min_samples_spp(base.spp, pixels, CACHE_MIN_SAMPLES),
+        ..*base
+    }
+}
+
+/// Samples per pixel for a group of `pixels`: `spp`, or more so that the group gets at
+/// least `min_samples` pixel samples.
+pub(super) fn min_samples_spp(spp: u32, pixels: u32, min_samples: u64) -> u32 {
+    (spp as u64)
+        .max(min_samples.div_ceil(pixels.max(1) as u64))
+        .min(u32::MAX as u64) as u32
+}
 
 /// Colour steps at most when a diffuse alternative is re-fitted in stage 2.
 const REFIT_MAX_STEPS: u32 = 6;
@@ -723,7 +746,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 &rec.pure,
                 &rec.real,
                 g as u16,
-                &cache_settings,
+                &group_cache_settings(&cache_settings, reports[g].pure_pixels),
             )
         };
         let diffuse_fit = isotropic::solve_diffuse(&cache::linear_sums(
@@ -997,39 +1020,65 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let bar = progress_bar(stage4.len() as u64, "4 anisotropic");
     for g in stage4 {
         let stage2 = rec.models[g];
-        let isotropic = anisotropic::refit_isotropic_roughness(
-            &mut rec,
-            g,
-            stage2,
-            verify_spp,
-            args.budget.anneal_levels,
-        )?;
-        evaluations += isotropic.evaluations;
-        // The refitted roughness replaces stage 2's only if a render shows it better.
-        let kept = match rec.compare_models(g, stage2, isotropic.model, 4 * verify_spp)? {
-            Some((c, _)) if c.gain > 0.0 => isotropic.model,
-            _ => stage2,
+        let (GroupModel::Isotropic { kind, .. }, Some(basis)) =
+            (stage2, anisotropic::tangent_basis(&rec, g))
+        else {
+            bar.inc(1);
+            continue;
         };
-        evaluations += 2;
+        rec.apply_models();
+        let cache = {
+            let scene = rec.owned.build()?;
+            cache::build(
+                &rec.pool,
+                &scene,
+                &rec.views,
+                &rec.pure,
+                &rec.real,
+                g as u16,
+                &group_cache_settings(&cache_settings, reports[g].pure_pixels),
+            )
+        };
+        // The anisotropic side as stage 2 found the isotropic one: the cache proposes
+        // (reflectances in closed form, the lobe by grid and simplex), annealing on
+        // renders refines, a race on fresh samples chooses.
+        let (proposal, n) = anisotropic::propose_from_cache(&rec.pool, &cache, kind, basis)?;
         let refined = anisotropic::anneal_anisotropic(
             &mut rec,
             g,
-            kept,
-            verify_spp,
-            args.budget.anneal_levels,
+            kind,
+            &proposal,
+            basis,
+            (verify_spp, args.budget.anneal_levels),
         )?;
-        evaluations += refined.evaluations + 2;
-        // The anisotropic fit's own isotropic shadow (roughness sqrt(u v)) is an isotropic
-        // alternative too: a fit with roughness_u close to roughness_v gains only by where
-        // its mean roughness sits, which the 1-D refit on a few pixels can miss.
-        let kept = match anisotropic::isotropic_projection(refined.model) {
-            Some(shadow) => match rec.compare_models(g, kept, shadow, 4 * verify_spp)? {
-                Some((c, _)) if c.gain > 0.0 => shadow,
-                _ => kept,
-            },
-            None => kept,
+        evaluations += n + refined.evaluations;
+        // The isotropic side: stage 2's fit, unless the isotropic fit on this cache (the
+        // scene's other materials are better known now) or the anisotropic fit's own
+        // shadow (roughness sqrt(u v)) measures better; each replaces it only if a render
+        // shows it better.
+        let (iso, alpha, n) = fit_ward(&rec.pool, &cache, kind);
+        evaluations += n;
+        let on_cache = GroupModel::Isotropic {
+            kind,
+            color: iso.color,
+            specularity: iso.specularity,
+            roughness: alpha,
         };
-        evaluations += 2;
+        let mut kept = stage2;
+        for alternative in [
+            Some(on_cache),
+            anisotropic::isotropic_projection(refined.model),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            if let Some((c, _)) = rec.compare_models(g, kept, alternative, 4 * verify_spp)? {
+                if c.gain > 0.0 {
+                    kept = alternative;
+                }
+            }
+            evaluations += 2;
+        }
         bar.inc(1);
         let comparison = rec.compare_models(g, kept, refined.model, 4 * verify_spp)?;
         let r = &mut reports[g];
@@ -1087,7 +1136,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         samples_per_pixel: verify_spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![format!(
-            "untextured groups with an isotropic fit and more than DIFFUSE_THRESHOLD {} of error left: annealing over (log roughness_u, log roughness_v, direction angle), colour and specularity kept from stage 2",
+            "untextured groups with an isotropic fit and more than DIFFUSE_THRESHOLD {} of error left: each fitted on a transport cache of at least CACHE_MIN_SAMPLES {CACHE_MIN_SAMPLES} samples: colour and specularity in closed form, the lobe (log roughness_u, log roughness_v, direction angle) by a grid and Nelder-Mead, then annealing on renders; decided against the best isotropic fit",
             fit::DIFFUSE_THRESHOLD
         )],
     });
@@ -1251,16 +1300,17 @@ fn polish_metal_colours(
     let stage_start = Instant::now();
     let mut evaluations = 0;
     for (g, report) in reports.iter_mut().enumerate() {
-        let pixels = report.pure_pixels as u64;
         let Some(color) = metal_color(&rec.models[g]) else {
             continue;
         };
-        if pixels == 0 {
+        if report.pure_pixels == 0 {
             continue;
         }
-        let group_spp = (POLISH_SPP_FACTOR as u64 * spp as u64)
-            .max(METAL_POLISH_MIN_SAMPLES.div_ceil(pixels))
-            .min(u32::MAX as u64) as u32;
+        let group_spp = min_samples_spp(
+            POLISH_SPP_FACTOR.saturating_mul(spp),
+            report.pure_pixels,
+            METAL_POLISH_MIN_SAMPLES,
+        );
         let (polished, change) = colour_step(rec, g, color, group_spp, 0x3E7A_1C01)?;
         evaluations += 1;
         set_metal_color(&mut rec.models[g], polished);

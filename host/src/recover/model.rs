@@ -20,8 +20,8 @@ pub enum GroupModel {
         specularity: f64,
         roughness: f64,
     },
-    /// Stage 4: the isotropic model's colour and specularity with a lobe of roughness
-    /// `roughness_u` along `direction` (in the surface plane) and `roughness_v` across.
+    /// Stage 4: a Ward lobe of roughness `roughness_u` along `direction` (projected on
+    /// the surface) and `roughness_v` across.
     Anisotropic {
         kind: Kind,
         color: [f64; 3],
