@@ -361,7 +361,7 @@ impl Recovery {
     /// on all the group's pure pixels, both with bias-only errors (see
     /// [`pixels::evaluate_cross`]) on the decisions' own seed, paired pixel by pixel
     /// ([`fit::ModelComparison`]), from `spp` samples per pixel up while the comparison is
-    /// undecided ([`fit::DECISION_SPP_GROWTH`]). A subtracted variance
+    /// promising or unresolved ([`fit::DECISION_SPP_GROWTH`]). A subtracted variance
     /// estimate would favour the model whose sampling is noisier (any Ward lobe, however
     /// weak), not the better model. Leaves the group's model as it was. Returns the last
     /// comparison and its samples per pixel; `None` for a group without lit pixels.
@@ -381,8 +381,10 @@ impl Recovery {
                 return Ok(None);
             };
             let next_spp = spp.saturating_mul(fit::DECISION_SPP_GROWTH);
-            let affordable = pixels.len() as u64 * next_spp as u64 <= fit::DECISION_MAX_SAMPLES;
-            if !c.is_undecided() || round == fit::DECISION_MAX_ROUNDS || !affordable {
+            let next_samples = pixels.len() as u64 * next_spp as u64;
+            let again = (c.is_promising() && next_samples <= fit::DECISION_MAX_SAMPLES)
+                || (c.is_unresolved() && next_samples <= fit::UNRESOLVED_MAX_SAMPLES);
+            if !again || round == fit::DECISION_MAX_ROUNDS {
                 return Ok(Some((c, spp)));
             }
             spp = next_spp;
