@@ -392,6 +392,40 @@ impl<'a> Bvh<'a> {
         })
     }
 
+    /// How many nodes the hierarchy uses: with [`Bvh::from_built`], the buffers can be
+    /// viewed again without building.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// A view of buffers that [`Bvh::build`] filled for these `triangles`, using
+    /// `node_count` nodes ([`Bvh::node_count`]): recovery renders the same geometry many
+    /// times under new materials, and building costs as much as a few hundred thousand
+    /// rays. Errors if the buffers are too short for the counts. Traversal checks every
+    /// index, so buffers that were not built for these triangles give wrong hits, never a
+    /// panic.
+    pub fn from_built(
+        triangles: &[Triangle],
+        nodes: &'a [BvhNode],
+        packed: &'a [PackedTriangle],
+        node_count: usize,
+    ) -> Result<Bvh<'a>, Error> {
+        let n = triangles.len();
+        let (Some(nodes), Some(packed)) = (nodes.get(..node_count), packed.get(..n)) else {
+            return Err(Error::BufferTooSmall {
+                what: "built bvh",
+                needed: node_count.max(n),
+                got: nodes.len().min(packed.len()),
+            });
+        };
+        if (n == 0) != (node_count == 0) {
+            return Err(Error::InvalidValue {
+                what: "built bvh: node count does not match the triangles",
+            });
+        }
+        Ok(Bvh { nodes, packed })
+    }
+
     /// The closest hit with `t` in `(0, t_max)`.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         let r = RayData::new(ray);

@@ -32,7 +32,7 @@ pub enum Surface {
 
 /// One triangle of the scene, with its texture coordinates (OBJ `vt`, zero where absent).
 /// The front side is the counter-clockwise one: its normal is `(v1 - v0) x (v2 - v0)`.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Triangle {
     pub v: [Vec3; 3],
     pub uv: [Vec2; 3],

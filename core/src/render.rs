@@ -283,7 +283,7 @@ mod tests {
     use crate::geometry::Triangle;
     use crate::material::{Material, SurfaceMaterial, Textures};
     use crate::math::Vec2;
-    use crate::scene::{LightTriangle, SceneStorage};
+    use crate::scene::{BuiltCounts, BuiltStorage, LightTriangle, SceneStorage};
     use std::vec;
     use std::vec::Vec;
 
@@ -418,5 +418,101 @@ mod tests {
                 "albedo {albedo}: mean {mean:.5} +- {se:.5}, expected {expected:.5} (f = {f:.4})"
             );
         }
+    }
+
+    /// A scene given new materials over its built storage renders exactly as one built
+    /// afresh with them (recovery builds the BVH once and swaps materials).
+    #[test]
+    fn new_materials_over_built_storage_render_as_a_fresh_build() {
+        let triangles = furnace_sphere(16, 32, 25.0);
+        let diffuse = |a: f32| {
+            [SurfaceMaterial {
+                material: Material::Diffuse {
+                    rho_d: Vec3::splat(a),
+                },
+                diffuse_map: None,
+            }]
+        };
+        let (first, second) = (diffuse(0.3), diffuse(0.8));
+        let radiance = [Vec3::splat(2.0)];
+        let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
+        let storage = || {
+            (
+                vec![BvhNode::default(); n_nodes],
+                vec![PackedTriangle::default(); n_packed],
+                vec![LightTriangle::default(); triangles.len()],
+            )
+        };
+        let build = |materials: &[SurfaceMaterial],
+                     (nodes, packed, lights): &mut (
+            Vec<BvhNode>,
+            Vec<PackedTriangle>,
+            Vec<LightTriangle>,
+        )| {
+            Scene::build(
+                &triangles,
+                materials,
+                &radiance,
+                Textures::default(),
+                SceneStorage {
+                    bvh: BvhBuffers { nodes, packed },
+                    light_table: lights,
+                },
+            )
+            .unwrap()
+            .built_counts()
+        };
+        let settings = RenderSettings {
+            seed: 5,
+            ..RenderSettings::default()
+        };
+        let mut fresh_storage = storage();
+        build(&second, &mut fresh_storage);
+        let mut reused_storage = storage();
+        let counts = build(&first, &mut reused_storage);
+        fn over<'a>(
+            triangles: &'a [Triangle],
+            materials: &'a [SurfaceMaterial],
+            radiance: &'a [Vec3],
+            s: &'a (Vec<BvhNode>, Vec<PackedTriangle>, Vec<LightTriangle>),
+            counts: BuiltCounts,
+        ) -> Result<Scene<'a>, crate::error::Error> {
+            Scene::from_built(
+                triangles,
+                materials,
+                radiance,
+                Textures::default(),
+                BuiltStorage {
+                    nodes: &s.0,
+                    packed: &s.1,
+                    light_table: &s.2,
+                    counts,
+                },
+            )
+        }
+        let fresh = over(&triangles, &second, &radiance, &fresh_storage, counts).unwrap();
+        let reused = over(&triangles, &second, &radiance, &reused_storage, counts).unwrap();
+        assert_eq!(
+            mean_radiance_from_centre(&fresh, 2000, &settings),
+            mean_radiance_from_centre(&reused, 2000, &settings)
+        );
+        // Counts beyond the buffers are an error, not a panic.
+        let too_many = BuiltStorage {
+            nodes: &reused_storage.0,
+            packed: &reused_storage.1,
+            light_table: &reused_storage.2,
+            counts: BuiltCounts {
+                nodes: n_nodes + 1,
+                lights: counts.lights,
+            },
+        };
+        assert!(Scene::from_built(
+            &triangles,
+            &second,
+            &radiance,
+            Textures::default(),
+            too_many
+        )
+        .is_err());
     }
 }

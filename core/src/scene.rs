@@ -1,7 +1,7 @@
 //! The assembled scene: triangles, their BVH, one material per group, light sources and
 //! textures, all over storage lent by the caller and checked against [`crate::config`].
 
-use crate::bvh::{Bvh, BvhBuffers, Hit};
+use crate::bvh::{Bvh, BvhBuffers, BvhNode, Hit, PackedTriangle};
 use crate::config;
 use crate::error::{check_capacity, Error};
 use crate::geometry::{Ray, Surface, Triangle};
@@ -49,6 +49,123 @@ pub struct Scene<'a> {
     light_table: &'a [LightTriangle],
 }
 
+/// What [`Scene::build`] filled in its storage: with [`Scene::from_built`], the same
+/// geometry and lights can be given new materials without building again.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BuiltCounts {
+    /// BVH nodes in use.
+    pub nodes: usize,
+    /// Entries of the light table in use.
+    pub lights: usize,
+}
+
+/// Storage that [`Scene::build`] filled, read-only.
+pub struct BuiltStorage<'a> {
+    pub nodes: &'a [BvhNode],
+    pub packed: &'a [PackedTriangle],
+    pub light_table: &'a [LightTriangle],
+    pub counts: BuiltCounts,
+}
+
+/// Checks the tables against each other and the capacities.
+fn check_tables(
+    triangles: &[Triangle],
+    materials: &[SurfaceMaterial],
+    light_radiance: &[Vec3],
+    textures: &Textures,
+) -> Result<(), Error> {
+    check_capacity("MAX_TRIANGLES", config::MAX_TRIANGLES, triangles.len())?;
+    check_capacity("MAX_GROUPS", config::MAX_GROUPS, materials.len())?;
+    check_capacity("MAX_LIGHTS", config::MAX_LIGHTS, light_radiance.len())?;
+    for m in materials {
+        if let Some(id) = m.diffuse_map {
+            if id.0 as usize >= textures.len() {
+                return Err(Error::BadIndex {
+                    what: "texture",
+                    index: id.0 as usize,
+                    len: textures.len(),
+                });
+            }
+        }
+    }
+    for r in light_radiance {
+        if !math::is_finite(*r) || r.min_element() < 0.0 {
+            return Err(Error::InvalidValue {
+                what: "light radiance must be finite and >= 0",
+            });
+        }
+    }
+    for t in triangles {
+        match t.surface {
+            Surface::Group(g) if g as usize >= materials.len() => {
+                return Err(Error::BadIndex {
+                    what: "group",
+                    index: g as usize,
+                    len: materials.len(),
+                });
+            }
+            Surface::Light(l) if l as usize >= light_radiance.len() => {
+                return Err(Error::BadIndex {
+                    what: "light",
+                    index: l as usize,
+                    len: light_radiance.len(),
+                });
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Fills the light-sampling table (emitting triangles picked in proportion to area times
+/// luminance; switched-off lights are never picked). Returns the entries used.
+fn fill_light_table(
+    triangles: &[Triangle],
+    light_radiance: &[Vec3],
+    table: &mut [LightTriangle],
+) -> Result<usize, Error> {
+    let mut total_power = 0.0f64;
+    let mut n_emitting = 0usize;
+    for (i, t) in triangles.iter().enumerate() {
+        let Surface::Light(l) = t.surface else {
+            continue;
+        };
+        let radiance = light_radiance
+            .get(l as usize)
+            .copied()
+            .unwrap_or(Vec3::ZERO);
+        let power = t.area() * math::luminance(radiance);
+        if power > 0.0 {
+            let Some(slot) = table.get_mut(n_emitting) else {
+                return Err(Error::BufferTooSmall {
+                    what: "light_table",
+                    needed: n_emitting + 1,
+                    got: table.len(),
+                });
+            };
+            *slot = LightTriangle {
+                triangle: i as u32,
+                cdf: power,
+                pick_pdf: 0.0,
+            };
+            n_emitting += 1;
+            total_power += power as f64;
+        }
+    }
+    let table = &mut table[..n_emitting];
+    let mut running = 0.0f64;
+    for entry in table.iter_mut() {
+        let power = entry.cdf as f64;
+        running += power;
+        entry.pick_pdf = (power / total_power) as f32;
+        entry.cdf = (running / total_power) as f32;
+    }
+    if let Some(last) = table.last_mut() {
+        last.cdf = 1.0;
+    }
+    Ok(n_emitting)
+}
+
 impl<'a> Scene<'a> {
     /// Checks the tables against each other and the capacities, builds the BVH and the
     /// light-sampling table (emitting triangles picked in proportion to area times
@@ -60,79 +177,47 @@ impl<'a> Scene<'a> {
         textures: Textures<'a>,
         storage: SceneStorage<'a>,
     ) -> Result<Scene<'a>, Error> {
-        check_capacity("MAX_TRIANGLES", config::MAX_TRIANGLES, triangles.len())?;
-        check_capacity("MAX_GROUPS", config::MAX_GROUPS, materials.len())?;
-        check_capacity("MAX_LIGHTS", config::MAX_LIGHTS, light_radiance.len())?;
-        for m in materials {
-            if let Some(id) = m.diffuse_map {
-                if id.0 as usize >= textures.len() {
-                    return Err(Error::BadIndex {
-                        what: "texture",
-                        index: id.0 as usize,
-                        len: textures.len(),
-                    });
-                }
-            }
-        }
-        for r in light_radiance {
-            if !math::is_finite(*r) || r.min_element() < 0.0 {
-                return Err(Error::InvalidValue {
-                    what: "light radiance must be finite and >= 0",
-                });
-            }
-        }
-        let mut total_power = 0.0f64;
-        let mut n_emitting = 0usize;
-        for (i, t) in triangles.iter().enumerate() {
-            match t.surface {
-                Surface::Group(g) if g as usize >= materials.len() => {
-                    return Err(Error::BadIndex {
-                        what: "group",
-                        index: g as usize,
-                        len: materials.len(),
-                    });
-                }
-                Surface::Light(l) => {
-                    let Some(radiance) = light_radiance.get(l as usize) else {
-                        return Err(Error::BadIndex {
-                            what: "light",
-                            index: l as usize,
-                            len: light_radiance.len(),
-                        });
-                    };
-                    let power = t.area() * math::luminance(*radiance);
-                    if power > 0.0 {
-                        let Some(slot) = storage.light_table.get_mut(n_emitting) else {
-                            return Err(Error::BufferTooSmall {
-                                what: "light_table",
-                                needed: n_emitting + 1,
-                                got: storage.light_table.len(),
-                            });
-                        };
-                        *slot = LightTriangle {
-                            triangle: i as u32,
-                            cdf: power,
-                            pick_pdf: 0.0,
-                        };
-                        n_emitting += 1;
-                        total_power += power as f64;
-                    }
-                }
-                Surface::Group(_) => {}
-            }
-        }
-        let light_table = &mut storage.light_table[..n_emitting];
-        let mut running = 0.0f64;
-        for entry in light_table.iter_mut() {
-            let power = entry.cdf as f64;
-            running += power;
-            entry.pick_pdf = (power / total_power) as f32;
-            entry.cdf = (running / total_power) as f32;
-        }
-        if let Some(last) = light_table.last_mut() {
-            last.cdf = 1.0;
-        }
+        check_tables(triangles, materials, light_radiance, &textures)?;
+        let n_emitting = fill_light_table(triangles, light_radiance, storage.light_table)?;
+        let light_table: &'a [LightTriangle] = storage.light_table;
         let bvh = Bvh::build(triangles, storage.bvh)?;
+        Ok(Scene {
+            triangles,
+            materials,
+            light_radiance,
+            textures,
+            bvh,
+            light_table: &light_table[..n_emitting],
+        })
+    }
+
+    /// What this scene's build filled in its storage, for [`Scene::from_built`].
+    pub fn built_counts(&self) -> BuiltCounts {
+        BuiltCounts {
+            nodes: self.bvh.node_count(),
+            lights: self.light_table.len(),
+        }
+    }
+
+    /// The scene over storage that [`Scene::build`] filled for the same `triangles` and
+    /// `light_radiance`, with (new) `materials` and `textures`: the tables are checked
+    /// again, the BVH and the light table are not built again (see [`Bvh::from_built`]).
+    pub fn from_built(
+        triangles: &'a [Triangle],
+        materials: &'a [SurfaceMaterial],
+        light_radiance: &'a [Vec3],
+        textures: Textures<'a>,
+        built: BuiltStorage<'a>,
+    ) -> Result<Scene<'a>, Error> {
+        check_tables(triangles, materials, light_radiance, &textures)?;
+        let Some(light_table) = built.light_table.get(..built.counts.lights) else {
+            return Err(Error::BufferTooSmall {
+                what: "built light_table",
+                needed: built.counts.lights,
+                got: built.light_table.len(),
+            });
+        };
+        let bvh = Bvh::from_built(triangles, built.nodes, built.packed, built.counts.nodes)?;
         Ok(Scene {
             triangles,
             materials,

@@ -11,7 +11,7 @@ use relume_core::geometry::{Surface, Triangle, View};
 use relume_core::material::{
     Kind, Material, Params, SurfaceMaterial, TextureId, TextureInfo, Textures,
 };
-use relume_core::scene::{LightTriangle, Scene, SceneStorage};
+use relume_core::scene::{BuiltCounts, BuiltStorage, LightTriangle, Scene, SceneStorage};
 
 use crate::error::Error;
 use crate::images;
@@ -44,6 +44,15 @@ pub struct OwnedScene {
     bvh_nodes: Vec<BvhNode>,
     bvh_packed: Vec<PackedTriangle>,
     light_table: Vec<LightTriangle>,
+    /// The geometry and lights the buffers were last built for.
+    built: Option<BuiltFor>,
+}
+
+/// What [`OwnedScene::build`] last built its BVH and light table for.
+struct BuiltFor {
+    triangles: Vec<Triangle>,
+    light_radiance: Vec<Vec3>,
+    counts: BuiltCounts,
 }
 
 /// Reads scene.toml and its OBJ files and checks that objects, groups and lights agree.
@@ -185,6 +194,7 @@ pub fn assemble(
         bvh_nodes: vec![BvhNode::default(); n_nodes],
         bvh_packed: vec![PackedTriangle::default(); n_packed],
         light_table: vec![LightTriangle::default(); n_light_tris],
+        built: None,
     })
 }
 
@@ -321,22 +331,59 @@ fn resolve_materials(
 }
 
 impl OwnedScene {
-    /// Lends the buffers to the core and builds the scene (BVH, light table).
+    /// Lends the buffers to the core and builds the scene (BVH, light table). Recovery
+    /// builds the scene for every evaluation with new materials only: the BVH and the
+    /// light table are built again only when the triangles or the lights changed since
+    /// the last build (the same tables either way, so the same bytes out).
     pub fn build(&mut self) -> Result<Scene<'_>, Error> {
         let path = self.desc.path.display().to_string();
+        let unchanged = self.built.as_ref().is_some_and(|b| {
+            b.triangles == self.triangles && b.light_radiance == self.light_radiance
+        });
+        if !unchanged {
+            self.built = None;
+            let textures = Textures::new(&self.texture_infos, &self.texels)
+                .map_err(|e| Error::core(format!("{path}: textures"), e))?;
+            let counts = Scene::build(
+                &self.triangles,
+                &self.materials,
+                &self.light_radiance,
+                textures,
+                SceneStorage {
+                    bvh: BvhBuffers {
+                        nodes: &mut self.bvh_nodes,
+                        packed: &mut self.bvh_packed,
+                    },
+                    light_table: &mut self.light_table,
+                },
+            )
+            .map_err(|e| Error::core(format!("{path}: building the scene"), e))?
+            .built_counts();
+            self.built = Some(BuiltFor {
+                triangles: self.triangles.clone(),
+                light_radiance: self.light_radiance.clone(),
+                counts,
+            });
+        }
+        let counts = self.built.as_ref().map_or(
+            BuiltCounts {
+                nodes: 0,
+                lights: 0,
+            },
+            |b| b.counts,
+        );
         let textures = Textures::new(&self.texture_infos, &self.texels)
             .map_err(|e| Error::core(format!("{path}: textures"), e))?;
-        Scene::build(
+        Scene::from_built(
             &self.triangles,
             &self.materials,
             &self.light_radiance,
             textures,
-            SceneStorage {
-                bvh: BvhBuffers {
-                    nodes: &mut self.bvh_nodes,
-                    packed: &mut self.bvh_packed,
-                },
-                light_table: &mut self.light_table,
+            BuiltStorage {
+                nodes: &self.bvh_nodes,
+                packed: &self.bvh_packed,
+                light_table: &self.light_table,
+                counts,
             },
         )
         .map_err(|e| Error::core(format!("{path}: building the scene"), e))
