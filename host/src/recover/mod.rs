@@ -1108,7 +1108,13 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .flatten()
         {
             if let Some((c, _)) = rec.compare_models(g, kept, alternative, 4 * verify_spp)? {
-                if c.gain > 0.0 {
+                // Between two isotropic fits the better one; a group stage 2 left diffuse
+                // takes a lobe here only as stage 2 would have kept one (significance).
+                let better = match kept {
+                    GroupModel::Diffuse { .. } => c.favours_complex(),
+                    _ => c.gain > 0.0,
+                };
+                if better {
                     kept = alternative;
                 }
             }
@@ -1186,7 +1192,17 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .map(|m| matches!(m, GroupModel::Diffuse { .. }))
         .collect();
     let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "diffuse again");
-    let (_, _, mut evaluations) = rec.diffuse_iteration(spp, &active, &bar)?;
+    // With no group other than diffuse the scene is stage 1's, whose iteration already
+    // stopped at its noise floor: only the polish step below is new (box-diffuse at 256
+    // px: 18 more renders, 35 s, for nothing).
+    let all_diffuse = rec
+        .models
+        .iter()
+        .all(|m| matches!(m, GroupModel::Diffuse { .. } | GroupModel::Unseen));
+    let mut evaluations = 0;
+    if !all_diffuse {
+        evaluations += rec.diffuse_iteration(spp, &active, &bar)?.2;
+    }
     // The iteration stops at its own noise floor, so each colour carries the noise of one
     // render at the loop's samples (on box-diffuse at effort fast, up to 0.94% between
     // seeds on the smallest group). One more step at POLISH_SPP_FACTOR times the samples,
@@ -1208,7 +1224,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         samples_per_pixel: spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![
-            format!("diffuse groups updated again with the specular groups' materials in the scene, then one step at {POLISH_SPP_FACTOR}x the samples"),
+            if all_diffuse {
+                format!("every group diffuse, the scene is stage 1's: one step at {POLISH_SPP_FACTOR}x the samples")
+            } else {
+                format!("diffuse groups updated again with the specular groups' materials in the scene, then one step at {POLISH_SPP_FACTOR}x the samples")
+            },
         ],
     });
 
