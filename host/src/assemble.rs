@@ -337,41 +337,40 @@ impl OwnedScene {
     /// the last build (the same tables either way, so the same bytes out).
     pub fn build(&mut self) -> Result<Scene<'_>, Error> {
         let path = self.desc.path.display().to_string();
-        let unchanged = self.built.as_ref().is_some_and(|b| {
-            b.triangles == self.triangles && b.light_radiance == self.light_radiance
-        });
-        if !unchanged {
-            self.built = None;
-            let textures = Textures::new(&self.texture_infos, &self.texels)
-                .map_err(|e| Error::core(format!("{path}: textures"), e))?;
-            let counts = Scene::build(
-                &self.triangles,
-                &self.materials,
-                &self.light_radiance,
-                textures,
-                SceneStorage {
-                    bvh: BvhBuffers {
-                        nodes: &mut self.bvh_nodes,
-                        packed: &mut self.bvh_packed,
+        let reusable = self
+            .built
+            .as_ref()
+            .filter(|b| b.triangles == self.triangles && b.light_radiance == self.light_radiance)
+            .map(|b| b.counts);
+        let counts = match reusable {
+            Some(counts) => counts,
+            None => {
+                self.built = None;
+                let textures = Textures::new(&self.texture_infos, &self.texels)
+                    .map_err(|e| Error::core(format!("{path}: textures"), e))?;
+                let counts = Scene::build(
+                    &self.triangles,
+                    &self.materials,
+                    &self.light_radiance,
+                    textures,
+                    SceneStorage {
+                        bvh: BvhBuffers {
+                            nodes: &mut self.bvh_nodes,
+                            packed: &mut self.bvh_packed,
+                        },
+                        light_table: &mut self.light_table,
                     },
-                    light_table: &mut self.light_table,
-                },
-            )
-            .map_err(|e| Error::core(format!("{path}: building the scene"), e))?
-            .built_counts();
-            self.built = Some(BuiltFor {
-                triangles: self.triangles.clone(),
-                light_radiance: self.light_radiance.clone(),
-                counts,
-            });
-        }
-        let counts = self.built.as_ref().map_or(
-            BuiltCounts {
-                nodes: 0,
-                lights: 0,
-            },
-            |b| b.counts,
-        );
+                )
+                .map_err(|e| Error::core(format!("{path}: building the scene"), e))?
+                .built_counts();
+                self.built = Some(BuiltFor {
+                    triangles: self.triangles.clone(),
+                    light_radiance: self.light_radiance.clone(),
+                    counts,
+                });
+                counts
+            }
+        };
         let textures = Textures::new(&self.texture_infos, &self.texels)
             .map_err(|e| Error::core(format!("{path}: textures"), e))?;
         Scene::from_built(

@@ -46,6 +46,16 @@ const PROPOSAL_ANGLE_GRID: usize = 8;
 /// Nelder-Mead evaluations after the grid.
 const PROPOSAL_REFINE_EVALUATIONS: u32 = 80;
 
+/// Bounds of a lobe shape's search (log roughness_u, log roughness_v, angle): the angle
+/// may leave [0, pi) by up to a half turn, so that no search stalls at 0.
+fn shape_bounds() -> ([f64; 3], [f64; 3]) {
+    let (lo, hi) = (ROUGHNESS_MIN.ln(), ROUGHNESS_MAX.ln());
+    (
+        [lo, lo, -std::f64::consts::FRAC_PI_2],
+        [hi, hi, 1.5 * std::f64::consts::PI],
+    )
+}
+
 /// The anisotropic lobe of roughnesses `(exp x0, exp x1)`, `x2` the angle of its `u`
 /// direction from `t` towards `b`.
 fn lobe_at(x: [f64; 3], (t, b): (Vec3, Vec3)) -> (f64, f64, Vec3) {
@@ -102,10 +112,10 @@ pub fn propose_from_cache(
             }
         }
     }
-    // The angle may leave [0, pi) by up to a half turn: the search must not stall at 0.
+    let (lower, upper) = shape_bounds();
     let mut search = NelderMead::new(
-        [lo, lo, -std::f64::consts::FRAC_PI_2],
-        [hi, hi, 1.5 * std::f64::consts::PI],
+        lower,
+        upper,
         best.x,
         best.fit.sse,
         PROPOSAL_REFINE_EVALUATIONS,
@@ -152,16 +162,7 @@ pub fn anneal_anisotropic(
     (spp, levels): (u32, u32),
 ) -> Result<Refined, Error> {
     let fit = proposal.fit;
-    let lower = [
-        ROUGHNESS_MIN.ln(),
-        ROUGHNESS_MIN.ln(),
-        -std::f64::consts::FRAC_PI_2,
-    ];
-    let upper = [
-        ROUGHNESS_MAX.ln(),
-        ROUGHNESS_MAX.ln(),
-        1.5 * std::f64::consts::PI,
-    ];
+    let (lower, upper) = shape_bounds();
     let seed = rec.seed ^ 0xA1507 ^ g as u64;
     anneal_model(rec, g, spp, levels, seed, (lower, upper, proposal.x), |x| {
         model_at(kind, &fit, x, basis)

@@ -110,7 +110,7 @@ pub(super) fn race(
     spp: u32,
     seed: u64,
 ) -> Result<(GroupModel, u32), Error> {
-    let pixels = super::pixels::of_group(&rec.pure, g).len() as u32;
+    let pixels = rec.pure.iter().filter(|p| p.group as usize == g).count() as u32;
     let spp = super::min_samples_spp(spp, pixels, RACE_MIN_SAMPLES);
     let mut best: Option<(f64, GroupModel)> = None;
     for &model in finalists {
