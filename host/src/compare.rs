@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
-use crate::images;
+use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialDesc, Model};
 use crate::scene_file::ViewDesc;
 use crate::{fsutil, parallel};
@@ -223,6 +223,9 @@ pub struct MaterialRow {
     pub direction_err_deg: Option<f64>,
     /// PSNR of the diffuse map over all texels, peak = the truth's maximum.
     pub diffuse_map_psnr_db: Option<f64>,
+    /// The same PSNR for the truth area-averaged to the recovered map's size: the most a
+    /// map of that resolution can reach.
+    pub diffuse_map_psnr_ceiling_db: Option<f64>,
 }
 
 fn rel(a: f64, truth: f64) -> f64 {
@@ -244,12 +247,11 @@ fn diffuse_of(m: &MaterialDesc) -> Option<[f64; 3]> {
 
 /// PSNR of a recovered map against the truth's, peak = the truth's maximum. The recovered
 /// map may have another size: it is sampled as the renderer samples it (bilinear between
-/// texel centres, clamped) at the truth's texel centres.
-fn psnr(truth: &Path, recovered: &Path) -> Result<Option<f64>, Error> {
-    let t = images::read_image(truth, 1.0)?;
-    let r = images::read_image(recovered, 1.0)?;
+/// texel centres, clamped) at the truth's texel centres. `None` for an empty image.
+fn map_psnr(truth: &Image, recovered: &Image) -> Option<f64> {
+    let (t, r) = (truth, recovered);
     if t.pixels.is_empty() || r.pixels.is_empty() {
-        return Ok(None);
+        return None;
     }
     let sample = |u: f32, v: f32| {
         bilinear_taps(r.width, r.height, glam::Vec2::new(u, v))
@@ -279,11 +281,71 @@ fn psnr(truth: &Path, recovered: &Path) -> Result<Option<f64>, Error> {
         }
     }
     let mse = sum_sq / (3 * t.pixels.len()) as f64;
-    Ok(Some(if mse > 0.0 {
+    Some(if mse > 0.0 {
         10.0 * (peak * peak / mse).log10()
     } else {
         f64::INFINITY
-    }))
+    })
+}
+
+/// For each of `to` cells over `from` texels: the texels it covers and the fraction of
+/// each it covers, normalised to sum to one (area averaging along one axis).
+fn area_weights(from: u32, to: u32) -> Vec<Vec<(usize, f64)>> {
+    let scale = from as f64 / to as f64;
+    (0..to)
+        .map(|i| {
+            let (a, b) = (i as f64 * scale, (i + 1) as f64 * scale);
+            let covered: Vec<(usize, f64)> = (a.floor() as usize
+                ..(b.ceil() as usize).min(from as usize))
+                .map(|k| (k, b.min(k as f64 + 1.0) - a.max(k as f64)))
+                .filter(|&(_, w)| w > 0.0)
+                .collect();
+            let total: f64 = covered.iter().map(|c| c.1).sum();
+            covered.into_iter().map(|(k, w)| (k, w / total)).collect()
+        })
+        .collect()
+}
+
+/// `image` area-averaged to `width` x `height`: what a map of that size holds at best when
+/// each of its texels is the mean of the surface it covers.
+fn area_average(image: &Image, width: u32, height: u32) -> Image {
+    let (wx, wy) = (
+        area_weights(image.width, width),
+        area_weights(image.height, height),
+    );
+    let mut pixels = Vec::with_capacity((width * height) as usize);
+    for row in &wy {
+        for column in &wx {
+            let mut sum = [0.0f64; 3];
+            for &(y, a) in row {
+                for &(x, b) in column {
+                    let p = image.pixels[y * image.width as usize + x];
+                    for (s, c) in sum.iter_mut().zip(p) {
+                        *s += a * b * c as f64;
+                    }
+                }
+            }
+            pixels.push(sum.map(|s| s as f32));
+        }
+    }
+    Image {
+        width,
+        height,
+        pixels,
+    }
+}
+
+/// The recovered map's PSNR, and the PSNR of the truth itself area-averaged to the
+/// recovered map's size: the ceiling of any map of that size. A map has about one texel
+/// per pixel that sees it; finer detail of the truth is not in the views.
+fn map_psnrs(truth: &Path, recovered: &Path) -> Result<(Option<f64>, Option<f64>), Error> {
+    let t = images::read_image(truth, 1.0)?;
+    let r = images::read_image(recovered, 1.0)?;
+    if r.pixels.is_empty() {
+        return Ok((None, None));
+    }
+    let ceiling = map_psnr(&t, &area_average(&t, r.width, r.height));
+    Ok((map_psnr(&t, &r), ceiling))
 }
 
 pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRow>, Error> {
@@ -322,7 +384,7 @@ pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRo
                 row.direction_err_deg = Some(angle_between_axes_deg(a, b));
             }
             if let (Some(a), Some(b)) = (&rm.diffuse_map, &tm.diffuse_map) {
-                row.diffuse_map_psnr_db = psnr(b, a)?;
+                (row.diffuse_map_psnr_db, row.diffuse_map_psnr_ceiling_db) = map_psnrs(b, a)?;
             }
         }
         rows.push(row);
@@ -341,8 +403,9 @@ fn angle_between_axes_deg(a: [f32; 3], b: [f32; 3]) -> f64 {
 pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) -> Result<(), Error> {
     let rows = materials_report(truth, materials)?;
     let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.2}%", 100.0 * v));
+    let db = |v: Option<f64>| v.map_or("-".to_string(), |p| format!("{p:.1}dB"));
     println!(
-        "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8}",
+        "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8}",
         "group",
         "true model",
         "model",
@@ -353,11 +416,12 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
         "rough_u",
         "rough_v",
         "dir",
-        "map PSNR"
+        "map PSNR",
+        "ceiling"
     );
     for r in &rows {
         println!(
-            "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8}",
+            "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8}",
             r.group,
             r.true_model,
             r.model.as_deref().unwrap_or("(missing)"),
@@ -369,8 +433,8 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
             pct(r.roughness_v_rel_err),
             r.direction_err_deg
                 .map_or("-".to_string(), |d| format!("{d:.1}deg")),
-            r.diffuse_map_psnr_db
-                .map_or("-".to_string(), |p| format!("{p:.1}dB")),
+            db(r.diffuse_map_psnr_db),
+            db(r.diffuse_map_psnr_ceiling_db),
         );
     }
     if let Some(path) = json {
@@ -378,4 +442,51 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
         fsutil::write_atomic(path, text.as_bytes())?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(width: u32, height: u32, value: impl Fn(u32, u32) -> f32) -> Image {
+        let pixels = (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| [value(x, y); 3])
+            .collect();
+        Image {
+            width,
+            height,
+            pixels,
+        }
+    }
+
+    #[test]
+    fn area_average_keeps_the_mean_and_covers_partial_texels() {
+        let t = image(5, 3, |x, y| (x + 7 * y) as f32);
+        let a = area_average(&t, 2, 2);
+        let mean =
+            |i: &Image| i.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / i.pixels.len() as f64;
+        assert!((mean(&a) - mean(&t)).abs() < 1e-5);
+        // The first cell covers columns 0, 1 and half of 2, rows 0 and half of 1.
+        let expected = (0.0 + 1.0 + 0.5 * 2.0) / 2.5 + 7.0 * (0.5 / 1.5);
+        assert!((a.pixels[0][0] as f64 - expected).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_map_of_the_truths_own_size_has_no_ceiling_and_a_coarse_one_has_one() {
+        let checker = image(8, 8, |x, y| if (x + y) % 2 == 0 { 0.8 } else { 0.2 });
+        assert_eq!(
+            map_psnr(&checker, &area_average(&checker, 8, 8)),
+            Some(f64::INFINITY)
+        );
+        // A texel-sized checker averages to grey at any coarser size: the ceiling is the
+        // PSNR of the grey map, 20 log10(0.8 / 0.3).
+        let ceiling = map_psnr(&checker, &area_average(&checker, 4, 4)).unwrap();
+        assert!(
+            (ceiling - 20.0 * (0.8f64 / 0.3).log10()).abs() < 1e-4,
+            "{ceiling}"
+        );
+        let grey = image(4, 4, |_, _| 0.5);
+        assert!((map_psnr(&checker, &grey).unwrap() - ceiling).abs() < 1e-4);
+    }
 }
