@@ -34,14 +34,101 @@ pub enum GroupModel {
         color: [f64; 3],
     },
     /// A plastic whose diffuse reflectance is the recovered map `map` (an index into the
-    /// recovery's maps), with an optional isotropic specular lobe (specularity 0: none).
+    /// recovery's maps), under the specular lobe `lobe` (stage 5: textured-diffuse,
+    /// -isotropic or -anisotropic).
     Textured {
         map: usize,
-        specularity: f64,
-        roughness: f64,
+        lobe: MapLobe,
     },
     /// No pure pixel: nothing recovered (rendered as a neutral grey meanwhile).
     Unseen,
+}
+
+/// The white specular lobe of a textured plastic: the untextured stand-in's lobe, whose
+/// diffuse colour the map replaces.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MapLobe {
+    None,
+    Isotropic {
+        specularity: f64,
+        roughness: f64,
+    },
+    Anisotropic {
+        specularity: f64,
+        roughness_u: f64,
+        roughness_v: f64,
+        direction: [f64; 3],
+    },
+}
+
+impl MapLobe {
+    /// The lobe of an untextured plastic stand-in (`None` for any other model).
+    pub fn of_stand_in(model: &GroupModel) -> MapLobe {
+        match *model {
+            GroupModel::Isotropic {
+                kind: Kind::Plastic,
+                specularity,
+                roughness,
+                ..
+            } => MapLobe::Isotropic {
+                specularity,
+                roughness,
+            },
+            GroupModel::Anisotropic {
+                kind: Kind::Plastic,
+                specularity,
+                roughness_u,
+                roughness_v,
+                direction,
+                ..
+            } => MapLobe::Anisotropic {
+                specularity,
+                roughness_u,
+                roughness_v,
+                direction,
+            },
+            _ => MapLobe::None,
+        }
+    }
+
+    /// The untextured plastic of colour `color` with this lobe: what a textured model is
+    /// where its map reads `color (1 - specularity)`.
+    pub fn with_color(&self, color: [f64; 3]) -> GroupModel {
+        match *self {
+            MapLobe::None => GroupModel::Diffuse { color },
+            MapLobe::Isotropic {
+                specularity,
+                roughness,
+            } => GroupModel::Isotropic {
+                kind: Kind::Plastic,
+                color,
+                specularity,
+                roughness,
+            },
+            MapLobe::Anisotropic {
+                specularity,
+                roughness_u,
+                roughness_v,
+                direction,
+            } => GroupModel::Anisotropic {
+                kind: Kind::Plastic,
+                color,
+                specularity,
+                roughness_u,
+                roughness_v,
+                direction,
+            },
+        }
+    }
+
+    pub fn specularity(&self) -> f64 {
+        match *self {
+            MapLobe::None => 0.0,
+            MapLobe::Isotropic { specularity, .. } | MapLobe::Anisotropic { specularity, .. } => {
+                specularity
+            }
+        }
+    }
 }
 
 /// How far a reflectance is from grey: `(max - min) / max` over the channels (1 for black).
@@ -68,8 +155,11 @@ impl GroupModel {
             GroupModel::Isotropic { .. } => "isotropic",
             GroupModel::Anisotropic { .. } => "anisotropic",
             GroupModel::Mirror { .. } => "mirror",
-            GroupModel::Textured { specularity, .. } if *specularity > 0.0 => "textured-isotropic",
-            GroupModel::Textured { .. } => "textured-diffuse",
+            GroupModel::Textured { lobe, .. } => match lobe {
+                MapLobe::None => "textured-diffuse",
+                MapLobe::Isotropic { .. } => "textured-isotropic",
+                MapLobe::Anisotropic { .. } => "textured-anisotropic",
+            },
             GroupModel::Unseen => "unseen",
         }
     }
@@ -98,7 +188,7 @@ impl GroupModel {
                 },
             ),
             GroupModel::Mirror { color } => ([0.0; 3], color),
-            GroupModel::Textured { specularity, .. } => ([0.0; 3], [specularity; 3]),
+            GroupModel::Textured { lobe, .. } => ([0.0; 3], [lobe.specularity(); 3]),
             GroupModel::Unseen => ([0.0; 3], [0.0; 3]),
         }
     }
@@ -140,28 +230,11 @@ impl GroupModel {
             )
             .unwrap_or(Material::Diffuse { rho_d: v3(color) }),
             GroupModel::Mirror { color } => Material::Mirror { rho: v3(color) },
-            GroupModel::Textured {
-                map,
-                specularity,
-                roughness,
-            } => {
-                // The map replaces rho_d; the colour only tints a metal's lobe.
-                let material = if specularity > 0.0 {
-                    Material::from_params(
-                        Kind::Plastic,
-                        Vec3::ONE,
-                        Params::Isotropic {
-                            specularity: specularity as f32,
-                            roughness: roughness as f32,
-                        },
-                    )
-                    .unwrap_or(Material::Diffuse { rho_d: Vec3::ONE })
-                } else {
-                    Material::Diffuse { rho_d: Vec3::ONE }
-                };
+            GroupModel::Textured { map, lobe } => {
+                // The map replaces rho_d: the white plastic with the lobe, under the map.
                 return SurfaceMaterial {
-                    material,
                     diffuse_map: Some(TextureId(map as u16)),
+                    ..lobe.with_color([1.0; 3]).surface_material()
                 };
             }
             GroupModel::Unseen => Material::Diffuse {
@@ -215,22 +288,15 @@ impl GroupModel {
                 d.model = Model::Mirror;
                 d.color = f(color);
             }
-            GroupModel::Textured {
-                specularity,
-                roughness,
-                ..
-            } => {
-                d.model = if specularity > 0.0 {
-                    Model::TexturedIsotropic
-                } else {
-                    Model::TexturedDiffuse
+            GroupModel::Textured { lobe, .. } => {
+                // The stand-in's keys, the colour given by the map instead.
+                d = lobe.with_color([1.0; 3]).material_desc(group, None)?;
+                d.model = match lobe {
+                    MapLobe::None => Model::TexturedDiffuse,
+                    MapLobe::Isotropic { .. } => Model::TexturedIsotropic,
+                    MapLobe::Anisotropic { .. } => Model::TexturedAnisotropic,
                 };
-                d.specularity = Some(specularity as f32);
-                d.roughness = Some(if specularity > 0.0 {
-                    roughness as f32
-                } else {
-                    0.0
-                });
+                d.color = None;
                 d.diffuse_map = map_path.map(Path::to_path_buf);
             }
             GroupModel::Unseen => return None,
@@ -238,12 +304,13 @@ impl GroupModel {
         Some(d)
     }
 
-    /// The RADIANCE primitive of this model; a textured model's takes the name of its
-    /// `colorpict` pattern as `map_modifier`, the picture being the map over (1 - s).
-    pub fn radiance_primitive(&self, group: &str, map_modifier: &str) -> Option<String> {
+    /// The RADIANCE primitive of this model under `modifier` (`void`, or for a textured
+    /// model the name of its `colorpict` pattern, the picture being the map over (1 - s),
+    /// which multiplies the white stand-in's colour).
+    pub fn radiance_primitive(&self, group: &str, modifier: &str) -> Option<String> {
         Some(match *self {
             GroupModel::Diffuse { color: c } => format!(
-                "void plastic {group}\n0\n0\n5 {} {} {} 0 0\n",
+                "{modifier} plastic {group}\n0\n0\n5 {} {} {} 0 0\n",
                 c[0] as f32, c[1] as f32, c[2] as f32
             ),
             GroupModel::Isotropic {
@@ -252,7 +319,7 @@ impl GroupModel {
                 specularity,
                 roughness,
             } => format!(
-                "void {} {group}\n0\n0\n5 {} {} {} {} {}\n",
+                "{modifier} {} {group}\n0\n0\n5 {} {} {} {} {}\n",
                 if kind == Kind::Metal {
                     "metal"
                 } else {
@@ -272,7 +339,7 @@ impl GroupModel {
                 roughness_v,
                 direction: d,
             } => format!(
-                "void {} {group}\n4 {} {} {} .\n0\n6 {} {} {} {} {} {}\n",
+                "{modifier} {} {group}\n4 {} {} {} .\n0\n6 {} {} {} {} {} {}\n",
                 if kind == Kind::Metal {
                     "metal2"
                 } else {
@@ -289,22 +356,14 @@ impl GroupModel {
                 roughness_v as f32
             ),
             GroupModel::Mirror { color: c } => format!(
-                "void mirror {group}\n0\n0\n3 {} {} {}\n",
+                "{modifier} mirror {group}\n0\n0\n3 {} {} {}\n",
                 c[0] as f32, c[1] as f32, c[2] as f32
             ),
-            GroupModel::Textured {
-                specularity,
-                roughness,
-                ..
-            } => format!(
-                "{map_modifier} plastic {group}\n0\n0\n5 1 1 1 {} {}\n",
-                specularity as f32,
-                if specularity > 0.0 {
-                    roughness as f32
-                } else {
-                    0.0
-                }
-            ),
+            GroupModel::Textured { lobe, .. } => {
+                return lobe
+                    .with_color([1.0; 3])
+                    .radiance_primitive(group, modifier)
+            }
             GroupModel::Unseen => return None,
         })
     }
@@ -338,24 +397,77 @@ mod tests {
         let map = Path::new("/out/textures/pic.exr");
         let textured = GroupModel::Textured {
             map: 2,
-            specularity: 0.05,
-            roughness: 0.08,
+            lobe: MapLobe::Isotropic {
+                specularity: 0.05,
+                roughness: 0.08,
+            },
         };
         let d = textured.material_desc("pic", Some(map)).unwrap();
         assert_eq!(d.model, Model::TexturedIsotropic);
         assert_eq!(d.diffuse_map.as_deref(), Some(map));
+        assert_eq!((d.color, d.roughness), (None, Some(0.08)));
         assert!(d.check().is_ok());
         assert_eq!(textured.surface_material().diffuse_map, Some(TextureId(2)));
         let plain = GroupModel::Textured {
             map: 0,
-            specularity: 0.0,
-            roughness: 0.3,
+            lobe: MapLobe::None,
         };
         let d = plain.material_desc("pic", Some(map)).unwrap();
         assert_eq!((d.model, d.roughness), (Model::TexturedDiffuse, Some(0.0)));
-        assert!(textured
+        assert!(d.check().is_ok());
+        assert_eq!(
+            textured.radiance_primitive("pic", "pict_pic").unwrap(),
+            "pict_pic plastic pic\n0\n0\n5 1 1 1 0.05 0.08\n"
+        );
+        assert_eq!(
+            plain.radiance_primitive("pic", "pict_pic").unwrap(),
+            "pict_pic plastic pic\n0\n0\n5 1 1 1 0 0\n"
+        );
+
+        // Textured-anisotropic: the map under a white plastic2 lobe, in every output.
+        let brushed = GroupModel::Textured {
+            map: 1,
+            lobe: MapLobe::Anisotropic {
+                specularity: 0.06,
+                roughness_u: 0.05,
+                roughness_v: 0.2,
+                direction: [0.0, 1.0, 0.0],
+            },
+        };
+        assert_eq!(brushed.name(), "textured-anisotropic");
+        let d = brushed.material_desc("pic", Some(map)).unwrap();
+        assert_eq!(d.model, Model::TexturedAnisotropic);
+        assert_eq!(
+            (d.roughness_u, d.roughness_v, d.direction_u),
+            (Some(0.05), Some(0.2), Some([0.0, 1.0, 0.0]))
+        );
+        assert_eq!((d.color, d.roughness), (None, None));
+        assert!(d.check().is_ok());
+        assert!(brushed
             .radiance_primitive("pic", "pict_pic")
             .unwrap()
-            .starts_with("pict_pic plastic pic\n"));
+            .starts_with("pict_pic plastic2 pic\n4 0 1 0 .\n0\n6 1 1 1 0.06 0.05 0.2"));
+        let surface = brushed.surface_material();
+        assert_eq!(surface.diffuse_map, Some(TextureId(1)));
+        assert!(matches!(
+            surface.material,
+            Material::WardAnisotropic { rho_s, .. } if rho_s == Vec3::splat(0.06)
+        ));
+        // The stand-in's lobe is what the textured model keeps.
+        assert_eq!(
+            MapLobe::of_stand_in(
+                &MapLobe::Anisotropic {
+                    specularity: 0.06,
+                    roughness_u: 0.05,
+                    roughness_v: 0.2,
+                    direction: [0.0, 1.0, 0.0],
+                }
+                .with_color([0.3, 0.4, 0.5])
+            ),
+            match brushed {
+                GroupModel::Textured { lobe, .. } => lobe,
+                _ => unreachable!(),
+            }
+        );
     }
 }

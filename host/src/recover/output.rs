@@ -85,12 +85,8 @@ pub(super) fn write_all(
         // What RADIANCE is given: the model itself, under the modifier of its map when
         // it has one it can place.
         let mut primitive = (*model, String::from("void"));
-        if let GroupModel::Textured {
-            map,
-            specularity,
-            roughness,
-        } = *model
-        {
+        if let GroupModel::Textured { map, lobe } = *model {
+            let specularity = lobe.specularity();
             fsutil::create_dir(&out.join("textures"))?;
             let map = &rec.maps[map];
             let image = Image {
@@ -115,12 +111,7 @@ pub(super) fn write_all(
                     let mean = map.texels.iter().fold(Vec3::ZERO, |a, b| a + *b)
                         / map.texels.len().max(1) as f32;
                     let color = mean / (1.0 - specularity as f32).max(1e-3);
-                    primitive.0 = GroupModel::Isotropic {
-                        kind: relume_core::material::Kind::Plastic,
-                        color: color.to_array().map(f64::from),
-                        specularity,
-                        roughness,
-                    };
+                    primitive.0 = lobe.with_color(color.to_array().map(f64::from));
                 }
             }
         }

@@ -10,7 +10,7 @@ use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
 use relume_core::stages::texture;
 use relume_core::stages::texture_map::{self, MapObservation, FOOTPRINT_SAMPLES};
 
-use super::model::GroupModel;
+use super::model::{GroupModel, MapLobe};
 use super::pixels::{self, PurePixel};
 use super::Recovery;
 use crate::error::Error;
@@ -91,19 +91,12 @@ pub fn texture_contrast(
     )))
 }
 
-/// Stage 5: the diffuse map of group `g` under a plastic lobe of `specularity` and
-/// `roughness` (0: textured-diffuse), `T = (I_real - I_specular) / E`, with E from full
-/// global-illumination renders of the recovered scene. The group's current model is the
-/// untextured stand-in whose diffuse colour starts the map. Sets the group's model to the
-/// textured one and returns what was done.
-pub fn recover_map(
-    rec: &mut Recovery,
-    g: usize,
-    specularity: f64,
-    roughness: f64,
-    spp: u32,
-    seed: u64,
-) -> Result<MapSummary, Error> {
+/// Stage 5: the diffuse map of group `g` under its untextured stand-in's lobe (the group's
+/// current model: a diffuse, isotropic or anisotropic plastic, whose diffuse colour starts
+/// the map), `T = (I_real - I_specular) / E`, with E from full global-illumination renders
+/// of the recovered scene. Sets the group's model to the textured one and returns what was
+/// done.
+pub fn recover_map(rec: &mut Recovery, g: usize, spp: u32, seed: u64) -> Result<MapSummary, Error> {
     let pixels = pixels::of_group(&rec.pure, g);
     let uvs: Vec<Option<[Vec2; FOOTPRINT_SAMPLES]>> =
         rec.with_scene(1, seed, |_, scene, observed, _| {
@@ -125,8 +118,7 @@ pub fn recover_map(
     });
     rec.models[g] = GroupModel::Textured {
         map,
-        specularity,
-        roughness,
+        lobe: MapLobe::of_stand_in(&rec.models[g]),
     };
     let settings_seed = seed ^ 0x7E47;
     let full = render_once(rec, &pixels, spp, settings_seed)?;

@@ -15,7 +15,7 @@
 use glam::Vec3;
 use serde::Serialize;
 
-use super::model::GroupModel;
+use super::model::{GroupModel, MapLobe};
 use super::pixels;
 use super::Recovery;
 use crate::error::Error;
@@ -68,20 +68,24 @@ fn perturbations(model: &GroupModel) -> Vec<Perturbation> {
             Scalar("roughness_u", roughness_u),
             Scalar("roughness_v", roughness_v),
         ],
-        GroupModel::Textured {
-            specularity,
-            roughness,
-            ..
-        } if specularity > 0.0 => vec![
-            Scalar("specularity", specularity),
-            Scalar("roughness", roughness),
-        ],
-        GroupModel::Textured { .. } | GroupModel::Unseen => Vec::new(),
+        // The lobe's parameters; the colour is the map's.
+        GroupModel::Textured { lobe, .. } => perturbations(&lobe.with_color([1.0; 3]))
+            .into_iter()
+            .filter(|p| !matches!(p, Colour(_)))
+            .collect(),
+        GroupModel::Unseen => Vec::new(),
     }
 }
 
 /// `model` with the parameter(s) of `perturbation` scaled by `1 + STEP`.
 fn perturbed(model: GroupModel, perturbation: &Perturbation) -> GroupModel {
+    if let GroupModel::Textured { map, lobe } = model {
+        let stand_in = perturbed(lobe.with_color([1.0; 3]), perturbation);
+        return GroupModel::Textured {
+            map,
+            lobe: MapLobe::of_stand_in(&stand_in),
+        };
+    }
     let up = 1.0 + STEP;
     let mut m = model;
     match (perturbation, &mut m) {
@@ -94,14 +98,11 @@ fn perturbed(model: GroupModel, perturbation: &Perturbation) -> GroupModel {
         ) => *color = color.map(|c| c * up),
         (
             Perturbation::Scalar("specularity", _),
-            GroupModel::Isotropic { specularity, .. }
-            | GroupModel::Anisotropic { specularity, .. }
-            | GroupModel::Textured { specularity, .. },
+            GroupModel::Isotropic { specularity, .. } | GroupModel::Anisotropic { specularity, .. },
         ) => *specularity *= up,
-        (
-            Perturbation::Scalar("roughness", _),
-            GroupModel::Isotropic { roughness, .. } | GroupModel::Textured { roughness, .. },
-        ) => *roughness *= up,
+        (Perturbation::Scalar("roughness", _), GroupModel::Isotropic { roughness, .. }) => {
+            *roughness *= up
+        }
         (Perturbation::Scalar("roughness_u", _), GroupModel::Anisotropic { roughness_u, .. }) => {
             *roughness_u *= up
         }

@@ -62,7 +62,7 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
         let name = &report.group;
         let specular = match model {
             GroupModel::Diffuse { .. } | GroupModel::Unseen => false,
-            GroupModel::Textured { specularity, .. } => *specularity > 0.0,
+            GroupModel::Textured { lobe, .. } => lobe.specularity() > 0.0,
             _ => true,
         };
         if specular && report.pure_pixels < FEW_PIXELS {
@@ -98,9 +98,10 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
 
 fn specularity(model: &GroupModel) -> Option<f64> {
     match *model {
-        GroupModel::Isotropic { specularity, .. }
-        | GroupModel::Anisotropic { specularity, .. }
-        | GroupModel::Textured { specularity, .. } => Some(specularity),
+        GroupModel::Isotropic { specularity, .. } | GroupModel::Anisotropic { specularity, .. } => {
+            Some(specularity)
+        }
+        GroupModel::Textured { lobe, .. } => Some(lobe.specularity()),
         _ => None,
     }
 }
