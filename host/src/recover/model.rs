@@ -121,6 +121,15 @@ impl MapLobe {
         }
     }
 
+    /// The file's model of a map under this lobe.
+    pub fn textured_model(&self) -> Model {
+        match self {
+            MapLobe::None => Model::TexturedDiffuse,
+            MapLobe::Isotropic { .. } => Model::TexturedIsotropic,
+            MapLobe::Anisotropic { .. } => Model::TexturedAnisotropic,
+        }
+    }
+
     pub fn specularity(&self) -> f64 {
         match *self {
             MapLobe::None => 0.0,
@@ -155,11 +164,7 @@ impl GroupModel {
             GroupModel::Isotropic { .. } => "isotropic",
             GroupModel::Anisotropic { .. } => "anisotropic",
             GroupModel::Mirror { .. } => "mirror",
-            GroupModel::Textured { lobe, .. } => match lobe {
-                MapLobe::None => "textured-diffuse",
-                MapLobe::Isotropic { .. } => "textured-isotropic",
-                MapLobe::Anisotropic { .. } => "textured-anisotropic",
-            },
+            GroupModel::Textured { lobe, .. } => lobe.textured_model().name(),
             GroupModel::Unseen => "unseen",
         }
     }
@@ -291,11 +296,7 @@ impl GroupModel {
             GroupModel::Textured { lobe, .. } => {
                 // The stand-in's keys, the colour given by the map instead.
                 d = lobe.with_color([1.0; 3]).material_desc(group, None)?;
-                d.model = match lobe {
-                    MapLobe::None => Model::TexturedDiffuse,
-                    MapLobe::Isotropic { .. } => Model::TexturedIsotropic,
-                    MapLobe::Anisotropic { .. } => Model::TexturedAnisotropic,
-                };
+                d.model = lobe.textured_model();
                 d.color = None;
                 d.diffuse_map = map_path.map(Path::to_path_buf);
             }
