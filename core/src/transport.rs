@@ -221,11 +221,45 @@ pub fn shade(
     rho_d: Option<Vec3>,
 ) -> Vec3 {
     let mut sum = Vec3::ZERO;
+    let mut bsdf = ReusedBsdf::new(material, rho_d);
     for e in entries {
-        let f = Bsdf::new(material, rho_d, e.n).eval(e.wo, e.wi);
+        let f = bsdf.at(e.n).eval(e.wo, e.wi);
         sum += f * e.weight;
     }
     sum / n_samples.max(1) as f32
+}
+
+/// The BSDF of one material at a normal, built again only when the normal changes: a
+/// pixel's incident samples share their first vertex's normal (all of them on a flat
+/// group), and building the shading frame is a fair part of a cache evaluation. The BSDF
+/// is a function of the material and the normal alone, so the values are the same bits.
+struct ReusedBsdf<'a> {
+    material: &'a Material,
+    rho_d: Option<Vec3>,
+    at: Option<(Vec3, Bsdf)>,
+}
+
+impl<'a> ReusedBsdf<'a> {
+    fn new(material: &'a Material, rho_d: Option<Vec3>) -> Self {
+        ReusedBsdf {
+            material,
+            rho_d,
+            at: None,
+        }
+    }
+
+    fn at(&mut self, n: Vec3) -> &Bsdf {
+        // Bitwise equality: -0.0 and 0.0, or two NaNs, are built again, never confused.
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        if !matches!(self.at, Some((m, _)) if bits(m) == bits(n)) {
+            self.at = None;
+        }
+        let (material, rho_d) = (self.material, self.rho_d);
+        &self
+            .at
+            .get_or_insert_with(|| (n, Bsdf::new(material, rho_d, n)))
+            .1
+    }
 }
 
 /// The two linear parts of a pixel under a Ward-type material: `diffuse` is the value for
@@ -238,13 +272,73 @@ pub fn linear_parts(
 ) -> (Vec3, Vec3) {
     let mut diffuse = Vec3::ZERO;
     let mut specular = Vec3::ZERO;
+    let mut bsdf = ReusedBsdf::new(specular_lobe, None);
     for e in entries {
         if e.n.dot(e.wi) > 0.0 {
             diffuse += e.weight * INV_PI;
         }
-        let f = Bsdf::new(specular_lobe, None, e.n).eval(e.wo, e.wi);
+        let f = bsdf.at(e.n).eval(e.wo, e.wi);
         specular += f * e.weight;
     }
     let k = 1.0 / n_samples.max(1) as f32;
     (diffuse * k, specular * k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Entries whose normals change now and then, as a curved group's do: the reused BSDF
+    /// gives the same bits as one built for every entry.
+    #[test]
+    fn reusing_the_bsdf_across_a_normal_gives_the_same_bits() {
+        let normals = [
+            Vec3::Z,
+            Vec3::Z,
+            Vec3::new(0.0, 0.6, 0.8),
+            Vec3::new(0.0, 0.6, 0.8),
+            Vec3::Z,
+            Vec3::new(-0.0, 0.0, 1.0),
+        ];
+        let entries: [IncidentSample; 6] = core::array::from_fn(|i| IncidentSample {
+            wo: Vec3::new(0.3, -0.2, 0.9).normalize(),
+            n: normals[i],
+            wi: Vec3::new(-0.25 + 0.1 * i as f32, 0.15, 0.95).normalize(),
+            weight: Vec3::new(1.0, 0.5 + 0.1 * i as f32, 0.25),
+            uv: [0.0; 2],
+        });
+        let material = Material::WardAnisotropic {
+            rho_d: Vec3::splat(0.4),
+            rho_s: Vec3::splat(0.2),
+            alpha_u: 0.05,
+            alpha_v: 0.2,
+            direction: Vec3::X,
+        };
+        let naive = entries.iter().fold(Vec3::ZERO, |sum, e| {
+            sum + Bsdf::new(&material, None, e.n).eval(e.wo, e.wi) * e.weight
+        }) / 3.0;
+        let reused = shade(&entries, 3, &material, None);
+        assert_eq!(
+            reused.to_array().map(f32::to_bits),
+            naive.to_array().map(f32::to_bits)
+        );
+        assert!(reused.x > 0.0);
+
+        let (mut diffuse, mut specular) = (Vec3::ZERO, Vec3::ZERO);
+        for e in &entries {
+            if e.n.dot(e.wi) > 0.0 {
+                diffuse += e.weight * INV_PI;
+            }
+            specular += Bsdf::new(&material, None, e.n).eval(e.wo, e.wi) * e.weight;
+        }
+        let (d, s) = linear_parts(&entries, 3, &material);
+        assert_eq!(
+            d.to_array().map(f32::to_bits),
+            (diffuse * (1.0 / 3.0)).to_array().map(f32::to_bits)
+        );
+        assert_eq!(
+            s.to_array().map(f32::to_bits),
+            (specular * (1.0 / 3.0)).to_array().map(f32::to_bits)
+        );
+    }
 }

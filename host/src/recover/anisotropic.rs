@@ -12,6 +12,7 @@
 //! and a curved one as its main face sees it.
 
 use glam::Vec3;
+use rayon::prelude::*;
 use relume_core::anneal::Annealer;
 use relume_core::geometry::Surface;
 use relume_core::material::{Kind, Material};
@@ -77,9 +78,7 @@ pub fn propose_from_cache(
     kind: Kind,
     basis: (Vec3, Vec3),
 ) -> Result<(Proposal, u32), Error> {
-    let mut evaluations = 0;
-    let mut fit_at = |x: [f64; 3]| {
-        evaluations += 1;
+    let fit_at = |x: [f64; 3]| {
         let (alpha_u, alpha_v, direction) = lobe_at(x, basis);
         let lobe = Material::WardAnisotropic {
             rho_d: Vec3::ZERO,
@@ -98,19 +97,26 @@ pub fn propose_from_cache(
     let (lo, hi) = (ROUGHNESS_MIN.ln(), ROUGHNESS_MAX.ln());
     let level = |i: usize| lo + (hi - lo) * i as f64 / (PROPOSAL_ROUGHNESS_GRID - 1) as f64;
     let angle = |k: usize| std::f64::consts::PI * k as f64 / PROPOSAL_ANGLE_GRID as f64;
-    let mut best = fit_at([level(0), level(0), angle(0)]);
+    let mut grid = vec![[level(0), level(0), angle(0)]];
+    for i in 0..PROPOSAL_ROUGHNESS_GRID {
+        for j in i..PROPOSAL_ROUGHNESS_GRID {
+            for k in 0..PROPOSAL_ANGLE_GRID {
+                grid.push([level(i), level(j), angle(k)]);
+            }
+        }
+    }
+    // The grid's points in parallel (a small group's sums are one chunk, one thread),
+    // chosen in grid order: the same proposal as one at a time.
+    let fits: Vec<Proposal> = pool.install(|| grid.par_iter().map(|&x| fit_at(x)).collect());
+    let mut evaluations = fits.len() as u32;
     let offer = |p: Proposal, best: &mut Proposal| {
         if p.fit.sse < best.fit.sse {
             *best = p;
         }
     };
-    for i in 0..PROPOSAL_ROUGHNESS_GRID {
-        for j in i..PROPOSAL_ROUGHNESS_GRID {
-            for k in 0..PROPOSAL_ANGLE_GRID {
-                let p = fit_at([level(i), level(j), angle(k)]);
-                offer(p, &mut best);
-            }
-        }
+    let mut best = fits[0];
+    for &p in &fits[1..] {
+        offer(p, &mut best);
     }
     let (lower, upper) = shape_bounds();
     let mut search = NelderMead::new(
@@ -123,6 +129,7 @@ pub fn propose_from_cache(
     )
     .map_err(|e| Error::core("stage 4 proposal", e))?;
     while !search.is_done() {
+        evaluations += 1;
         let p = fit_at(search.propose());
         search.tell(p.fit.sse);
         offer(p, &mut best);
