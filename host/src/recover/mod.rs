@@ -448,13 +448,15 @@ impl Recovery {
     }
 
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
-    /// held fixed, until converged. Returns (first fits, last fits, evaluations).
+    /// held fixed, until converged. Returns (first fits, evaluations). The step that finds
+    /// the change converged has already applied its update; no render follows it (what
+    /// stage 1 decides on is measured afterwards by [`Recovery::error_estimates`]).
     fn diffuse_iteration(
         &mut self,
         spp: u32,
         active: &[bool],
         bar: &ProgressBar,
-    ) -> Result<(Vec<GroupFit>, Vec<GroupFit>, u32), Error> {
+    ) -> Result<(Vec<GroupFit>, u32), Error> {
         let seed = self.seed;
         let wanted = |g: u16| active[g as usize];
         let mut first = None;
@@ -478,8 +480,7 @@ impl Recovery {
                 }
             }
             if diffuse::converged(evaluations, max_change, previous_change) {
-                let last = self.evaluate(spp, seed, &wanted)?;
-                return Ok((first_fits, last, evaluations + 1));
+                return Ok((first_fits, evaluations));
             }
             previous_change = max_change;
         }
@@ -679,7 +680,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let spp = args.budget.loop_spp;
     let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "1 diffuse");
     let all = vec![true; n_groups];
-    let (first, fits, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
+    let (first, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
+    let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
     // Which groups go on is decided on the bias-only error, at the decisions' samples and
     // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
     // own noise (heavy-tailed paths), by whole percents either way.
@@ -691,8 +693,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         let Some(e) = *estimate else { continue };
         let gate = fit::SPECULAR_GAIN_THRESHOLD;
         let straddles = e.error + e.sigma > gate && e.error - e.sigma <= gate;
-        let group_spp = min_samples_spp(4 * spp, fits[g].pixels, CACHE_MIN_SAMPLES);
-        if straddles && fits[g].pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE && group_spp > 4 * spp {
+        let group_spp = min_samples_spp(4 * spp, pure_pixels[g], CACHE_MIN_SAMPLES);
+        if straddles && pure_pixels[g] >= fit::MIN_PIXELS_FOR_MODEL_CHOICE && group_spp > 4 * spp {
             *estimate = rec.error_estimate(g, group_spp, rec.decision_seed() ^ 0x5A3E)?;
         }
     }
@@ -711,12 +713,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let mut candidates = Vec::new();
     for g in 0..n_groups {
         let r = &mut reports[g];
-        r.pure_pixels = fits[g].pixels;
+        r.pure_pixels = pure_pixels[g];
         r.error_initial = first[g].relative_error();
         r.error_diffuse = decided[g].map(|e| e.error);
         let e = decided[g].map_or(0.0, |e| e.error);
         let sigma = decided[g].map_or(0.0, |e| e.sigma);
-        match diffuse::verdict(fits[g].pixels, decided[g]) {
+        match diffuse::verdict(pure_pixels[g], decided[g]) {
             DiffuseVerdict::Unseen => {
                 rec.models[g] = GroupModel::Unseen;
                 r.decisions
@@ -729,12 +731,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             DiffuseVerdict::BarelySeen => {
                 r.decisions.push(format!(
                     "diffuse, barely seen: {} pure pixels < MIN_PIXELS_FOR_MODEL_CHOICE {}; no more complex model is tried",
-                    fits[g].pixels,
+                    pure_pixels[g],
                     fit::MIN_PIXELS_FOR_MODEL_CHOICE
                 ));
                 warnings.push(format!(
                     "group '{}': only {} pure pixels; kept diffuse",
-                    names[g], fits[g].pixels
+                    names[g], pure_pixels[g]
                 ));
             }
             DiffuseVerdict::Diffuse => {
@@ -1201,7 +1203,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .all(|m| matches!(m, GroupModel::Diffuse { .. } | GroupModel::Unseen));
     let mut evaluations = 0;
     if !all_diffuse {
-        evaluations += rec.diffuse_iteration(spp, &active, &bar)?.2;
+        evaluations += rec.diffuse_iteration(spp, &active, &bar)?.1;
     }
     // The iteration stops at its own noise floor, so each colour carries the noise of one
     // render at the loop's samples (on box-diffuse at effort fast, up to 0.94% between

@@ -87,6 +87,15 @@ pub fn of_group(pure: &[PurePixel], g: usize) -> Vec<PurePixel> {
         .collect()
 }
 
+/// The number of pure pixels of each of `n_groups` groups.
+pub fn group_counts(pure: &[PurePixel], n_groups: usize) -> Vec<u32> {
+    let mut counts = vec![0u32; n_groups];
+    for p in pure {
+        counts[p.group as usize] += 1;
+    }
+    counts
+}
+
 /// `f` of each of `pixels`, in order, in parallel over a fixed partition (the same values
 /// for any thread count).
 fn map_in_order<T: Send>(
