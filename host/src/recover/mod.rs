@@ -116,7 +116,8 @@ pub struct GroupReport {
     pub model: String,
     /// Every decision taken for the group, in order, with the threshold and statistic.
     pub decisions: Vec<String>,
-    /// Error of the first all-diffuse render.
+    /// Error of the first all-diffuse render (on the diffuse iteration's pixels, at most
+    /// `DIFFUSE_GROUP_SAMPLES` pixel samples of the group).
     pub error_initial: Option<f64>,
     /// Bias-only error after stage 1 (diffuse), which decides whether the group goes on.
     pub error_diffuse: Option<f64>,
@@ -300,6 +301,33 @@ impl Recovery {
         })
     }
 
+    /// Renders those of `pixels` (pure pixels, a subset of [`Recovery::pure`]) whose group
+    /// is `wanted` with the current models.
+    fn evaluate_pixels(
+        &mut self,
+        pixels: &[PurePixel],
+        spp: u32,
+        seed: u64,
+        wanted: &(dyn Fn(u16) -> bool + Sync),
+    ) -> Result<Vec<GroupFit>, Error> {
+        let n = self.n_groups();
+        self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            let observed = pixels::Observed {
+                pure: pixels,
+                ..observed
+            };
+            pixels::evaluate(pool, scene, observed, settings, n, wanted)
+        })
+    }
+
+    /// The pure pixels the diffuse iteration at `spp` and its polish step render: at most
+    /// [`DIFFUSE_GROUP_SAMPLES`] pixel samples per group at `spp`, spread evenly over each
+    /// group (see [`pixels::spread_subset`]).
+    fn diffuse_subset(&self, spp: u32) -> Vec<PurePixel> {
+        let limit = DIFFUSE_GROUP_SAMPLES.div_ceil(spp.max(1) as u64) as usize;
+        pixels::spread_subset(&self.pure, self.n_groups(), limit)
+    }
+
     /// The bias-only fit of group `g` (see [`pixels::evaluate_cross`]).
     fn evaluate_cross(&mut self, spp: u32, seed: u64, g: usize) -> Result<GroupFit, Error> {
         let n = self.n_groups();
@@ -448,7 +476,9 @@ impl Recovery {
     }
 
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
-    /// held fixed, until converged. Returns (first fits, evaluations). The step that finds
+    /// held fixed, until converged, every render on [`Recovery::diffuse_subset`] (the
+    /// update needs each group's mean, not every pixel). Returns (first fits, on that
+    /// subset, and evaluations). The step that finds
     /// the change converged has already applied its update; no render follows it (what
     /// stage 1 decides on is measured afterwards by [`Recovery::error_estimates`]).
     fn diffuse_iteration(
@@ -459,6 +489,7 @@ impl Recovery {
     ) -> Result<(Vec<GroupFit>, u32), Error> {
         let seed = self.seed;
         let wanted = |g: u16| active[g as usize];
+        let subset = self.diffuse_subset(spp);
         let mut first = None;
         let mut evaluations = 0;
         let mut previous_change = f64::INFINITY;
@@ -466,7 +497,7 @@ impl Recovery {
         // which the update measures how strongly the render responds (its slope).
         let mut previous: Vec<Option<([f64; 3], [f64; 3])>> = vec![None; self.n_groups()];
         loop {
-            let fits = self.evaluate(spp, seed, &wanted)?;
+            let fits = self.evaluate_pixels(&subset, spp, seed, &wanted)?;
             evaluations += 1;
             bar.inc(1);
             let first_fits = first.get_or_insert_with(|| fits.clone()).clone();
@@ -551,6 +582,26 @@ const MAP_SPP_FACTOR: u32 = 8;
 
 /// The diffuse refinement's last step renders at this many times the loop's samples.
 const POLISH_SPP_FACTOR: u32 = 8;
+
+/// Pixel samples per group that one render of the diffuse iteration takes at most: a group
+/// with more than `DIFFUSE_GROUP_SAMPLES / spp` pure pixels is rendered on that many,
+/// spread evenly over it (`pixels::spread_subset`), and the polish step after the iteration
+/// renders the same pixels at `POLISH_SPP_FACTOR` times the samples.
+///
+/// The update `rho <- rho * mean(real) / mean(rendered)` needs the group's mean, and the
+/// mean of `N` pixel samples whose relative deviation per sample is `sigma` has a relative
+/// standard error of `sigma / sqrt(N)`. The renders of box-diffuse's groups measured
+/// `sigma` 0.33-0.87 at effort fast (a pixel's variance times its samples, over its mean).
+/// At `sigma = 1` this budget gives each step of the iteration 0.28% and the polish, from
+/// which the colours come (2^20 samples), 0.10%: a third of the 0.3% asked of box-diffuse,
+/// and less than its smallest group at 256 px (8407 pixels, under the cap) gets from all
+/// its pixels (0.14%). The panorama's own noise averages over `N / spp` pixels (16384 at
+/// fast).
+///
+/// Groups of up to 16384 pixels at fast (box-diffuse's at 64 px per face have at most
+/// 7865) keep every pixel, and their sums keep their bits; at 256 px, where its walls and
+/// floor have 60000-130000 pixels, a step costs about a quarter.
+const DIFFUSE_GROUP_SAMPLES: u64 = 1 << 17;
 
 /// The metal colour polish renders each metal or mirror group with at least this many
 /// samples in all (more per pixel for small groups): a mirror's pixels carry the heavy-
@@ -1209,8 +1260,13 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     // render at the loop's samples (on box-diffuse at effort fast, up to 0.94% between
     // seeds on the smallest group). One more step at POLISH_SPP_FACTOR times the samples,
     // on a fresh seed, replaces most of it.
+    // On the iteration's pixels (`DIFFUSE_GROUP_SAMPLES`): a large group's colour comes
+    // from POLISH_SPP_FACTOR times that budget, small groups' from all their pixels.
     let polish_spp = POLISH_SPP_FACTOR * spp;
-    let fits = rec.evaluate(polish_spp, rec.seed ^ 0x9011_5400, &|g| active[g as usize])?;
+    let subset = rec.diffuse_subset(spp);
+    let fits = rec.evaluate_pixels(&subset, polish_spp, rec.seed ^ 0x9011_5400, &|g| {
+        active[g as usize]
+    })?;
     evaluations += 1;
     for (g, fit) in fits.iter().enumerate() {
         if let (true, GroupModel::Diffuse { color }) = (active[g], rec.models[g]) {
