@@ -116,7 +116,8 @@ pub struct GroupReport {
     pub model: String,
     /// Every decision taken for the group, in order, with the threshold and statistic.
     pub decisions: Vec<String>,
-    /// Error of the first all-diffuse render.
+    /// Error of the first all-diffuse render (on the diffuse iteration's pixels, at most
+    /// `DIFFUSE_GROUP_SAMPLES` pixel samples of the group).
     pub error_initial: Option<f64>,
     /// Bias-only error after stage 1 (diffuse), which decides whether the group goes on.
     pub error_diffuse: Option<f64>,
@@ -300,6 +301,33 @@ impl Recovery {
         })
     }
 
+    /// Renders those of `pixels` (pure pixels, a subset of [`Recovery::pure`]) whose group
+    /// is `wanted` with the current models.
+    fn evaluate_pixels(
+        &mut self,
+        pixels: &[PurePixel],
+        spp: u32,
+        seed: u64,
+        wanted: &(dyn Fn(u16) -> bool + Sync),
+    ) -> Result<Vec<GroupFit>, Error> {
+        let n = self.n_groups();
+        self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            let observed = pixels::Observed {
+                pure: pixels,
+                ..observed
+            };
+            pixels::evaluate(pool, scene, observed, settings, n, wanted)
+        })
+    }
+
+    /// The pure pixels the diffuse iteration at `spp` and its polish step render: at most
+    /// [`DIFFUSE_GROUP_SAMPLES`] pixel samples per group at `spp`, spread evenly over each
+    /// group (see [`pixels::spread_subset`]).
+    fn diffuse_subset(&self, spp: u32) -> Vec<PurePixel> {
+        let limit = DIFFUSE_GROUP_SAMPLES.div_ceil(spp.max(1) as u64) as usize;
+        pixels::spread_subset(&self.pure, self.n_groups(), limit)
+    }
+
     /// The bias-only fit of group `g` (see [`pixels::evaluate_cross`]).
     fn evaluate_cross(&mut self, spp: u32, seed: u64, g: usize) -> Result<GroupFit, Error> {
         let n = self.n_groups();
@@ -448,15 +476,20 @@ impl Recovery {
     }
 
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
-    /// held fixed, until converged. Returns (first fits, last fits, evaluations).
+    /// held fixed, until converged, every render on [`Recovery::diffuse_subset`] (the
+    /// update needs each group's mean, not every pixel). Returns (first fits, on that
+    /// subset, and evaluations). The step that finds
+    /// the change converged has already applied its update; no render follows it (what
+    /// stage 1 decides on is measured afterwards by [`Recovery::error_estimates`]).
     fn diffuse_iteration(
         &mut self,
         spp: u32,
         active: &[bool],
         bar: &ProgressBar,
-    ) -> Result<(Vec<GroupFit>, Vec<GroupFit>, u32), Error> {
+    ) -> Result<(Vec<GroupFit>, u32), Error> {
         let seed = self.seed;
         let wanted = |g: u16| active[g as usize];
+        let subset = self.diffuse_subset(spp);
         let mut first = None;
         let mut evaluations = 0;
         let mut previous_change = f64::INFINITY;
@@ -464,7 +497,7 @@ impl Recovery {
         // which the update measures how strongly the render responds (its slope).
         let mut previous: Vec<Option<([f64; 3], [f64; 3])>> = vec![None; self.n_groups()];
         loop {
-            let fits = self.evaluate(spp, seed, &wanted)?;
+            let fits = self.evaluate_pixels(&subset, spp, seed, &wanted)?;
             evaluations += 1;
             bar.inc(1);
             let first_fits = first.get_or_insert_with(|| fits.clone()).clone();
@@ -478,8 +511,7 @@ impl Recovery {
                 }
             }
             if diffuse::converged(evaluations, max_change, previous_change) {
-                let last = self.evaluate(spp, seed, &wanted)?;
-                return Ok((first_fits, last, evaluations + 1));
+                return Ok((first_fits, evaluations));
             }
             previous_change = max_change;
         }
@@ -550,6 +582,26 @@ const MAP_SPP_FACTOR: u32 = 8;
 
 /// The diffuse refinement's last step renders at this many times the loop's samples.
 const POLISH_SPP_FACTOR: u32 = 8;
+
+/// Pixel samples per group that one render of the diffuse iteration takes at most: a group
+/// with more than `DIFFUSE_GROUP_SAMPLES / spp` pure pixels is rendered on that many,
+/// spread evenly over it (`pixels::spread_subset`), and the polish step after the iteration
+/// renders the same pixels at `POLISH_SPP_FACTOR` times the samples.
+///
+/// The update `rho <- rho * mean(real) / mean(rendered)` needs the group's mean, and the
+/// mean of `N` pixel samples whose relative deviation per sample is `sigma` has a relative
+/// standard error of `sigma / sqrt(N)`. The renders of box-diffuse's groups measured
+/// `sigma` 0.33-0.87 at effort fast (a pixel's variance times its samples, over its mean).
+/// At `sigma = 1` this budget gives each step of the iteration 0.28% and the polish, from
+/// which the colours come (2^20 samples), 0.10%: a third of the 0.3% asked of box-diffuse,
+/// and less than its smallest group at 256 px (8407 pixels, under the cap) gets from all
+/// its pixels (0.14%). The panorama's own noise averages over `N / spp` pixels (16384 at
+/// fast).
+///
+/// Groups of up to 16384 pixels at fast (box-diffuse's at 64 px per face have at most
+/// 7865) keep every pixel, and their sums keep their bits; at 256 px, where its walls and
+/// floor have 60000-130000 pixels, a step costs about a quarter.
+const DIFFUSE_GROUP_SAMPLES: u64 = 1 << 17;
 
 /// The metal colour polish renders each metal or mirror group with at least this many
 /// samples in all (more per pixel for small groups): a mirror's pixels carry the heavy-
@@ -679,7 +731,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let spp = args.budget.loop_spp;
     let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "1 diffuse");
     let all = vec![true; n_groups];
-    let (first, fits, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
+    let (first, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
+    let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
     // Which groups go on is decided on the bias-only error, at the decisions' samples and
     // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
     // own noise (heavy-tailed paths), by whole percents either way.
@@ -691,8 +744,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         let Some(e) = *estimate else { continue };
         let gate = fit::SPECULAR_GAIN_THRESHOLD;
         let straddles = e.error + e.sigma > gate && e.error - e.sigma <= gate;
-        let group_spp = min_samples_spp(4 * spp, fits[g].pixels, CACHE_MIN_SAMPLES);
-        if straddles && fits[g].pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE && group_spp > 4 * spp {
+        let group_spp = min_samples_spp(4 * spp, pure_pixels[g], CACHE_MIN_SAMPLES);
+        if straddles && pure_pixels[g] >= fit::MIN_PIXELS_FOR_MODEL_CHOICE && group_spp > 4 * spp {
             *estimate = rec.error_estimate(g, group_spp, rec.decision_seed() ^ 0x5A3E)?;
         }
     }
@@ -711,12 +764,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let mut candidates = Vec::new();
     for g in 0..n_groups {
         let r = &mut reports[g];
-        r.pure_pixels = fits[g].pixels;
+        r.pure_pixels = pure_pixels[g];
         r.error_initial = first[g].relative_error();
         r.error_diffuse = decided[g].map(|e| e.error);
         let e = decided[g].map_or(0.0, |e| e.error);
         let sigma = decided[g].map_or(0.0, |e| e.sigma);
-        match diffuse::verdict(fits[g].pixels, decided[g]) {
+        match diffuse::verdict(pure_pixels[g], decided[g]) {
             DiffuseVerdict::Unseen => {
                 rec.models[g] = GroupModel::Unseen;
                 r.decisions
@@ -729,12 +782,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             DiffuseVerdict::BarelySeen => {
                 r.decisions.push(format!(
                     "diffuse, barely seen: {} pure pixels < MIN_PIXELS_FOR_MODEL_CHOICE {}; no more complex model is tried",
-                    fits[g].pixels,
+                    pure_pixels[g],
                     fit::MIN_PIXELS_FOR_MODEL_CHOICE
                 ));
                 warnings.push(format!(
                     "group '{}': only {} pure pixels; kept diffuse",
-                    names[g], fits[g].pixels
+                    names[g], pure_pixels[g]
                 ));
             }
             DiffuseVerdict::Diffuse => {
@@ -1211,14 +1264,19 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .all(|m| matches!(m, GroupModel::Diffuse { .. } | GroupModel::Unseen));
     let mut evaluations = 0;
     if !all_diffuse {
-        evaluations += rec.diffuse_iteration(spp, &active, &bar)?.2;
+        evaluations += rec.diffuse_iteration(spp, &active, &bar)?.1;
     }
     // The iteration stops at its own noise floor, so each colour carries the noise of one
     // render at the loop's samples (on box-diffuse at effort fast, up to 0.94% between
     // seeds on the smallest group). One more step at POLISH_SPP_FACTOR times the samples,
     // on a fresh seed, replaces most of it.
+    // On the iteration's pixels (`DIFFUSE_GROUP_SAMPLES`): a large group's colour comes
+    // from POLISH_SPP_FACTOR times that budget, small groups' from all their pixels.
     let polish_spp = POLISH_SPP_FACTOR * spp;
-    let fits = rec.evaluate(polish_spp, rec.seed ^ 0x9011_5400, &|g| active[g as usize])?;
+    let subset = rec.diffuse_subset(spp);
+    let fits = rec.evaluate_pixels(&subset, polish_spp, rec.seed ^ 0x9011_5400, &|g| {
+        active[g as usize]
+    })?;
     evaluations += 1;
     for (g, fit) in fits.iter().enumerate() {
         if let (true, GroupModel::Diffuse { color }) = (active[g], rec.models[g]) {
