@@ -117,7 +117,7 @@ pub struct GroupReport {
     /// Every decision taken for the group, in order, with the threshold and statistic.
     pub decisions: Vec<String>,
     /// Error of the first all-diffuse render (on the diffuse iteration's pixels, at most
-    /// `DIFFUSE_GROUP_SAMPLES` pixel samples of the group).
+    /// `DIFFUSE_GROUP_PIXELS` of the group).
     pub error_initial: Option<f64>,
     /// Bias-only error after stage 1 (diffuse), which decides whether the group goes on.
     pub error_diffuse: Option<f64>,
@@ -320,12 +320,11 @@ impl Recovery {
         })
     }
 
-    /// The pure pixels the diffuse iteration at `spp` and its polish step render: at most
-    /// [`DIFFUSE_GROUP_SAMPLES`] pixel samples per group at `spp`, spread evenly over each
-    /// group (see [`pixels::spread_subset`]).
-    fn diffuse_subset(&self, spp: u32) -> Vec<PurePixel> {
-        let limit = DIFFUSE_GROUP_SAMPLES.div_ceil(spp.max(1) as u64) as usize;
-        pixels::spread_subset(&self.pure, self.n_groups(), limit)
+    /// The pure pixels the diffuse iteration and its polish step render: at most
+    /// [`DIFFUSE_GROUP_PIXELS`] per group, spread evenly over each group (see
+    /// [`pixels::spread_subset`]).
+    fn diffuse_subset(&self) -> Vec<PurePixel> {
+        pixels::spread_subset(&self.pure, self.n_groups(), DIFFUSE_GROUP_PIXELS)
     }
 
     /// The bias-only fit of group `g` (see [`pixels::evaluate_cross`]).
@@ -489,7 +488,7 @@ impl Recovery {
     ) -> Result<(Vec<GroupFit>, u32), Error> {
         let seed = self.seed;
         let wanted = |g: u16| active[g as usize];
-        let subset = self.diffuse_subset(spp);
+        let subset = self.diffuse_subset();
         let mut first = None;
         let mut evaluations = 0;
         let mut previous_change = f64::INFINITY;
@@ -583,25 +582,25 @@ const MAP_SPP_FACTOR: u32 = 8;
 /// The diffuse refinement's last step renders at this many times the loop's samples.
 const POLISH_SPP_FACTOR: u32 = 8;
 
-/// Pixel samples per group that one render of the diffuse iteration takes at most: a group
-/// with more than `DIFFUSE_GROUP_SAMPLES / spp` pure pixels is rendered on that many,
-/// spread evenly over it (`pixels::spread_subset`), and the polish step after the iteration
-/// renders the same pixels at `POLISH_SPP_FACTOR` times the samples.
+/// Pure pixels per group that the renders of the diffuse iteration and its polish step
+/// take at most: a larger group is rendered on that many, spread evenly over it
+/// (`pixels::spread_subset`), at the effort's samples per pixel.
 ///
 /// The update `rho <- rho * mean(real) / mean(rendered)` needs the group's mean, and the
 /// mean of `N` pixel samples whose relative deviation per sample is `sigma` has a relative
 /// standard error of `sigma / sqrt(N)`. The renders of box-diffuse's groups measured
 /// `sigma` 0.33-0.87 at effort fast (a pixel's variance times its samples, over its mean).
-/// At `sigma = 1` this budget gives each step of the iteration 0.28% and the polish, from
-/// which the colours come (2^20 samples), 0.10%: a third of the 0.3% asked of box-diffuse,
-/// and less than its smallest group at 256 px (8407 pixels, under the cap) gets from all
-/// its pixels (0.14%). The panorama's own noise averages over `N / spp` pixels (16384 at
-/// fast).
+/// At `sigma = 1` and effort fast (8 samples per pixel, 2^17 per step) this gives each step
+/// of the iteration 0.28% and the polish, from which the colours come (2^20 samples), 0.10%:
+/// a third of the 0.3% asked of box-diffuse, and less than its smallest group at 256 px
+/// (8407 pixels, under the cap) gets from all its pixels (0.14%); a higher effort takes
+/// more samples per pixel on the same pixels. The panorama's own noise averages over the
+/// 16384 pixels.
 ///
-/// Groups of up to 16384 pixels at fast (box-diffuse's at 64 px per face have at most
-/// 7865) keep every pixel, and their sums keep their bits; at 256 px, where its walls and
-/// floor have 60000-130000 pixels, a step costs about a quarter.
-const DIFFUSE_GROUP_SAMPLES: u64 = 1 << 17;
+/// Groups of up to 16384 pixels (box-diffuse's at 64 px per face have at most 7865) keep
+/// every pixel, and their sums keep their bits; at 256 px, where its walls and floor have
+/// 60000-130000 pixels, a step costs about a quarter.
+const DIFFUSE_GROUP_PIXELS: usize = 1 << 14;
 
 /// The metal colour polish renders each metal or mirror group with at least this many
 /// samples in all (more per pixel for small groups): a mirror's pixels carry the heavy-
@@ -1270,10 +1269,9 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     // render at the loop's samples (on box-diffuse at effort fast, up to 0.94% between
     // seeds on the smallest group). One more step at POLISH_SPP_FACTOR times the samples,
     // on a fresh seed, replaces most of it.
-    // On the iteration's pixels (`DIFFUSE_GROUP_SAMPLES`): a large group's colour comes
-    // from POLISH_SPP_FACTOR times that budget, small groups' from all their pixels.
+    // On the iteration's pixels (`DIFFUSE_GROUP_PIXELS` at most per group).
     let polish_spp = POLISH_SPP_FACTOR * spp;
-    let subset = rec.diffuse_subset(spp);
+    let subset = rec.diffuse_subset();
     let fits = rec.evaluate_pixels(&subset, polish_spp, rec.seed ^ 0x9011_5400, &|g| {
         active[g as usize]
     })?;
