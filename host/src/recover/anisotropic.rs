@@ -97,7 +97,7 @@ pub fn propose_from_cache(
     let (lo, hi) = (ROUGHNESS_MIN.ln(), ROUGHNESS_MAX.ln());
     let level = |i: usize| lo + (hi - lo) * i as f64 / (PROPOSAL_ROUGHNESS_GRID - 1) as f64;
     let angle = |k: usize| std::f64::consts::PI * k as f64 / PROPOSAL_ANGLE_GRID as f64;
-    let mut grid = vec![[level(0), level(0), angle(0)]];
+    let mut grid = Vec::new();
     for i in 0..PROPOSAL_ROUGHNESS_GRID {
         for j in i..PROPOSAL_ROUGHNESS_GRID {
             for k in 0..PROPOSAL_ANGLE_GRID {
