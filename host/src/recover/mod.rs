@@ -295,10 +295,10 @@ impl Recovery {
         seed: u64,
         wanted: &(dyn Fn(u16) -> bool + Sync),
     ) -> Result<Vec<GroupFit>, Error> {
-        let n = self.n_groups();
-        self.with_scene(spp, seed, |pool, scene, observed, settings| {
-            pixels::evaluate(pool, scene, observed, settings, n, wanted)
-        })
+        let pure = std::mem::take(&mut self.pure);
+        let fits = self.evaluate_pixels(&pure, spp, seed, wanted);
+        self.pure = pure;
+        fits
     }
 
     /// Renders those of `pixels` (pure pixels, a subset of [`Recovery::pure`]) whose group
