@@ -130,6 +130,12 @@ impl MapLobe {
         }
     }
 
+    /// The white plastic with this lobe: under the map (which replaces its diffuse
+    /// colour), what the textured model renders, writes and perturbs.
+    pub fn white(&self) -> GroupModel {
+        self.with_color([1.0; 3])
+    }
+
     pub fn specularity(&self) -> f64 {
         match *self {
             MapLobe::None => 0.0,
@@ -239,7 +245,7 @@ impl GroupModel {
                 // The map replaces rho_d: the white plastic with the lobe, under the map.
                 return SurfaceMaterial {
                     diffuse_map: Some(TextureId(map as u16)),
-                    ..lobe.with_color([1.0; 3]).surface_material()
+                    ..lobe.white().surface_material()
                 };
             }
             GroupModel::Unseen => Material::Diffuse {
@@ -295,7 +301,7 @@ impl GroupModel {
             }
             GroupModel::Textured { lobe, .. } => {
                 // The stand-in's keys, the colour given by the map instead.
-                d = lobe.with_color([1.0; 3]).material_desc(group, None)?;
+                d = lobe.white().material_desc(group, None)?;
                 d.model = lobe.textured_model();
                 d.color = None;
                 d.diffuse_map = map_path.map(Path::to_path_buf);
@@ -361,9 +367,7 @@ impl GroupModel {
                 c[0] as f32, c[1] as f32, c[2] as f32
             ),
             GroupModel::Textured { lobe, .. } => {
-                return lobe
-                    .with_color([1.0; 3])
-                    .radiance_primitive(group, modifier)
+                return lobe.white().radiance_primitive(group, modifier)
             }
             GroupModel::Unseen => return None,
         })

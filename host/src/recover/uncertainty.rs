@@ -69,7 +69,7 @@ fn perturbations(model: &GroupModel) -> Vec<Perturbation> {
             Scalar("roughness_v", roughness_v),
         ],
         // The lobe's parameters; the colour is the map's.
-        GroupModel::Textured { lobe, .. } => perturbations(&lobe.with_color([1.0; 3]))
+        GroupModel::Textured { lobe, .. } => perturbations(&lobe.white())
             .into_iter()
             .filter(|p| !matches!(p, Colour(_)))
             .collect(),
@@ -80,7 +80,7 @@ fn perturbations(model: &GroupModel) -> Vec<Perturbation> {
 /// `model` with the parameter(s) of `perturbation` scaled by `1 + STEP`.
 fn perturbed(model: GroupModel, perturbation: &Perturbation) -> GroupModel {
     if let GroupModel::Textured { map, lobe } = model {
-        let stand_in = perturbed(lobe.with_color([1.0; 3]), perturbation);
+        let stand_in = perturbed(lobe.white(), perturbation);
         return GroupModel::Textured {
             map,
             lobe: MapLobe::of_stand_in(&stand_in),
