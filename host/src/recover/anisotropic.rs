@@ -57,6 +57,37 @@ fn shape_bounds() -> ([f64; 3], [f64; 3]) {
     )
 }
 
+/// The shapes of the cache proposal's grid: log-spaced roughness levels with `u <= v` (a
+/// shape with `u > v` is the same lobe turned by pi/2) at every angle. The first angle's
+/// `u == v` points are the isotropic lobes of the same levels.
+pub fn proposal_grid() -> Vec<[f64; 3]> {
+    let (lo, hi) = (ROUGHNESS_MIN.ln(), ROUGHNESS_MAX.ln());
+    let level = |i: usize| lo + (hi - lo) * i as f64 / (PROPOSAL_ROUGHNESS_GRID - 1) as f64;
+    let angle = |k: usize| std::f64::consts::PI * k as f64 / PROPOSAL_ANGLE_GRID as f64;
+    let mut grid = Vec::new();
+    for i in 0..PROPOSAL_ROUGHNESS_GRID {
+        for j in i..PROPOSAL_ROUGHNESS_GRID {
+            for k in 0..PROPOSAL_ANGLE_GRID {
+                grid.push([level(i), level(j), angle(k)]);
+            }
+        }
+    }
+    grid
+}
+
+/// The unit specular lobe (`rho_s = 1`, no diffuse part) of shape `x` (see [`lobe_at`]),
+/// for the cache's linear parts.
+pub fn unit_lobe(x: [f64; 3], basis: (Vec3, Vec3)) -> Material {
+    let (alpha_u, alpha_v, direction) = lobe_at(x, basis);
+    Material::WardAnisotropic {
+        rho_d: Vec3::ZERO,
+        rho_s: Vec3::ONE,
+        alpha_u: alpha_u as f32,
+        alpha_v: alpha_v as f32,
+        direction,
+    }
+}
+
 /// The anisotropic lobe of roughnesses `(exp x0, exp x1)`, `x2` the angle of its `u`
 /// direction from `t` towards `b`.
 fn lobe_at(x: [f64; 3], (t, b): (Vec3, Vec3)) -> (f64, f64, Vec3) {
@@ -79,32 +110,14 @@ pub fn propose_from_cache(
     basis: (Vec3, Vec3),
 ) -> Result<(Proposal, u32), Error> {
     let fit_at = |x: [f64; 3]| {
-        let (alpha_u, alpha_v, direction) = lobe_at(x, basis);
-        let lobe = Material::WardAnisotropic {
-            rho_d: Vec3::ZERO,
-            rho_s: Vec3::ONE,
-            alpha_u: alpha_u as f32,
-            alpha_v: alpha_v as f32,
-            direction,
-        };
-        let sums = cache::linear_sums(pool, cache, &lobe);
+        let sums = cache::linear_sums(pool, cache, &unit_lobe(x, basis));
         let fit = match kind {
             Kind::Plastic => isotropic::solve_plastic(&sums),
             Kind::Metal => isotropic::solve_metal(&sums),
         };
         Proposal { fit, x }
     };
-    let (lo, hi) = (ROUGHNESS_MIN.ln(), ROUGHNESS_MAX.ln());
-    let level = |i: usize| lo + (hi - lo) * i as f64 / (PROPOSAL_ROUGHNESS_GRID - 1) as f64;
-    let angle = |k: usize| std::f64::consts::PI * k as f64 / PROPOSAL_ANGLE_GRID as f64;
-    let mut grid = Vec::new();
-    for i in 0..PROPOSAL_ROUGHNESS_GRID {
-        for j in i..PROPOSAL_ROUGHNESS_GRID {
-            for k in 0..PROPOSAL_ANGLE_GRID {
-                grid.push([level(i), level(j), angle(k)]);
-            }
-        }
-    }
+    let grid = proposal_grid();
     // The grid's points in parallel (a small group's sums are one chunk, one thread),
     // chosen in grid order: the same proposal as one at a time.
     let fits: Vec<Proposal> = pool.install(|| grid.par_iter().map(|&x| fit_at(x)).collect());
