@@ -15,6 +15,7 @@ mod anisotropic;
 mod cache;
 mod model;
 mod output;
+mod pattern;
 mod pixels;
 mod refine;
 mod texture;
@@ -1063,11 +1064,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let stage4: Vec<usize> = (0..n_groups)
         .filter(|&g| match rec.models[g] {
             // The paper's textured-anisotropic step, on the untextured stand-in as stage 2
-            // fitted its isotropic lobe: a group whose highlight stage 2 found goes on. Its
-            // error is the picture's, so no error threshold can say whether it does; the
-            // comparison's significance decides, on a uniform colour for both sides (a
-            // map of one texel per pixel would absorb either lobe's misfit).
-            GroupModel::Isotropic { .. } if textured[g] => true,
+            // fitted it, lobed or not. Its error is the picture's, so no error threshold
+            // can say whether it goes on; the comparison's significance decides, on a
+            // uniform colour for both sides (a map of one texel per pixel would absorb
+            // either lobe's misfit), and the pattern test (`pattern`) that the lobe explains
+            // a highlight rather than follows the picture.
+            GroupModel::Isotropic { .. } | GroupModel::Diffuse { .. } if textured[g] => true,
             // As the stages: every untextured group that stage 2 tried and left
             // above the threshold, whether it kept the isotropic lobe or stayed diffuse
             // (an anisotropic highlight can be one no isotropic lobe explains better than
@@ -1090,6 +1092,33 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             _ => lobe_kinds(kinds[g]).to_vec(),
         };
         let cache = rec.group_cache(g, &cache_settings)?;
+        // A textured group's lobe is fitted on a uniform stand-in, whose misfit is the
+        // picture: the lobe must explain a highlight, not follow the picture.
+        let pictured = match textured[g] {
+            true => Some(pattern::TexturedGroup::new(&mut rec, &cache, basis)?),
+            false => None,
+        };
+        evaluations += pictured.as_ref().map_or(0, |p| p.lobes());
+        if let (Some(pictured), GroupModel::Isotropic { kind, .. }) = (&pictured, stage2) {
+            if let Some(test) = pictured.isotropic(&rec.pool, kind) {
+                let r = &mut reports[g];
+                if !test.passes() {
+                    rec.models[g] = GroupModel::Diffuse {
+                        color: pictured.diffuse_color(),
+                    };
+                    r.decisions.push(format!(
+                        "stage 4: the stand-in's isotropic lobe follows the picture, not a highlight; the stand-in is diffuse: {}",
+                        test.describe()
+                    ));
+                    bar.inc(1);
+                    continue;
+                }
+                r.decisions.push(format!(
+                    "stage 4: the stand-in's isotropic lobe explains a highlight: {}",
+                    test.describe()
+                ));
+            }
+        }
         // The anisotropic side as stage 2 found the isotropic one: the cache proposes
         // (reflectances in closed form, the lobe by grid and simplex), annealing on
         // renders refines, a race on fresh samples chooses.
@@ -1141,8 +1170,15 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             if let Some((c, _)) = rec.compare_models(g, kept, alternative, 4 * verify_spp)? {
                 // Between two isotropic fits the better one; a group stage 2 left diffuse
                 // takes a lobe here only as stage 2 would have kept one (significance).
+                // A picture's lobe must also explain a highlight rather than the picture.
                 let better = match kept {
-                    GroupModel::Diffuse { .. } => c.favours_complex(),
+                    GroupModel::Diffuse { .. } => {
+                        c.favours_complex()
+                            && pictured
+                                .as_ref()
+                                .and_then(|p| p.isotropic(&rec.pool, kind))
+                                .is_none_or(|t| t.passes())
+                    }
                     _ => c.gain > 0.0,
                 };
                 if better {
@@ -1174,7 +1210,19 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             c.error_simple,
             c.error_complex
         );
-        if let (
+        // For a textured group, the anisotropic gain must also come from a highlight.
+        let over_isotropic = matches!(kept, GroupModel::Isotropic { .. });
+        let pattern = match (&pictured, c.favours_complex()) {
+            (Some(p), true) => p.anisotropic(&rec.pool, kind, over_isotropic),
+            _ => None,
+        };
+        if let Some(test) = pattern.filter(|t| !t.passes()) {
+            r.decisions.push(format!(
+                "stage 4: stays {}: the anisotropic fit {measured}, but its gain follows the picture, not a highlight: {}",
+                kept.name(),
+                test.describe()
+            ));
+        } else if let (
             true,
             GroupModel::Anisotropic {
                 roughness_u,
@@ -1184,6 +1232,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             },
         ) = (c.favours_complex(), refined.model)
         {
+            if let Some(test) = pattern {
+                r.decisions.push(format!(
+                    "stage 4: the anisotropic gain explains a highlight: {}",
+                    test.describe()
+                ));
+            }
             r.decisions.push(format!(
                 "stage 4: anisotropic (roughness_u {roughness_u:.4}, roughness_v {roughness_v:.4}, direction [{:.3}, {:.3}, {:.3}]) {measured}: > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
                 d[0], d[1], d[2],
