@@ -72,6 +72,12 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
                 report.pure_pixels
             ));
         }
+        if let GroupModel::Textured { .. } = model {
+            warnings.push(format!(
+                "group '{name}': {}: a picture's lobe, or its absence, is decided on a uniform stand-in from one view per texel; on the references such lobes were missed (living room picture_3), found where there is none at 64 px (picture_1, past the pattern test) and their parameters came out 10-65% off (docs/recovery.md, stage 5)",
+                model.name()
+            ));
+        }
         if let Some(s) = specularity(model).filter(|&s| s > 0.0 && s < WEAK_SPECULARITY) {
             warnings.push(format!(
                 "group '{name}': weak specular lobe (specularity {s:.3} < {WEAK_SPECULARITY}): such lobes were found or missed depending on the seed, their parameters off by 10-100% {SEE}"
@@ -207,5 +213,23 @@ mod tests {
         );
         assert!(!has("'statue': stage"), "{w:?}");
         assert_eq!(w.len(), 6, "{w:?}");
+    }
+
+    #[test]
+    fn every_textured_group_is_told_how_far_its_lobe_can_be_trusted() {
+        let groups = [group("picture", 900, vec![]), group("wall", 5000, vec![])];
+        let models = [
+            GroupModel::Textured {
+                map: 0,
+                lobe: crate::recover::model::MapLobe::None,
+            },
+            GroupModel::Diffuse { color: [0.5; 3] },
+        ];
+        let w = warnings_for(&groups, &models, 0.0, 64, Effort::Default);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].contains("'picture': textured-diffuse: a picture's lobe"),
+            "{w:?}"
+        );
     }
 }
