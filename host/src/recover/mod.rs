@@ -1404,6 +1404,17 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             args.budget.loop_spp,
             args.seed ^ 0x5160,
         )?;
+        // A textured group's lobe also carries the picture's share (`pattern::lobe_spread`).
+        if let GroupModel::Textured { lobe, .. } = rec.models[g] {
+            if lobe.specularity() > 0.0 {
+                let cache = rec.group_cache(g, &cache_settings)?;
+                for (name, sigma) in pattern::lobe_spread(&mut rec, &cache, &lobe)? {
+                    if let Some(u) = r.uncertainty.iter_mut().find(|u| u.parameter == name) {
+                        u.sigma = u.sigma.hypot(sigma);
+                    }
+                }
+            }
+        }
     }
     stages.push(StageReport {
         stage: "uncertainty".into(),
