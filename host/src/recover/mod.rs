@@ -1106,6 +1106,10 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                     rec.models[g] = GroupModel::Diffuse {
                         color: pictured.diffuse_color(),
                     };
+                    // Stage 2's comparison kept a lobe that is no longer there.
+                    for c in r.comparisons.iter_mut().filter(|c| c.stage.starts_with('2')) {
+                        c.kept_complex = false;
+                    }
                     r.decisions.push(format!(
                         "stage 4: the stand-in's isotropic lobe follows the picture, not a highlight; the stand-in is diffuse: {}",
                         test.describe()
@@ -1194,13 +1198,21 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         let Some((c, decision_spp)) = comparison else {
             continue;
         };
-        r.comparisons.push(ComparisonReport::new(
+        // For a textured group, the anisotropic gain must also come from a highlight.
+        let over_isotropic = matches!(kept, GroupModel::Isotropic { .. });
+        let pattern = match (&pictured, c.favours_complex()) {
+            (Some(p), true) => p.anisotropic(&rec.pool, kind, over_isotropic),
+            _ => None,
+        };
+        let mut report = ComparisonReport::new(
             "4 anisotropic",
             kept.name(),
             refined.model.name(),
             &c,
             decision_spp,
-        ));
+        );
+        report.kept_complex &= pattern.is_none_or(|t| t.passes());
+        r.comparisons.push(report);
         let measured = format!(
             "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; {} {:.4}, anisotropic {:.4})",
             c.gain,
@@ -1210,12 +1222,6 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             c.error_simple,
             c.error_complex
         );
-        // For a textured group, the anisotropic gain must also come from a highlight.
-        let over_isotropic = matches!(kept, GroupModel::Isotropic { .. });
-        let pattern = match (&pictured, c.favours_complex()) {
-            (Some(p), true) => p.anisotropic(&rec.pool, kind, over_isotropic),
-            _ => None,
-        };
         if let Some(test) = pattern.filter(|t| !t.passes()) {
             r.decisions.push(format!(
                 "stage 4: stays {}: the anisotropic fit {measured}, but its gain follows the picture, not a highlight: {}",
