@@ -165,6 +165,22 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
         "{:?}",
         decisions("picture_stripes")
     );
+    // ... and its comparison is reported as rejected, not as kept.
+    let stripes_stage4: Vec<&serde_json::Value> = report["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["group"] == "picture_stripes")
+        .unwrap()["comparisons"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["stage"] == "4 anisotropic")
+        .collect();
+    assert!(
+        !stripes_stage4.is_empty() && stripes_stage4.iter().all(|c| c["kept_complex"] == false),
+        "{stripes_stage4:?}"
+    );
     assert!(
         decisions("picture_checker")
             .iter()

@@ -1107,7 +1107,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                         color: pictured.diffuse_color(),
                     };
                     // Stage 2's comparison kept a lobe that is no longer there.
-                    for c in r.comparisons.iter_mut().filter(|c| c.stage.starts_with('2')) {
+                    for c in r
+                        .comparisons
+                        .iter_mut()
+                        .filter(|c| c.stage.starts_with('2'))
+                    {
                         c.kept_complex = false;
                     }
                     r.decisions.push(format!(
