@@ -133,13 +133,16 @@ struct Lobes {
 
 impl Lobes {
     fn new(basis: (Vec3, Vec3)) -> Lobes {
-        let (lo, hi) = (isotropic::ROUGHNESS_MIN.ln(), isotropic::ROUGHNESS_MAX.ln());
+        let (lo, hi) = (
+            libm::log(isotropic::ROUGHNESS_MIN),
+            libm::log(isotropic::ROUGHNESS_MAX),
+        );
         let n = isotropic::ROUGHNESS_GRID;
         let mut materials: Vec<Material> = (0..n)
             .map(|i| Material::Ward {
                 rho_d: Vec3::ZERO,
                 rho_s: Vec3::ONE,
-                alpha: (lo + (hi - lo) * i as f64 / (n - 1) as f64).exp() as f32,
+                alpha: libm::exp(lo + (hi - lo) * i as f64 / (n - 1) as f64) as f32,
             })
             .collect();
         materials.extend(
@@ -252,7 +255,7 @@ pub fn lobe_spread(
         MapLobe::Isotropic { roughness, .. } => {
             let (step, n) = SPREAD_ISOTROPIC;
             for k in -n..=n {
-                let alpha = clamp(roughness * (step * k as f64).exp());
+                let alpha = clamp(roughness * libm::exp(step * k as f64));
                 materials.push(Material::Ward {
                     rho_d: Vec3::ZERO,
                     rho_s: Vec3::ONE,
@@ -270,8 +273,8 @@ pub fn lobe_spread(
             let (step, n) = SPREAD_ANISOTROPIC;
             for i in -n..=n {
                 for j in -n..=n {
-                    let u = clamp(roughness_u * (step * i as f64).exp());
-                    let v = clamp(roughness_v * (step * j as f64).exp());
+                    let u = clamp(roughness_u * libm::exp(step * i as f64));
+                    let v = clamp(roughness_v * libm::exp(step * j as f64));
                     materials.push(Material::WardAnisotropic {
                         rho_d: Vec3::ZERO,
                         rho_s: Vec3::ONE,
@@ -321,7 +324,8 @@ fn refit_spread(
             .collect()
     });
     let rms = |change: &dyn Fn(&(WardFit, usize)) -> f64| {
-        (refits.iter().map(|r| change(r).powi(2)).sum::<f64>() / refits.len() as f64).sqrt()
+        let squares: f64 = refits.iter().map(|r| change(r) * change(r)).sum();
+        libm::sqrt(squares / refits.len() as f64)
     };
     let mut spread = vec![(
         "specularity",
@@ -502,9 +506,9 @@ mod tests {
                 let irradiance = 1.0 + 0.3 * uv.x;
                 let pattern: f32 = waves
                     .iter()
-                    .map(|(k, phase, a)| a * (k.dot(uv) + phase).sin())
+                    .map(|(k, phase, a)| a * libm::sinf(k.dot(uv) + phase))
                     .sum();
-                let lobe = |w: f32| (-(uv - centre).length_squared() / (w * w)).exp();
+                let lobe = |w: f32| libm::expf(-(uv - centre).length_squared() / (w * w));
                 for (k, w) in widths.iter().enumerate() {
                     parts.specular[k].push(Vec3::splat(lobe(*w)));
                 }
