@@ -141,15 +141,14 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
     // gain the render comparison accepted); the checker's highlight passes it.
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    // A group's list `field` in the report.
+    let listed = |g: &str, field: &str| -> Vec<serde_json::Value> {
+        let groups = report["groups"].as_array().unwrap();
+        let group = groups.iter().find(|r| r["group"] == g).unwrap();
+        group[field].as_array().unwrap().clone()
+    };
     let decisions = |g: &str| -> Vec<String> {
-        report["groups"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|r| r["group"] == g)
-            .unwrap()["decisions"]
-            .as_array()
-            .unwrap()
+        listed(g, "decisions")
             .iter()
             .map(|d| d.as_str().unwrap().to_string())
             .collect()
@@ -166,15 +165,8 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
         decisions("picture_stripes")
     );
     // ... and its comparison is reported as rejected, not as kept.
-    let stripes_stage4: Vec<&serde_json::Value> = report["groups"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|r| r["group"] == "picture_stripes")
-        .unwrap()["comparisons"]
-        .as_array()
-        .unwrap()
-        .iter()
+    let stripes_stage4: Vec<serde_json::Value> = listed("picture_stripes", "comparisons")
+        .into_iter()
         .filter(|c| c["stage"] == "4 anisotropic")
         .collect();
     assert!(

@@ -304,24 +304,8 @@ fn refit_spread(
     }
     let all: Vec<usize> = (0..shapes.len()).collect();
     let (fit0, k0) = best_fit(parts, Kind::Plastic, &all, &parts.real);
-    let predicted: Vec<Vec3> = (0..n)
-        .map(|i| {
-            Vec3::from_array(fit0.rho_d.map(|v| v as f32)) * parts.diffuse[i]
-                + Vec3::from_array(fit0.rho_s.map(|v| v as f32)) * parts.specular[k0][i]
-        })
-        .collect();
-    let residual: Vec<Vec3> = (0..n).map(|i| parts.real[i] - predicted[i]).collect();
-    let refits: Vec<(WardFit, usize)> = pool.install(|| {
-        shifts()
-            .par_iter()
-            .map(|&shift| {
-                let sources = shifted_sources(&parts.uv, shift);
-                let targets: Vec<Vec3> = (0..n)
-                    .map(|i| predicted[i] + residual[sources[i]])
-                    .collect();
-                best_fit(parts, Kind::Plastic, &all, &targets)
-            })
-            .collect()
+    let refits = over_shifted_residuals(pool, parts, (&fit0, k0), |targets| {
+        best_fit(parts, Kind::Plastic, &all, targets)
     });
     let rms = |change: &dyn Fn(&(WardFit, usize)) -> f64| {
         let squares: f64 = refits.iter().map(|r| change(r) * change(r)).sum();
@@ -418,6 +402,42 @@ fn shifted_sources(uv: &[Vec2], (a, b): (usize, usize)) -> Vec<usize> {
         .collect()
 }
 
+/// `measure` of each of the test's null data sets: `fit`'s prediction (its lobe `k` of
+/// `parts`, none for any other `k`) plus its residual shifted over the picture, for each
+/// of [`shifts`], in their order.
+fn over_shifted_residuals<T: Send>(
+    pool: &rayon::ThreadPool,
+    parts: &Parts,
+    (fit, k): (&WardFit, usize),
+    measure: impl Fn(&[Vec3]) -> T + Sync,
+) -> Vec<T> {
+    let to_vec3 = |v: [f64; 3]| Vec3::from_array(v.map(|x| x as f32));
+    let predicted: Vec<Vec3> = (0..parts.real.len())
+        .map(|i| {
+            let specular = parts.specular.get(k).map_or(Vec3::ZERO, |lobe| lobe[i]);
+            to_vec3(fit.rho_d) * parts.diffuse[i] + to_vec3(fit.rho_s) * specular
+        })
+        .collect();
+    let residual: Vec<Vec3> = parts
+        .real
+        .iter()
+        .zip(&predicted)
+        .map(|(r, p)| *r - *p)
+        .collect();
+    pool.install(|| {
+        shifts()
+            .par_iter()
+            .map(|&shift| {
+                let sources = shifted_sources(&parts.uv, shift);
+                let targets: Vec<Vec3> = (0..predicted.len())
+                    .map(|i| predicted[i] + residual[sources[i]])
+                    .collect();
+                measure(&targets)
+            })
+            .collect()
+    })
+}
+
 /// The pattern test of `models` on `parts`; `None` for fewer than two pixels.
 pub fn pattern_test(
     pool: &rayon::ThreadPool,
@@ -429,30 +449,9 @@ pub fn pattern_test(
         return None;
     }
     let (simple, k) = best_fit(parts, models.kind, models.simple, &parts.real);
-    let predicted: Vec<Vec3> = (0..n)
-        .map(|i| {
-            let d = Vec3::from_array(simple.rho_d.map(|v| v as f32)) * parts.diffuse[i];
-            let s = match parts.specular.get(k) {
-                Some(lobe) => Vec3::from_array(simple.rho_s.map(|v| v as f32)) * lobe[i],
-                None => Vec3::ZERO,
-            };
-            d + s
-        })
-        .collect();
-    let residual: Vec<Vec3> = (0..n).map(|i| parts.real[i] - predicted[i]).collect();
     let real_gain = gain(parts, models, &parts.real);
-    let shifts = shifts();
-    let null_gains: Vec<f64> = pool.install(|| {
-        shifts
-            .par_iter()
-            .map(|&s| {
-                let sources = shifted_sources(&parts.uv, s);
-                let targets: Vec<Vec3> = (0..n)
-                    .map(|i| predicted[i] + residual[sources[i]])
-                    .collect();
-                gain(parts, models, &targets)
-            })
-            .collect()
+    let null_gains = over_shifted_residuals(pool, parts, (&simple, k), |targets| {
+        gain(parts, models, targets)
     });
     Some(PatternTest {
         gain: real_gain,
