@@ -81,18 +81,18 @@ impl PatternTest {
 /// The linear parts of a group's pixels under a set of unit lobes: pixel `i` under lobe
 /// `k` with colour `rho_d` and specular `rho_s` is `rho_d * diffuse[i] + rho_s *
 /// specular[k][i]` (per channel).
-pub struct Parts {
-    pub diffuse: Vec<Vec3>,
-    pub specular: Vec<Vec<Vec3>>,
-    pub real: Vec<Vec3>,
+struct Parts {
+    diffuse: Vec<Vec3>,
+    specular: Vec<Vec<Vec3>>,
+    real: Vec<Vec3>,
     /// Each pixel's texture coordinates.
-    pub uv: Vec<Vec2>,
+    uv: Vec<Vec2>,
 }
 
 impl Parts {
     /// The parts of `cache`'s pixels under `lobes`, for the pixels with texture coordinates
     /// (`uv[i]` for `cache.pixels[i]`, `None` where the pixel's rays missed).
-    pub fn from_cache(
+    fn from_cache(
         pool: &rayon::ThreadPool,
         cache: &GroupCache,
         lobes: &[Material],
@@ -126,9 +126,9 @@ impl Parts {
 /// The unit lobes a textured group's tests are made with, for a group of tangent `basis`: the
 /// isotropic lobes of stage 2's roughness grid, then stage 4's anisotropic grid.
 struct Lobes {
-    pub materials: Vec<Material>,
-    pub isotropic: Vec<usize>,
-    pub all: Vec<usize>,
+    materials: Vec<Material>,
+    isotropic: Vec<usize>,
+    all: Vec<usize>,
 }
 
 impl Lobes {
@@ -331,10 +331,10 @@ fn shifts() -> Vec<(usize, usize)> {
 
 /// The simpler and the more complex model of a test, as sets of lobes of [`Parts`] (an
 /// empty set is the diffuse model).
-pub struct Models<'a> {
-    pub kind: Kind,
-    pub simple: &'a [usize],
-    pub complex: &'a [usize],
+struct Models<'a> {
+    kind: Kind,
+    simple: &'a [usize],
+    complex: &'a [usize],
 }
 
 /// The best fit of `targets` over `lobes` (the diffuse fit for none), and its lobe.
@@ -439,11 +439,7 @@ fn over_shifted_residuals<T: Send>(
 }
 
 /// The pattern test of `models` on `parts`; `None` for fewer than two pixels.
-pub fn pattern_test(
-    pool: &rayon::ThreadPool,
-    parts: &Parts,
-    models: &Models,
-) -> Option<PatternTest> {
+fn pattern_test(pool: &rayon::ThreadPool, parts: &Parts, models: &Models) -> Option<PatternTest> {
     let n = parts.real.len();
     if n < 2 {
         return None;
