@@ -1082,7 +1082,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .collect();
     let bar = progress_bar(stage4.len() as u64, "4 anisotropic");
     for g in stage4 {
-        let stage2 = rec.models[g];
+        let mut stage2 = rec.models[g];
         let Some(basis) = anisotropic::tangent_basis(&rec, g) else {
             bar.inc(1);
             continue;
@@ -1103,9 +1103,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             if let Some(test) = pictured.isotropic(&rec.pool, kind) {
                 let r = &mut reports[g];
                 if !test.passes() {
-                    rec.models[g] = GroupModel::Diffuse {
+                    // The stand-in goes on diffuse, as one stage 2 left diffuse.
+                    stage2 = GroupModel::Diffuse {
                         color: pictured.diffuse_color(),
                     };
+                    rec.models[g] = stage2;
                     // Stage 2's comparison kept a lobe that is no longer there.
                     for c in r
                         .comparisons
@@ -1118,13 +1120,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                         "stage 4: the stand-in's isotropic lobe follows the picture, not a highlight; the stand-in is diffuse: {}",
                         test.describe()
                     ));
-                    bar.inc(1);
-                    continue;
+                } else {
+                    r.decisions.push(format!(
+                        "stage 4: the stand-in's isotropic lobe explains a highlight: {}",
+                        test.describe()
+                    ));
                 }
-                r.decisions.push(format!(
-                    "stage 4: the stand-in's isotropic lobe explains a highlight: {}",
-                    test.describe()
-                ));
             }
         }
         // The anisotropic side as stage 2 found the isotropic one: the cache proposes
@@ -1420,7 +1421,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 let cache = rec.group_cache(g, &cache_settings)?;
                 for (name, sigma) in pattern::lobe_spread(&mut rec, &cache, &lobe)? {
                     if let Some(u) = r.uncertainty.iter_mut().find(|u| u.parameter == name) {
-                        u.sigma = u.sigma.hypot(sigma);
+                        u.sigma = libm::hypot(u.sigma, sigma);
                     }
                 }
             }
