@@ -157,10 +157,10 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
         row("picture_stripes").model.as_deref(),
         Some("textured-anisotropic")
     );
+    // Whether group `g`'s report has a decision that says `phrase`.
+    let says = |g: &str, phrase: &str| decisions(g).iter().any(|d| d.contains(phrase));
     assert!(
-        decisions("picture_stripes")
-            .iter()
-            .any(|d| d.contains("but its gain follows the picture")),
+        says("picture_stripes", "but its gain follows the picture"),
         "{:?}",
         decisions("picture_stripes")
     );
@@ -174,9 +174,7 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
         "{stripes_stage4:?}"
     );
     assert!(
-        decisions("picture_checker")
-            .iter()
-            .any(|d| d.contains("anisotropic gain explains a highlight")),
+        says("picture_checker", "anisotropic gain explains a highlight"),
         "{:?}",
         decisions("picture_checker")
     );
