@@ -22,7 +22,8 @@ use relume_core::stages::isotropic::{self, WardFit, ROUGHNESS_MAX, ROUGHNESS_MIN
 use super::cache::{self, GroupCache};
 use super::model::GroupModel;
 use super::refine::{
-    pessimistic_cost, race, schedule, search_subset, Finalists, Refined, RACE_SPP_FACTOR,
+    pessimistic_cost, race, schedule, search_subset, Finalists, RaceOutcome, Refined,
+    RACE_SPP_FACTOR,
 };
 use super::Recovery;
 use crate::error::Error;
@@ -228,12 +229,16 @@ fn anneal_model<const D: usize>(
     let all_pixels = std::mem::replace(&mut rec.pure, subset);
     let result = search_and_race(rec, g, spp, levels, seed, (lower, upper, x0), &model_at);
     rec.pure = all_pixels;
-    let (model, evaluations) = result?;
-    rec.models[g] = model;
-    Ok(Refined { model, evaluations })
+    let (race, evaluations) = result?;
+    rec.models[g] = race.winner;
+    Ok(Refined {
+        model: race.winner,
+        evaluations,
+        race: Some(race),
+    })
 }
 
-/// [`anneal_model`] on the pixels in `rec.pure`: the race's winner and the evaluations.
+/// [`anneal_model`] on the pixels in `rec.pure`: the race and the evaluations in all.
 fn search_and_race<const D: usize>(
     rec: &mut Recovery,
     g: usize,
@@ -242,7 +247,7 @@ fn search_and_race<const D: usize>(
     seed: u64,
     (lower, upper, x0): ([f64; D], [f64; D], [f64; D]),
     model_at: &impl Fn([f64; D]) -> GroupModel,
-) -> Result<(GroupModel, u32), Error> {
+) -> Result<(RaceOutcome, u32), Error> {
     let mut finalists = Finalists::new();
     let mut evaluations = 0u32;
     let mut cost_of = |rec: &mut Recovery, x: [f64; D]| -> Result<f64, Error> {
@@ -261,19 +266,18 @@ fn search_and_race<const D: usize>(
         let cost = cost_of(rec, x)?;
         annealer.tell(cost);
     }
-    // The start always races, as in stage 2 (`refine::anneal_isotropic`).
-    let mut finalists = finalists.models();
-    if !finalists.contains(&start) {
-        finalists.push(start);
-    }
-    let (winner, raced) = race(
+    // The start (the cache's proposal) is the race's incumbent, as in stage 2
+    // (`refine::anneal_isotropic`).
+    let race = race(
         rec,
         g,
-        &finalists,
+        start,
+        &finalists.models(),
         RACE_SPP_FACTOR * spp,
         seed ^ 0x2ACE_0004,
     )?;
-    Ok((winner, evaluations + raced))
+    let evaluations = evaluations + race.evaluations;
+    Ok((race, evaluations))
 }
 
 #[cfg(test)]

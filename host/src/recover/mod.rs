@@ -461,18 +461,7 @@ impl Recovery {
         let simple_terms = terms_of(self, simple);
         let complex_terms = terms_of(self, complex);
         self.models[g] = before;
-        let (simple_terms, complex_terms) = (simple_terms?, complex_terms?);
-        let sum_sq_real: f64 = simple_terms.iter().map(|t| t.1).sum();
-        Ok(fit::ModelComparison::from_cross_terms(
-            simple_terms
-                .iter()
-                .zip(&complex_terms)
-                .map(|(s, c)| fit::PairedTerms {
-                    simple: s.0,
-                    complex: c.0,
-                }),
-            sum_sq_real,
-        ))
+        Ok(paired_comparison(&simple_terms?, &complex_terms?))
     }
 
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
@@ -519,6 +508,25 @@ impl Recovery {
 }
 
 /// The error estimate of one group's paired cross terms (see [`fit::ErrorEstimate`]).
+/// The comparison of two models from their paired terms on the same pixels and samples
+/// (`None` without lit pixels).
+fn paired_comparison(
+    simple_terms: &[([f64; 2], f64)],
+    complex_terms: &[([f64; 2], f64)],
+) -> Option<fit::ModelComparison> {
+    let sum_sq_real: f64 = simple_terms.iter().map(|t| t.1).sum();
+    fit::ModelComparison::from_cross_terms(
+        simple_terms
+            .iter()
+            .zip(complex_terms)
+            .map(|(s, c)| fit::PairedTerms {
+                simple: s.0,
+                complex: c.0,
+            }),
+        sum_sq_real,
+    )
+}
+
 fn error_estimate_of(terms: &[([f64; 2], f64)]) -> Option<fit::ErrorEstimate> {
     let sum_sq_real: f64 = terms.iter().map(|t| t.1).sum();
     fit::ErrorEstimate::from_cross_terms(terms.iter().map(|t| t.0), sum_sq_real)
@@ -875,6 +883,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             args.budget.optimiser,
         )?;
         evaluations += refined.evaluations;
+        if let Some(race) = &refined.race {
+            reports[g]
+                .decisions
+                .push(format!("stage 2 search: {}", race.describe()));
+        }
         let candidate = match mirror_test(&refined.model) {
             _ if matches!(refined.model, GroupModel::Mirror { .. }) => (
                 refined.model,
@@ -1156,6 +1169,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             (verify_spp, args.budget.anneal_levels),
         )?;
         evaluations += refined.evaluations;
+        if let Some(race) = &refined.race {
+            reports[g]
+                .decisions
+                .push(format!("stage 4 search: {}", race.describe()));
+        }
         // The isotropic side: stage 2's fit, unless the isotropic fit on this cache (the
         // scene's other materials are better known now) or the anisotropic fit's own
         // shadow (roughness sqrt(u v)) measures better; each replaces it only if a render
