@@ -380,6 +380,13 @@ impl Recovery {
         Ok(error_estimate_of(&self.paired_terms(&of_g, spp, seed)?))
     }
 
+    /// The pixel samples in all of group `g`'s transport cache at `base_spp` (see
+    /// [`Recovery::group_cache`]): what its lobe's estimate saw.
+    fn cache_samples(&self, g: usize, base_spp: u32) -> u64 {
+        let pixels = refine::search_subset(&self.pure, g).len() as u32;
+        pixels as u64 * min_samples_spp(base_spp, pixels, CACHE_MIN_SAMPLES) as u64
+    }
+
     /// The transport cache of group `g` under the current models: over the search's
     /// fixed subset of its pure pixels (`refine::search_subset`: as many as the renders
     /// of its searches see), at `base`'s samples per pixel or more, so that it holds at
@@ -1426,11 +1433,15 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let stage_start = Instant::now();
     let uncertainty_spp = 4 * args.budget.loop_spp;
     for (g, r) in reports.iter_mut().enumerate() {
+        let samples = uncertainty::EstimateSamples {
+            colour_spp: args.budget.loop_spp,
+            lobe_samples: rec.cache_samples(g, cache_settings.spp),
+        };
         r.uncertainty = uncertainty::parameter_uncertainty(
             &mut rec,
             g,
             uncertainty_spp,
-            args.budget.loop_spp,
+            samples,
             args.seed ^ 0x5160,
         )?;
         // A textured group's lobe also carries the picture's share (`pattern::lobe_spread`).
