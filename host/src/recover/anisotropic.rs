@@ -4,8 +4,8 @@
 //! by a grid and Nelder-Mead); simulated annealing over the shape refines on full
 //! global-illumination renders of the group's pure pixels (a fixed subset of at most
 //! `refine::MAX_SEARCH_PIXELS`, on one seed, with stage 2's cost
-//! `refine::pessimistic_cost`); a race on fresh samples chooses among its best points
-//! and the proposal.
+//! `refine::pessimistic_cost`); its best points then race the proposal on fresh samples,
+//! and the proposal stands unless one renders better (`refine::race`).
 //!
 //! The direction is an angle in the plane of the group's largest triangle: reflectance.md
 //! projects any direction onto each surface, so one angle covers a planar group exactly

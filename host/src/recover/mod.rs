@@ -514,7 +514,6 @@ impl Recovery {
     }
 }
 
-/// The error estimate of one group's paired cross terms (see [`fit::ErrorEstimate`]).
 /// The comparison of two models from their paired terms on the same pixels and samples
 /// (`None` without lit pixels).
 fn paired_comparison(
@@ -534,6 +533,7 @@ fn paired_comparison(
     )
 }
 
+/// The error estimate of one group's paired cross terms (see [`fit::ErrorEstimate`]).
 fn error_estimate_of(terms: &[([f64; 2], f64)]) -> Option<fit::ErrorEstimate> {
     let sum_sq_real: f64 = terms.iter().map(|t| t.1).sum();
     fit::ErrorEstimate::from_cross_terms(terms.iter().map(|t| t.0), sum_sq_real)

@@ -20,9 +20,8 @@ use relume_core::nelder_mead::NelderMead;
 use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
 use relume_core::stages::isotropic::{ROUGHNESS_MAX, ROUGHNESS_MIN};
 
-use relume_core::material::Kind;
-
 use relume_core::fit;
+use relume_core::material::Kind;
 
 use super::model::GroupModel;
 use super::pixels::PurePixel;
@@ -33,13 +32,13 @@ use crate::error::Error;
 /// bounds reflectances by [0, 1]).
 const SPECULARITY_MAX: f64 = 1.0;
 
-/// The cost the search and its race minimise: the bias-only error plus one standard error
+/// The cost the search minimises: the bias-only error plus one standard error
 /// of it, squared. Every cost of a search is on the same samples, and a sharp lobe's cost
 /// is far noisier than a broad one's, so the plain lowest cost is most often a sharp lobe
 /// its samples happen to favour (glossy's sphere_red, s 0.05 and roughness 0.05 in the
 /// truth, came out s 0.2, roughness 0.03 in half the seeds); charging each point its own
 /// noise chooses what the pixels show, not what the dice did.
-pub(super) fn pessimistic_cost(estimate: Option<relume_core::fit::ErrorEstimate>) -> f64 {
+pub(super) fn pessimistic_cost(estimate: Option<fit::ErrorEstimate>) -> f64 {
     estimate.map_or(f64::INFINITY, |e| (e.error + e.sigma).powi(2))
 }
 
@@ -323,9 +322,9 @@ fn anneal_on_pixels(
     // The proposal is the race's incumbent (see `race`).
     let mut finalists = finalists.models();
     // A metal also races as a perfect mirror with the best point's specular colour: the
-    // charge for noise falls hardest on the sharpest lobes, and a mirror renders without
-    // sampling its lobe, so it is judged on its fit alone (the living room's mirror lost
-    // its class in 9 of 10 seeds to rougher lobes without this).
+    // search's costs charge noise, which falls hardest on the sharpest lobes, while a
+    // mirror renders without sampling its lobe (the living room's mirror lost its class
+    // in 9 of 10 seeds to rougher lobes without it).
     // Its colour is moved by the stage-1 step as every point's is (a mirror's radiance is
     // proportional to it), twice.
     if let (Kind::Metal, Some(best)) = (kind, finalists.first()) {

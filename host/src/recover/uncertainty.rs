@@ -119,9 +119,6 @@ fn perturbed(model: GroupModel, perturbation: &Perturbation) -> GroupModel {
     m
 }
 
-/// The standard errors of group `g`'s parameters under its current model, from renders of
-/// its pure pixels at `spp` samples on `seed` (the same samples for every perturbation).
-///
 /// How many samples the estimates of a group's parameters saw.
 #[derive(Clone, Copy, Debug)]
 pub struct EstimateSamples {
@@ -132,6 +129,10 @@ pub struct EstimateSamples {
     pub lobe_samples: u64,
 }
 
+/// The standard errors of group `g`'s parameters under its current model, from renders of
+/// its pure pixels at `spp` samples (at least [`MIN_SAMPLES`] in all) on `seed` (the same
+/// samples for every perturbation).
+///
 /// Every parameter also carries the Monte Carlo noise of its own estimate, which the
 /// misfit does not show, measured from two independent half-renders and added in
 /// quadrature:
