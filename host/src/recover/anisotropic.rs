@@ -235,6 +235,7 @@ fn anneal_model<const D: usize>(
         model: race.winner,
         evaluations,
         race: Some(race),
+        mirror: None,
     })
 }
 

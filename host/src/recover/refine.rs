@@ -60,6 +60,8 @@ pub struct Refined {
     pub evaluations: u32,
     /// How its race went (`None` without a search).
     pub race: Option<RaceOutcome>,
+    /// The untinted perfect mirror a metal's search raced (`None` otherwise).
+    pub mirror: Option<GroupModel>,
 }
 
 impl Refined {
@@ -69,6 +71,7 @@ impl Refined {
             model,
             evaluations: 0,
             race: None,
+            mirror: None,
         }
     }
 }
@@ -327,6 +330,7 @@ fn anneal_on_pixels(
     // in 9 of 10 seeds to rougher lobes without it).
     // Its colour is moved by the stage-1 step as every point's is (a mirror's radiance is
     // proportional to it), twice.
+    let mut mirror_alternative = None;
     if let (Kind::Metal, Some(best)) = (kind, finalists.first()) {
         let (_, mut mirror) = best.reflectances();
         for _ in 0..2 {
@@ -338,8 +342,9 @@ fn anneal_on_pixels(
             }
         }
         // Only an untinted one: the paper's mirror reflects the incident colour.
-        if super::model::tint(mirror) <= relume_core::fit::MIRROR_MAX_TINT {
+        if super::model::tint(mirror) <= fit::MIRROR_MAX_TINT {
             finalists.push(GroupModel::Mirror { color: mirror });
+            mirror_alternative = Some(GroupModel::Mirror { color: mirror });
         }
     }
     let race = race(
@@ -354,6 +359,7 @@ fn anneal_on_pixels(
         model: race.winner,
         evaluations: evaluations + race.evaluations,
         race: Some(race),
+        mirror: mirror_alternative,
     })
 }
 
