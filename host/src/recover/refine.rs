@@ -329,7 +329,8 @@ fn anneal_on_pixels(
     // mirror renders without sampling its lobe (the living room's mirror lost its class
     // in 9 of 10 seeds to rougher lobes without it).
     // Its colour is moved by the stage-1 step as every point's is (a mirror's radiance is
-    // proportional to it), twice.
+    // proportional to it), twice. Stage 2 also weighs the race's lobe against it as
+    // against a simpler model (`Refined::mirror`).
     let mut mirror_alternative = None;
     if let (Kind::Metal, Some(best)) = (kind, finalists.first()) {
         let (_, mut mirror) = best.reflectances();
