@@ -105,6 +105,10 @@ pub struct ModelComparison {
     /// Bias-only relative errors of the two models.
     pub error_simple: f64,
     pub error_complex: f64,
+    /// The standard errors of their squares, each from its own model's two measurements
+    /// (as in [`ErrorEstimate`]).
+    pub squared_sigma_simple: f64,
+    pub squared_sigma_complex: f64,
     /// `error_simple - error_complex`.
     pub gain: f64,
     /// The standard error of `gain` (from the squared gain's, by the delta method).
@@ -117,6 +121,8 @@ pub struct ModelComparison {
 pub struct ErrorEstimate {
     pub error: f64,
     pub sigma: f64,
+    /// The standard error of the squared relative error, which `sigma` derives from.
+    pub squared_sigma: f64,
 }
 
 impl ErrorEstimate {
@@ -137,11 +143,28 @@ impl ErrorEstimate {
         if n == 0 {
             return None;
         }
-        let error = libm::sqrt(q.max(0.0) / sum_sq_real);
-        Some(ErrorEstimate {
+        Some(Self::from_squared(
+            q / sum_sq_real,
+            libm::sqrt(variance) / sum_sq_real,
+        ))
+    }
+
+    /// From a measured squared relative error (negative when noise outweighs it, read as
+    /// 0) and its standard error.
+    pub fn from_squared(squared_error: f64, squared_sigma: f64) -> Self {
+        let error = libm::sqrt(squared_error.max(0.0));
+        ErrorEstimate {
             error,
-            sigma: delta_sigma(libm::sqrt(variance) / sum_sq_real, error),
-        })
+            sigma: delta_sigma(squared_sigma, error),
+            squared_sigma,
+        }
+    }
+
+    /// An upper confidence bound on the true error, `z` standard errors above the measured
+    /// squared error. Taken on the square, where the noise is, it stays tight for an error
+    /// measured near 0, where `error + z sigma` doubles.
+    pub fn upper_bound(&self, z: f64) -> f64 {
+        libm::sqrt(self.error * self.error + z * self.squared_sigma)
     }
 
     /// Whether the error is more than one standard error above `threshold`.
@@ -180,12 +203,16 @@ impl ModelComparison {
             return None;
         }
         let (mut n, mut q_simple, mut q_complex, mut variance) = (0u32, 0.0, 0.0, 0.0f64);
+        let (mut variance_simple, mut variance_complex) = (0.0f64, 0.0f64);
         for t in terms {
             n += 1;
             q_simple += 0.5 * (t.simple[0] + t.simple[1]);
             q_complex += 0.5 * (t.complex[0] + t.complex[1]);
             let spread = (t.simple[0] - t.complex[0]) - (t.simple[1] - t.complex[1]);
             variance += 0.25 * spread * spread;
+            variance_simple += 0.25 * (t.simple[0] - t.simple[1]) * (t.simple[0] - t.simple[1]);
+            variance_complex +=
+                0.25 * (t.complex[0] - t.complex[1]) * (t.complex[0] - t.complex[1]);
         }
         if n == 0 {
             return None;
@@ -199,9 +226,27 @@ impl ModelComparison {
             pixels: n,
             error_simple,
             error_complex,
+            squared_sigma_simple: libm::sqrt(variance_simple) / sum_sq_real,
+            squared_sigma_complex: libm::sqrt(variance_complex) / sum_sq_real,
             gain: error_simple - error_complex,
             gain_sigma,
         })
+    }
+
+    /// The simpler model's error with its standard error.
+    pub fn simple_estimate(&self) -> ErrorEstimate {
+        ErrorEstimate::from_squared(
+            self.error_simple * self.error_simple,
+            self.squared_sigma_simple,
+        )
+    }
+
+    /// The more complex model's error with its standard error.
+    pub fn complex_estimate(&self) -> ErrorEstimate {
+        ErrorEstimate::from_squared(
+            self.error_complex * self.error_complex,
+            self.squared_sigma_complex,
+        )
     }
 
     /// The gain in standard errors.
@@ -293,6 +338,12 @@ pub const TEXTURE_THRESHOLD: f64 = 0.4;
 /// spans many pixels) and the references' own noise is 0.6-1.7%; a picture's contrast is
 /// tens of percent.
 pub const TEXTURE_CONTRAST_THRESHOLD: f64 = 0.1;
+/// Texture detection: each group's bias-only error bounds the panorama's relative noise
+/// from above, but only up to its own measurement noise. A group's bound is its squared
+/// error plus this many standard errors (one-sided, about 2% to fall below the noise): a
+/// mirror rendered at a few samples reads 0 +- 0.1, and its bare 0 would say "no noise"
+/// (stages::texture::panorama_noise_bound, fit::ErrorEstimate::upper_bound).
+pub const NOISE_BOUND_SIGNIFICANCE: f64 = 2.0;
 /// Stage 5: a pixel whose rendered specular part is above this fraction of its observed
 /// radiance is a highlight and says nothing about the map.
 pub const HIGHLIGHT_FRACTION: f64 = 0.5;
@@ -309,6 +360,8 @@ mod tests {
             pixels: 1000,
             error_simple: 0.05,
             error_complex: 0.05 - gain,
+            squared_sigma_simple: 0.1 * gain_sigma,
+            squared_sigma_complex: 0.1 * gain_sigma,
             gain,
             gain_sigma,
         }

@@ -192,7 +192,13 @@ mod tests {
 
     #[test]
     fn verdicts_follow_the_threshold_its_noise_and_pixel_counts() {
-        let e = |error, sigma| Some(ErrorEstimate { error, sigma });
+        let e = |error, sigma| {
+            Some(ErrorEstimate {
+                error,
+                sigma,
+                squared_sigma: 2.0 * error * sigma,
+            })
+        };
         assert_eq!(verdict(100, e(0.005, 0.001)), DiffuseVerdict::Diffuse);
         assert_eq!(verdict(100, e(0.2, 0.01)), DiffuseVerdict::NeedsSpecular);
         // 3% of error measured with a 2.5% standard error: not shown to be above 1%.

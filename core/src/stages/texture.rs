@@ -9,7 +9,7 @@
 //! noise puts few large ones among many small ones (feature low). The group is textured
 //! when the feature exceeds `TEXTURE_THRESHOLD`.
 
-use crate::fit::{TEXTURE_FLOOR, TEXTURE_THRESHOLD};
+use crate::fit::{ErrorEstimate, NOISE_BOUND_SIGNIFICANCE, TEXTURE_FLOOR, TEXTURE_THRESHOLD};
 
 /// The feature of the absolute step differences `diffs` (any order); `None` when there is
 /// no difference at all (no pairs, or a perfect fit).
@@ -55,12 +55,18 @@ pub fn noise_corrected_contrast(contrast: f64, panorama_noise: f64) -> f64 {
     libm::sqrt((contrast * contrast - 2.0 * panorama_noise * panorama_noise).max(0.0))
 }
 
-/// An upper bound on the panorama's relative pixel noise: the smallest bias-only error of
-/// any group. A group's bias-only squared error is its model's squared bias plus the
-/// panorama's noise variance (both pooled over its pixels), so no group's error is below
-/// the noise. `None` without groups.
-pub fn panorama_noise_bound(errors: impl Iterator<Item = f64>) -> Option<f64> {
-    errors.filter(|e| e.is_finite()).reduce(f64::min)
+/// An upper bound on the panorama's relative pixel noise from the groups' bias-only
+/// errors. A group's bias-only squared error is its model's squared bias plus the
+/// panorama's noise variance (both pooled over its pixels), so no group's true error is
+/// below the noise; a measured one is, by its standard error. Each measurement bounds the
+/// noise by its upper confidence bound at `NOISE_BOUND_SIGNIFICANCE`, and the bound is the
+/// tightest of these: a group measured precisely decides, one measured as 0 +- 0.1 does
+/// not. `None` without measurements.
+pub fn panorama_noise_bound(errors: impl Iterator<Item = ErrorEstimate>) -> Option<f64> {
+    errors
+        .map(|e| e.upper_bound(NOISE_BOUND_SIGNIFICANCE))
+        .filter(|b| b.is_finite())
+        .reduce(f64::min)
 }
 
 /// Whether the cross contrast says "textured".
@@ -112,10 +118,23 @@ mod tests {
         assert!((corrected - 0.3).abs() < 1e-9 && has_texture_contrast(corrected));
         // A clean panorama: nothing to take out.
         assert_eq!(noise_corrected_contrast(0.2, 0.0), 0.2);
-        assert_eq!(
-            panorama_noise_bound([0.3, 0.02, 0.1].into_iter()),
-            Some(0.02)
-        );
+    }
+
+    #[test]
+    fn the_noise_bound_is_the_tightest_upper_confidence_bound() {
+        // Glossy at 10% noise: a mirror measured at 0 +- 0.1 beside a wall measured at
+        // 0.0535 +- 0.002 and a badly fitted sphere. The mirror's bare zero would say the
+        // panorama has no noise; its upper bound, sqrt(2) 0.1, is looser than the wall's.
+        let mirror = ErrorEstimate::from_squared(-0.0004, 0.1 * 0.1);
+        let wall = ErrorEstimate::from_squared(0.0535 * 0.0535, 2.0 * 0.0535 * 0.002);
+        let sphere = ErrorEstimate::from_squared(0.09, 0.001);
+        let bound = panorama_noise_bound([sphere, mirror, wall].into_iter()).unwrap();
+        let expected = libm::sqrt(0.0535 * 0.0535 + NOISE_BOUND_SIGNIFICANCE * 0.000214);
+        assert!((bound - expected).abs() < 1e-12, "{bound} {expected}");
+        assert!(bound > 0.0535 && bound < 0.06);
+        // When the imprecise group is the only one, it still bounds the noise.
+        let alone = panorama_noise_bound([mirror].into_iter()).unwrap();
+        assert!((alone - libm::sqrt(NOISE_BOUND_SIGNIFICANCE) * 0.1).abs() < 1e-12);
         assert_eq!(panorama_noise_bound(core::iter::empty()), None);
     }
 

@@ -122,6 +122,8 @@ pub struct GroupReport {
     pub error_initial: Option<f64>,
     /// Bias-only error after stage 1 (diffuse), which decides whether the group goes on.
     pub error_diffuse: Option<f64>,
+    /// Its standard error.
+    pub error_diffuse_sigma: Option<f64>,
     /// Relative error of the diffuse and the Ward fit on the group's transport cache.
     pub cache_error_diffuse: Option<f64>,
     pub cache_error_specular: Option<f64>,
@@ -136,6 +138,12 @@ pub struct GroupReport {
     /// The bias-only error of the group's model when stage 2 or 5 decided (see
     /// `pixels::evaluate_cross`).
     pub error_decided: Option<f64>,
+    /// Its standard error.
+    pub error_decided_sigma: Option<f64>,
+    /// Every measurement of a model's bias-only error on the group's pixels (stages 1, 2
+    /// and 4): each bounds the panorama's noise from above.
+    #[serde(skip)]
+    pub error_measurements: Vec<fit::ErrorEstimate>,
     /// Every comparison of a simpler with a more complex model (stages 2 and 4).
     pub comparisons: Vec<ComparisonReport>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
@@ -153,15 +161,31 @@ impl GroupReport {
             decisions: Vec::new(),
             error_initial: None,
             error_diffuse: None,
+            error_diffuse_sigma: None,
             cache_error_diffuse: None,
             cache_error_specular: None,
             error_final: None,
             texture_feature: None,
             texture_contrast: None,
             error_decided: None,
+            error_decided_sigma: None,
+            error_measurements: Vec::new(),
             comparisons: Vec::new(),
             uncertainty: Vec::new(),
         }
+    }
+
+    /// Records the bias-only error of the model a stage decided on.
+    fn set_decided(&mut self, estimate: fit::ErrorEstimate) {
+        self.error_decided = Some(estimate.error);
+        self.error_decided_sigma = Some(estimate.sigma);
+    }
+
+    /// Records a comparison of two models, and both errors it measured.
+    fn add_comparison(&mut self, report: ComparisonReport, c: &fit::ModelComparison) {
+        self.comparisons.push(report);
+        self.error_measurements
+            .extend([c.simple_estimate(), c.complex_estimate()]);
     }
 }
 
@@ -221,8 +245,9 @@ pub struct RecoverReport {
     pub budget: Budget,
     pub error_definition: &'static str,
     pub thresholds: serde_json::Value,
-    /// An upper bound on the panorama's relative pixel noise: the smallest bias-only error
-    /// of any group seen in enough pixels (`relume_core::stages::texture::panorama_noise_bound`).
+    /// An upper bound on the panorama's relative pixel noise: the tightest upper confidence
+    /// bound on any well-seen group's bias-only error
+    /// (`relume_core::stages::texture::panorama_noise_bound`).
     pub panorama_noise_bound: f64,
     pub stages: Vec<StageReport>,
     pub groups: Vec<GroupReport>,
@@ -782,6 +807,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         r.pure_pixels = pure_pixels[g];
         r.error_initial = first[g].relative_error();
         r.error_diffuse = decided[g].map(|e| e.error);
+        r.error_diffuse_sigma = decided[g].map(|e| e.sigma);
+        r.error_measurements.extend(decided[g]);
         let e = decided[g].map_or(0.0, |e| e.error);
         let sigma = decided[g].map_or(0.0, |e| e.sigma);
         match diffuse::verdict(pure_pixels[g], decided[g]) {
@@ -983,13 +1010,16 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             rec.models[g] = stage1;
             continue;
         };
-        r.comparisons.push(ComparisonReport::new(
-            "2 isotropic",
-            stage1.name(),
-            candidate.0.name(),
+        r.add_comparison(
+            ComparisonReport::new(
+                "2 isotropic",
+                stage1.name(),
+                candidate.0.name(),
+                &c,
+                decision_spp,
+            ),
             &c,
-            decision_spp,
-        ));
+        );
         let measured = format!(
             "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; diffuse {:.4}, specular {:.4})",
             c.gain,
@@ -1011,7 +1041,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 r.decisions.push(format!("stage 2: {why}"));
             }
             rec.models[g] = candidate.0;
-            r.error_decided = Some(c.error_complex);
+            r.set_decided(c.complex_estimate());
         } else {
             r.decisions.push(format!(
                 "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
@@ -1019,7 +1049,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 fit::GAIN_SIGNIFICANCE,
             ));
             rec.models[g] = stage1;
-            r.error_decided = Some(c.error_simple);
+            r.set_decided(c.simple_estimate());
         }
     }
     bar.finish_and_clear();
@@ -1059,7 +1089,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         reports
             .iter()
             .filter(|r| r.pure_pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE)
-            .filter_map(|r| r.error_decided.or(r.error_diffuse)),
+            .flat_map(|r| r.error_measurements.iter().copied()),
     )
     .unwrap_or(0.0);
     let mut textured = vec![false; n_groups];
@@ -1097,6 +1127,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         "plastic groups with more than SPECULAR_GAIN_THRESHOLD {} of error left: textured when the noise-free step contrast of ln(real / rendered) exceeds TEXTURE_CONTRAST_THRESHOLD {}",
         fit::SPECULAR_GAIN_THRESHOLD,
         fit::TEXTURE_CONTRAST_THRESHOLD
+    ));
+    notes.push(format!(
+        "the panorama's noise bound {noise_bound:.4}: the tightest upper bound, NOISE_BOUND_SIGNIFICANCE {} standard errors above the measured square, of any error measured on a group of at least MIN_PIXELS_FOR_MODEL_CHOICE {} pixels",
+        fit::NOISE_BOUND_SIGNIFICANCE,
+        fit::MIN_PIXELS_FOR_MODEL_CHOICE
     ));
     stages.push(StageReport {
         stage: "3 texture detection".into(),
@@ -1271,7 +1306,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             decision_spp,
         );
         report.kept_complex &= pattern.is_none_or(|t| t.passes());
-        r.comparisons.push(report);
+        r.add_comparison(report, &c);
         let measured = format!(
             "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; {} {:.4}, anisotropic {:.4})",
             c.gain,
@@ -1310,7 +1345,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 fit::GAIN_SIGNIFICANCE,
             ));
             rec.models[g] = refined.model;
-            r.error_decided = Some(c.error_complex);
+            r.set_decided(c.complex_estimate());
         } else {
             r.decisions.push(format!(
                 "stage 4: stays {}: the best anisotropic fit {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
@@ -1529,6 +1564,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "TEXTURE_FLOOR": fit::TEXTURE_FLOOR,
             "TEXTURE_THRESHOLD": fit::TEXTURE_THRESHOLD,
             "TEXTURE_CONTRAST_THRESHOLD": fit::TEXTURE_CONTRAST_THRESHOLD,
+            "NOISE_BOUND_SIGNIFICANCE": fit::NOISE_BOUND_SIGNIFICANCE,
             "HIGHLIGHT_FRACTION": fit::HIGHLIGHT_FRACTION,
             "SHADOW_FRACTION": fit::SHADOW_FRACTION,
         }),

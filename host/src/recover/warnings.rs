@@ -16,9 +16,12 @@ pub const WEAK_SPECULARITY: f64 = 0.1;
 /// A decision this close (in standard errors) to `GAIN_SIGNIFICANCE`, or with a gain
 /// below twice `SPECULAR_GAIN_THRESHOLD`, could go the other way on another seed.
 pub const BORDERLINE_Z: f64 = 2.0;
-/// Image noise above this: texture detection broke between 5% and 10% before the noise
-/// allowance, and diffuse groups gained invented lobes at 2%.
-pub const NOISY_PANORAMA: f64 = 0.02;
+/// A panorama noise bound above this. The bound is an upper confidence bound
+/// (`stages::texture::panorama_noise_bound`): on the clean references it reads 1.6-2.5%
+/// at effort fast (their noise of 0.6-1.7% plus the bound's own measurement noise), 2.7%
+/// under 2% added noise and 4.8% under 5%, where glossy's classes first changed; texture
+/// detection broke between 5% and 10% before the noise allowance.
+pub const NOISY_PANORAMA: f64 = 0.03;
 /// Views smaller than this per side lost speculars and small groups.
 pub const SMALL_VIEW: u32 = 32;
 /// Loop samples below this (effort fast): diffuse reflectances spread up to ~1% over
@@ -41,7 +44,7 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
     const SEE: &str = "(docs/stability.md)";
     if inputs.panorama_noise_bound > NOISY_PANORAMA {
         warnings.push(format!(
-            "the panorama's relative noise may be up to {:.1}% (every group's error is at least that): above {:.0}% recovery was seen to invent specular lobes and, before the noise allowance, to call uniform groups textured {SEE}",
+            "the panorama's relative noise may be up to {:.1}% (no group's error was measured below it): where this bound read above {:.0}%, recovery was seen to change classes, and before the noise allowance to call uniform groups textured {SEE}",
             100.0 * inputs.panorama_noise_bound,
             100.0 * NOISY_PANORAMA
         ));
@@ -173,7 +176,8 @@ mod tests {
                 roughness: 0.1,
             },
         ];
-        let w = warnings_for(&groups, &models, 0.0, 64, Effort::Default);
+        // The noise bound a clean reference reads (glossy, 2.5%).
+        let w = warnings_for(&groups, &models, 0.025, 64, Effort::Default);
         assert!(w.is_empty(), "{w:?}");
     }
 
@@ -225,7 +229,8 @@ mod tests {
             },
             GroupModel::Diffuse { color: [0.5; 3] },
         ];
-        let w = warnings_for(&groups, &models, 0.0, 64, Effort::Default);
+        // The noise bound a clean reference reads (glossy, 2.5%).
+        let w = warnings_for(&groups, &models, 0.025, 64, Effort::Default);
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(
             w[0].contains("'picture': textured-diffuse: a picture's lobe"),
