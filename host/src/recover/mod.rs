@@ -783,7 +783,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     for (g, estimate) in decided.iter_mut().enumerate() {
         let Some(e) = *estimate else { continue };
         let gate = fit::SPECULAR_GAIN_THRESHOLD;
-        let straddles = e.error + e.sigma > gate && e.error - e.sigma <= gate;
+        let straddles = e.straddles(gate);
         let group_spp = min_samples_spp(4 * spp, pure_pixels[g], CACHE_MIN_SAMPLES);
         if straddles && pure_pixels[g] >= fit::MIN_PIXELS_FOR_MODEL_CHOICE && group_spp > 4 * spp {
             *estimate = rec.error_estimate(g, group_spp, rec.decision_seed() ^ 0x5A3E)?;
@@ -835,8 +835,9 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             DiffuseVerdict::Diffuse => {
                 // A specular lobe cannot remove more error than there is.
                 r.decisions.push(format!(
-                    "stage 1: diffuse, error {e:.4} +- {sigma:.4} not above SPECULAR_GAIN_THRESHOLD {} by one standard error: no specular model could gain more",
-                    fit::SPECULAR_GAIN_THRESHOLD
+                    "stage 1: diffuse, error {e:.4} +- {sigma:.4} not above SPECULAR_GAIN_THRESHOLD {} by EXCEEDS_SIGMAS {} standard errors: no specular model could gain more",
+                    fit::SPECULAR_GAIN_THRESHOLD,
+                    fit::EXCEEDS_SIGMAS
                 ));
             }
             DiffuseVerdict::NeedsSpecular => {
@@ -846,8 +847,9 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                     "tested for a weak specular"
                 };
                 r.decisions.push(format!(
-                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than one standard error ({} DIFFUSE_THRESHOLD {}): {how}",
+                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than EXCEEDS_SIGMAS {} standard errors ({} DIFFUSE_THRESHOLD {}): {how}",
                     fit::SPECULAR_GAIN_THRESHOLD,
+                    fit::EXCEEDS_SIGMAS,
                     if e > fit::DIFFUSE_THRESHOLD { ">" } else { "<=" },
                     fit::DIFFUSE_THRESHOLD
                 ));
@@ -1565,6 +1567,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "TEXTURE_THRESHOLD": fit::TEXTURE_THRESHOLD,
             "TEXTURE_CONTRAST_THRESHOLD": fit::TEXTURE_CONTRAST_THRESHOLD,
             "NOISE_BOUND_SIGNIFICANCE": fit::NOISE_BOUND_SIGNIFICANCE,
+            "EXCEEDS_SIGMAS": fit::EXCEEDS_SIGMAS,
             "HIGHLIGHT_FRACTION": fit::HIGHLIGHT_FRACTION,
             "SHADOW_FRACTION": fit::SHADOW_FRACTION,
         }),

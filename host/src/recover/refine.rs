@@ -32,14 +32,16 @@ use crate::error::Error;
 /// bounds reflectances by [0, 1]).
 const SPECULARITY_MAX: f64 = 1.0;
 
-/// The cost the search minimises: the bias-only error plus one standard error
-/// of it, squared. Every cost of a search is on the same samples, and a sharp lobe's cost
-/// is far noisier than a broad one's, so the plain lowest cost is most often a sharp lobe
-/// its samples happen to favour (glossy's sphere_red, s 0.05 and roughness 0.05 in the
-/// truth, came out s 0.2, roughness 0.03 in half the seeds); charging each point its own
-/// noise chooses what the pixels show, not what the dice did.
+/// The cost the search minimises: the bias-only error plus `EXCEEDS_SIGMAS` standard
+/// errors of it, squared. Every cost of a search is on the same samples, and a sharp lobe's
+/// cost is far noisier than a broad one's, so the plain lowest cost is most often a sharp
+/// lobe its samples happen to favour (glossy's sphere_red, s 0.05 and roughness 0.05 in
+/// the truth, came out s 0.2, roughness 0.03 in half the seeds); charging each point its
+/// own noise chooses what the pixels show, not what the dice did.
 pub(super) fn pessimistic_cost(estimate: Option<fit::ErrorEstimate>) -> f64 {
-    estimate.map_or(f64::INFINITY, |e| (e.error + e.sigma).powi(2))
+    estimate.map_or(f64::INFINITY, |e| {
+        (e.error + fit::EXCEEDS_SIGMAS * e.sigma).powi(2)
+    })
 }
 
 /// Pixels of one group the search renders at most: an even, fixed subset of a large group
