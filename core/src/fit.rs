@@ -155,7 +155,7 @@ impl ErrorEstimate {
         let error = libm::sqrt(squared_error.max(0.0));
         ErrorEstimate {
             error,
-            // d sqrt(x) = dx / 2 sqrt(x): the sum of the root's two halves.
+            // d sqrt(x) = dx / (2 sqrt x), and `delta_sigma` divides by its second argument.
             sigma: delta_sigma(squared_sigma, 2.0 * error),
             squared_sigma,
         }
