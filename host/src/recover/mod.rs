@@ -141,7 +141,7 @@ pub struct GroupReport {
     /// Its standard error.
     pub error_decided_sigma: Option<f64>,
     /// The latest measurement of the error of the group's model: stage 1's of its diffuse
-    /// fit, then `error_decided`'s.
+    /// fit, then `error_decided`'s (kept by `set_diffuse` and `set_decided` alone).
     #[serde(skip)]
     pub latest_error: Option<fit::ErrorEstimate>,
     /// Every measurement of a model's bias-only error on the group's pixels (stages 1, 2
@@ -178,6 +178,14 @@ impl GroupReport {
             comparisons: Vec::new(),
             uncertainty: Vec::new(),
         }
+    }
+
+    /// Records stage 1's measurement of the diffuse fit's error.
+    fn set_diffuse(&mut self, estimate: Option<fit::ErrorEstimate>) {
+        self.error_diffuse = estimate.map(|e| e.error);
+        self.error_diffuse_sigma = estimate.map(|e| e.sigma);
+        self.error_measurements.extend(estimate);
+        self.latest_error = estimate;
     }
 
     /// Records the bias-only error of the model a stage decided on.
@@ -812,10 +820,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         let r = &mut reports[g];
         r.pure_pixels = pure_pixels[g];
         r.error_initial = first[g].relative_error();
-        r.error_diffuse = decided[g].map(|e| e.error);
-        r.error_diffuse_sigma = decided[g].map(|e| e.sigma);
-        r.error_measurements.extend(decided[g]);
-        r.latest_error = decided[g];
+        r.set_diffuse(decided[g]);
         let e = decided[g].map_or(0.0, |e| e.error);
         let sigma = decided[g].map_or(0.0, |e| e.sigma);
         match diffuse::verdict(pure_pixels[g], decided[g]) {
