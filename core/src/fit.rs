@@ -113,6 +113,12 @@ pub struct ModelComparison {
     pub gain: f64,
     /// The standard error of `gain` (from the squared gain's, by the delta method).
     pub gain_sigma: f64,
+    /// The gain in squared relative error, `G` above, as measured: unlike `gain` it is
+    /// not cut at 0 where noise outweighs an error, so it ranks models that are measured
+    /// too coarsely for their errors to show.
+    pub squared_gain: f64,
+    /// The standard error of `squared_gain`.
+    pub squared_gain_sigma: f64,
 }
 
 /// A group's bias-only relative error with its standard error, from each pixel's two
@@ -237,6 +243,8 @@ impl ModelComparison {
             squared_sigma_complex: libm::sqrt(variance_complex) / sum_sq_real,
             gain: error_simple - error_complex,
             gain_sigma,
+            squared_gain: (q_simple - q_complex) / sum_sq_real,
+            squared_gain_sigma: sigma_squared_gain,
         })
     }
 
@@ -377,6 +385,8 @@ mod tests {
             squared_sigma_complex: 0.1 * gain_sigma,
             gain,
             gain_sigma,
+            squared_gain: 0.1 * gain,
+            squared_gain_sigma: 0.1 * gain_sigma,
         }
     }
 
