@@ -1,0 +1,163 @@
+//! Stage 2's second look at a weak lobe: a ladder of roughnesses, chosen by render.
+//!
+//! A group whose whole diffuse error is below `DIFFUSE_THRESHOLD` can only hold a weak
+//! lobe, and its cache's proposal is least reliable there: the closed-form fit over a
+//! finite set of incident samples rewards a sharp, weak lobe that lines up with a few
+//! bright samples (docs/recovery.md, "The cache's proposal depends on the cache's size").
+//! Glossy's yellow box (specularity 0.1, roughness 0.2 in the truth) is proposed at
+//! roughness 0.05, which removes 0.002 of its 0.029 error in a render, and stays diffuse,
+//! while a lobe of roughness 0.3 on the same cache removes 0.019 at z 6.
+//!
+//! So when such a group's proposal fails stage 2's test, a fixed ladder of roughnesses
+//! spanning the search's range is tried: at each rung the reflectances come from the cache
+//! in closed form (a linear fit, with no choice of roughness to be fooled), every rung is
+//! rendered against the diffuse model on fresh samples, and the rung that removes the most
+//! error (at its lower confidence bound; then refined by half a rung) goes to the same
+//! keep-or-reject test as the proposal did, from the ladder's samples up. One more test on
+//! a group that already failed one adds a little to the false-positive rate; the test's z
+//! of `GAIN_SIGNIFICANCE` on fresh samples bounds it.
+
+use relume_core::fit;
+use relume_core::material::{Kind, Material};
+use relume_core::stages::isotropic::{self, ROUGHNESS_MAX, ROUGHNESS_MIN};
+
+use super::cache::{self, GroupCache};
+use super::model::GroupModel;
+use super::{min_samples_spp, pixels, Recovery};
+use crate::error::Error;
+
+/// Rungs of the ladder, log-spaced over `[ROUGHNESS_MIN, ROUGHNESS_MAX]` (a ratio of
+/// about 2.3 between rungs: a lobe between two rungs is within a factor 1.5 of one).
+pub const LADDER_RUNGS: usize = 6;
+
+/// The roughness of rung `k`.
+pub fn rung_roughness(k: usize) -> f64 {
+    let t = k as f64 / (LADDER_RUNGS - 1) as f64;
+    ROUGHNESS_MIN * libm::pow(ROUGHNESS_MAX / ROUGHNESS_MIN, t)
+}
+
+/// The chosen rung: its model, and the gain over the diffuse model that chose it (on the
+/// ladder's samples; the caller decides on its own).
+pub struct Rung {
+    pub model: GroupModel,
+    pub specularity: f64,
+    pub roughness: f64,
+    /// The gain in squared relative error ([`fit::ModelComparison::squared_gain`]) and its
+    /// standard error.
+    pub squared_gain: f64,
+    pub squared_gain_sigma: f64,
+    /// `squared_gain - EXCEEDS_SIGMAS squared_gain_sigma`, what chose it.
+    pub lower: f64,
+    pub spp: u32,
+}
+
+/// Pixel samples each rung is rendered with, in all (the race's [`RACE_MIN_SAMPLES`]).
+/// More choose the roughness better but cost more than they gain: on glossy, seeds 1-10,
+/// 2^17 (with rungs then ranked by the gain in relative error) gave 93 classes right of
+/// 110 against 2^15's 92, and chose broad rungs (0.13-0.3) for the yellow box where 2^15
+/// also picks sharp ones; but it took the living room's 64-px recovery (seeds 1-3) from
+/// 29-35 s to 38-43 s, where 2^15 takes 33-38 s.
+///
+/// [`RACE_MIN_SAMPLES`]: super::refine::RACE_MIN_SAMPLES
+pub const LADDER_SAMPLES: u64 = 1 << 15;
+
+/// The rung of group `g`'s ladder whose gain over `diffuse` is largest at its lower bound
+/// (`gain - EXCEEDS_SIGMAS sigma`, in squared error: a sharp rung's gain is the noisiest,
+/// and the plain largest gain is most often a sharp rung the samples favour; and a weak
+/// group's errors, cut at 0 when noise outweighs them, would rank nothing), then the
+/// better of it and the two roughnesses halfway (in log) to its neighbours; each rendered
+/// with at least [`LADDER_SAMPLES`] on the ladder's own seed. Also returns the renders
+/// spent. `None` when no rung could be compared.
+pub fn best_rung(
+    rec: &mut Recovery,
+    g: usize,
+    cache: &GroupCache,
+    kind: Kind,
+    diffuse: GroupModel,
+    spp: u32,
+) -> Result<(Option<Rung>, u32), Error> {
+    let pixels = pixels::of_group(&rec.pure, g);
+    let spp = min_samples_spp(spp, pixels.len() as u32, LADDER_SAMPLES);
+    let seed = rec.seed ^ 0x001A_DDE2 ^ g as u64;
+    let before = rec.models[g];
+    rec.models[g] = diffuse;
+    // An error ends the recovery, so the model need not be restored on that path.
+    let diffuse_terms = rec.paired_terms(&pixels, spp, seed)?;
+    let mut evaluations = 1;
+    let mut measure = |rec: &mut Recovery, roughness: f64| -> Result<Option<Rung>, Error> {
+        let lobe = Material::Ward {
+            rho_d: glam::Vec3::ZERO,
+            rho_s: glam::Vec3::ONE,
+            alpha: roughness as f32,
+        };
+        let sums = cache::linear_sums(&rec.pool, cache, &lobe);
+        let fit = match kind {
+            Kind::Plastic => isotropic::solve_plastic(&sums),
+            Kind::Metal => isotropic::solve_metal(&sums),
+        };
+        if fit.specularity.is_nan() || fit.specularity <= 0.0 {
+            return Ok(None);
+        }
+        let model = GroupModel::Isotropic {
+            kind,
+            color: fit.color,
+            specularity: fit.specularity,
+            roughness,
+        };
+        rec.models[g] = model;
+        let terms = rec.paired_terms(&pixels, spp, seed)?;
+        evaluations += 1;
+        Ok(
+            super::paired_comparison(&diffuse_terms, &terms).map(|c| Rung {
+                model,
+                specularity: fit.specularity,
+                roughness,
+                squared_gain: c.squared_gain,
+                squared_gain_sigma: c.squared_gain_sigma,
+                lower: c.squared_gain - fit::EXCEEDS_SIGMAS * c.squared_gain_sigma,
+                spp,
+            }),
+        )
+    };
+    let better = |a: Option<Rung>, b: Option<Rung>| match (a, b) {
+        (Some(a), Some(b)) => Some(if b.lower > a.lower { b } else { a }),
+        (a, b) => a.or(b),
+    };
+    let mut best = None;
+    for k in 0..LADDER_RUNGS {
+        best = better(best, measure(rec, rung_roughness(k))?);
+    }
+    if let Some(at) = best.as_ref().map(|b| b.roughness) {
+        let half_step = libm::sqrt(rung_roughness(1) / rung_roughness(0));
+        for roughness in [at / half_step, at * half_step] {
+            if (ROUGHNESS_MIN..=ROUGHNESS_MAX).contains(&roughness) {
+                best = better(best, measure(rec, roughness)?);
+            }
+        }
+    }
+    rec.models[g] = before;
+    Ok((best, evaluations))
+}
+
+/// Whether stage 2 gives group `g` a second look: its diffuse error (stage 1's) leaves
+/// room only for a weak lobe.
+pub fn applies(diffuse_error: f64) -> bool {
+    diffuse_error <= fit::DIFFUSE_THRESHOLD
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ladder_spans_the_search_range_evenly_in_log() {
+        assert!((rung_roughness(0) - ROUGHNESS_MIN).abs() < 1e-12);
+        assert!((rung_roughness(LADDER_RUNGS - 1) - ROUGHNESS_MAX).abs() < 1e-12);
+        let ratios: Vec<f64> = (1..LADDER_RUNGS)
+            .map(|k| rung_roughness(k) / rung_roughness(k - 1))
+            .collect();
+        for r in &ratios {
+            assert!((r - ratios[0]).abs() < 1e-9 && *r < 2.5, "{ratios:?}");
+        }
+    }
+}
