@@ -151,6 +151,9 @@ pub struct GroupReport {
     pub error_measurements: Vec<fit::ErrorEstimate>,
     /// Every comparison of a simpler with a more complex model (stages 2 and 4).
     pub comparisons: Vec<ComparisonReport>,
+    /// Whether stage 2 kept a lobe from its ladder of roughnesses (see `ladder`), whose
+    /// shape is coarse.
+    pub lobe_from_ladder: bool,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
 }
@@ -177,6 +180,7 @@ impl GroupReport {
             latest_error: None,
             error_measurements: Vec::new(),
             comparisons: Vec::new(),
+            lobe_from_ladder: false,
             uncertainty: Vec::new(),
         }
     }
@@ -1033,6 +1037,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         // second look on a ladder of roughnesses (see `ladder`).
         let mut candidate = candidate;
         let (mut specularity, mut alpha) = (specularity, alpha);
+        let mut from_ladder = false;
         let proposal_failed = matches!(comparison, Some((c, _)) if !c.favours_complex());
         if proposal_failed
             && ladder::applies(diffuse_error)
@@ -1063,6 +1068,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                     (specularity, alpha) = (rung_s, rung_alpha);
                     candidate = (rung.model, None);
                     comparison = second;
+                    from_ladder = true;
                 }
             }
         }
@@ -1105,6 +1111,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             }
             rec.models[g] = candidate.0;
             r.set_decided(c.complex_estimate());
+            r.lobe_from_ladder = from_ladder;
         } else {
             r.decisions.push(format!(
                 "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
