@@ -1043,33 +1043,16 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             && ladder::applies(diffuse_error)
             && matches!(candidate.0, GroupModel::Isotropic { .. })
         {
-            let (rung, n) = ladder::best_rung(&mut rec, g, &cache, kind, stage1, verify_spp)?;
-            evaluations += n;
-            if let Some(rung) = rung.filter(|r| r.squared_gain > 0.0) {
-                let (rung_s, rung_alpha) = (rung.specularity, rung.roughness);
-                let proposal = comparison.map(|(c, _)| c);
-                reports[g].decisions.push(format!(
-                    "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test; of LADDER_RUNGS {} roughnesses and the half-rungs around the best, {rung_alpha:.4} (s {rung_s:.4}) removes most ({:.5} +- {:.5} of squared relative error at {} spp) and is tested in its place",
-                    proposal.map_or(0.0, |c| c.gain),
-                    proposal.map_or(0.0, |c| c.gain_sigma),
-                    proposal.map_or(0.0, |c| c.z()),
-                    ladder::LADDER_RUNGS,
-                    rung.squared_gain,
-                    rung.squared_gain_sigma,
-                    rung.spp,
-                ));
-                // Tested from the samples the ladder needed to see a gain: at the usual
-                // start (4x the loop's) a weak lobe's errors are lost in the noise and the
-                // test stops there (glossy's yellow box on seed 6: 0.016 at z 4.9 on the
-                // ladder, -0.029 +- 0.010 at 32 spp).
-                let second = rec.compare_models(g, stage1, rung.model, rung.spp)?;
-                evaluations += 2;
-                if second.is_some() {
-                    (specularity, alpha) = (rung_s, rung_alpha);
-                    candidate = (rung.model, None);
-                    comparison = second;
-                    from_ladder = true;
-                }
+            let proposal = comparison.map(|(c, _)| c);
+            let look =
+                ladder::second_look(&mut rec, g, &cache, kind, stage1, verify_spp, proposal)?;
+            evaluations += look.evaluations;
+            if let Some((rung, test)) = look.tested {
+                reports[g].decisions.push(look.decision);
+                (specularity, alpha) = (rung.specularity, rung.roughness);
+                candidate = (rung.model, None);
+                comparison = Some(test);
+                from_ladder = true;
             }
         }
         let r = &mut reports[g];
