@@ -14,6 +14,33 @@ fn recover(scene: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> Ve
     std::fs::read(out.join("materials.toml")).unwrap()
 }
 
+/// A reference's small scene (`bench/<name>/scene-small.toml`, 64x64 per face) recovered
+/// at effort fast, seed 1, into a temporary folder: the folder (kept alive by the caller),
+/// the output folder, and its materials compared with the truth (printed, for failures).
+fn recover_small_reference(
+    name: &str,
+) -> (
+    tempfile::TempDir,
+    std::path::PathBuf,
+    Vec<relume::compare::MaterialRow>,
+) {
+    let bench = shared().join("bench").join(name);
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("rec");
+    recover(
+        &bench.join("scene-small.toml"),
+        &out,
+        &["--effort", "fast", "--seed", "1"],
+    );
+    let rows =
+        relume::compare::materials_report(&bench.join("truth.toml"), &out.join("materials.toml"))
+            .unwrap();
+    for r in &rows {
+        println!("{r:?}");
+    }
+    (tmp, out, rows)
+}
+
 /// The same scene and seed give the same materials.toml bytes on 1 and 2 threads, and the
 /// committed golden (regenerate with RELUME_UPDATE_GOLDEN=1, and say why in the commit).
 #[test]
@@ -111,21 +138,8 @@ fn box_diffuse_small_comes_out_diffuse() {
 /// map within 2 dB of the ceiling that its size allows (finer detail is not in the views).
 #[test]
 fn textured_small_finds_the_textured_anisotropic_picture() {
-    let bench = shared().join("bench/textured");
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("rec");
-    recover(
-        &bench.join("scene-small.toml"),
-        &out,
-        &["--effort", "fast", "--seed", "1"],
-    );
-    let rows =
-        relume::compare::materials_report(&bench.join("truth.toml"), &out.join("materials.toml"))
-            .unwrap();
+    let (_tmp, out, rows) = recover_small_reference("textured");
     let row = |g: &str| rows.iter().find(|r| r.group == g).unwrap();
-    for r in &rows {
-        println!("{r:?}");
-    }
     let checker = row("picture_checker");
     assert_eq!(
         checker.model.as_deref(),
@@ -207,20 +221,7 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
 /// broad lobe that does, and no diffuse group is given one on the way.
 #[test]
 fn glossy_small_finds_the_yellow_boxs_weak_broad_lobe() {
-    let bench = shared().join("bench/glossy");
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("rec");
-    recover(
-        &bench.join("scene-small.toml"),
-        &out,
-        &["--effort", "fast", "--seed", "1"],
-    );
-    let rows =
-        relume::compare::materials_report(&bench.join("truth.toml"), &out.join("materials.toml"))
-            .unwrap();
-    for r in &rows {
-        println!("{r:?}");
-    }
+    let (_tmp, out, rows) = recover_small_reference("glossy");
     let row = |g: &str| rows.iter().find(|r| r.group == g).unwrap();
     let yellow = row("box_yellow");
     assert!(yellow.class_ok, "{yellow:?}");

@@ -68,7 +68,7 @@ pub const LADDER_SAMPLES: u64 = 1 << 15;
 /// better of it and the two roughnesses halfway (in log) to its neighbours; each rendered
 /// with at least [`LADDER_SAMPLES`] on the ladder's own seed. Also returns the renders
 /// spent. `None` when no rung could be compared.
-pub fn best_rung(
+fn best_rung(
     rec: &mut Recovery,
     g: usize,
     cache: &GroupCache,
