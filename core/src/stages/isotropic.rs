@@ -10,6 +10,8 @@
 //! Plastic: `rho_d` per channel and one white specularity `s` (S = s).
 //! Metal: one colour `c` per channel and one `s`, with `rho_d = c (1 - s)`, `S = c s`.
 
+use crate::material::Kind;
+
 /// Roughness bounds of the search (the paper's Table 2 range; reflectance.md keeps it in
 /// (0, 0.3]; below the lower bound a group is tested as a mirror).
 pub const ROUGHNESS_MIN: f64 = 0.005;
@@ -137,6 +139,14 @@ pub fn solve_plastic(sums: &LinearSums) -> WardFit {
         }
     });
     finish(sums, rho_d, [s; 3], color, s)
+}
+
+/// The best reflectances for a lobe of `kind` ([`solve_plastic`] or [`solve_metal`]).
+pub fn solve(kind: Kind, sums: &LinearSums) -> WardFit {
+    match kind {
+        Kind::Plastic => solve_plastic(sums),
+        Kind::Metal => solve_metal(sums),
+    }
 }
 
 /// Diffuse only (`S = 0`): the stage-1 model on the same pixels, for a like-for-like

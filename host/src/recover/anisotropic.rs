@@ -112,10 +112,7 @@ pub fn propose_from_cache(
 ) -> Result<(Proposal, u32), Error> {
     let fit_at = |x: [f64; 3]| {
         let sums = cache::linear_sums(pool, cache, &unit_lobe(x, basis));
-        let fit = match kind {
-            Kind::Plastic => isotropic::solve_plastic(&sums),
-            Kind::Metal => isotropic::solve_metal(&sums),
-        };
+        let fit = isotropic::solve(kind, &sums);
         Proposal { fit, x }
     };
     let grid = proposal_grid();

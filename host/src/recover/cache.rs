@@ -4,10 +4,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 use relume_core::geometry::View;
-use relume_core::material::Material;
+use relume_core::material::{Kind, Material};
 use relume_core::render::RenderSettings;
 use relume_core::scene::Scene;
-use relume_core::stages::isotropic::LinearSums;
+use relume_core::stages::isotropic::{self, LinearSums, WardFit};
 use relume_core::transport::{self, IncidentSample, INCIDENT_PER_SAMPLE};
 
 use super::pixels::{real_value, PurePixel, CHUNK};
@@ -98,4 +98,20 @@ pub fn linear_sums(pool: &rayon::ThreadPool, cache: &GroupCache, lobe: &Material
         total.merge(p);
     }
     total
+}
+
+/// The best reflectances of a `kind` lobe of isotropic roughness `alpha` on the group's
+/// cache, in closed form.
+pub fn isotropic_fit(
+    pool: &rayon::ThreadPool,
+    cache: &GroupCache,
+    kind: Kind,
+    alpha: f64,
+) -> WardFit {
+    let lobe = Material::Ward {
+        rho_d: Vec3::ZERO,
+        rho_s: Vec3::ONE,
+        alpha: alpha as f32,
+    };
+    isotropic::solve(kind, &linear_sums(pool, cache, &lobe))
 }

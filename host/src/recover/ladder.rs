@@ -18,8 +18,8 @@
 //! of `GAIN_SIGNIFICANCE` on fresh samples bounds it.
 
 use relume_core::fit;
-use relume_core::material::{Kind, Material};
-use relume_core::stages::isotropic::{self, ROUGHNESS_MAX, ROUGHNESS_MIN};
+use relume_core::material::Kind;
+use relume_core::stages::isotropic::{ROUGHNESS_MAX, ROUGHNESS_MIN};
 
 use super::cache::{self, GroupCache};
 use super::model::GroupModel;
@@ -85,16 +85,7 @@ fn best_rung(
     let diffuse_terms = rec.paired_terms(&pixels, spp, seed)?;
     let mut evaluations = 1;
     let mut measure = |rec: &mut Recovery, roughness: f64| -> Result<Option<Rung>, Error> {
-        let lobe = Material::Ward {
-            rho_d: glam::Vec3::ZERO,
-            rho_s: glam::Vec3::ONE,
-            alpha: roughness as f32,
-        };
-        let sums = cache::linear_sums(&rec.pool, cache, &lobe);
-        let fit = match kind {
-            Kind::Plastic => isotropic::solve_plastic(&sums),
-            Kind::Metal => isotropic::solve_metal(&sums),
-        };
+        let fit = cache::isotropic_fit(&rec.pool, cache, kind, roughness);
         if fit.specularity.is_nan() || fit.specularity <= 0.0 {
             return Ok(None);
         }
@@ -141,13 +132,20 @@ fn best_rung(
 
 /// What [`second_look`] found.
 pub struct SecondLook {
-    /// The best rung and its keep-or-reject test (`None` when no rung showed any gain or
-    /// the test found no lit pixel).
-    pub tested: Option<(Rung, (fit::ModelComparison, u32))>,
-    /// What was done, for the group's decisions.
-    pub decision: String,
+    /// The best rung, tested (`None` when no rung showed any gain or the test found no lit
+    /// pixel).
+    pub found: Option<Found>,
     /// Renders spent.
     pub evaluations: u32,
+}
+
+/// The ladder's best rung and its keep-or-reject test.
+pub struct Found {
+    pub rung: Rung,
+    /// The test against the diffuse model and its samples per pixel.
+    pub test: (fit::ModelComparison, u32),
+    /// What was done, for the group's decisions.
+    pub decision: String,
 }
 
 /// The ladder for group `g` after `proposal` (the failed test of the cache's proposal)
@@ -168,8 +166,7 @@ pub fn second_look(
     let (rung, mut evaluations) = best_rung(rec, g, cache, kind, diffuse, spp)?;
     let Some(rung) = rung.filter(|r| r.squared_gain > 0.0) else {
         return Ok(SecondLook {
-            tested: None,
-            decision: String::new(),
+            found: None,
             evaluations,
         });
     };
@@ -187,8 +184,11 @@ pub fn second_look(
     let test = rec.compare_models(g, diffuse, rung.model, rung.spp)?;
     evaluations += 2;
     Ok(SecondLook {
-        tested: test.map(|t| (rung, t)),
-        decision,
+        found: test.map(|test| Found {
+            rung,
+            test,
+            decision,
+        }),
         evaluations,
     })
 }

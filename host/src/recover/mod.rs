@@ -603,16 +603,7 @@ fn fit_ward(
     let mut best: Option<(WardFit, f64)> = None;
     let mut solve = |alpha: f64| {
         evaluations += 1;
-        let lobe = Material::Ward {
-            rho_d: glam::Vec3::ZERO,
-            rho_s: glam::Vec3::ONE,
-            alpha: alpha as f32,
-        };
-        let sums = cache::linear_sums(pool, cache, &lobe);
-        let fit = match kind {
-            Kind::Plastic => isotropic::solve_plastic(&sums),
-            Kind::Metal => isotropic::solve_metal(&sums),
-        };
+        let fit = cache::isotropic_fit(pool, cache, kind, alpha);
         let sse = fit.sse;
         if best.as_ref().is_none_or(|(b, _)| sse < b.sse) {
             best = Some((fit, alpha));
@@ -1047,11 +1038,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             let look =
                 ladder::second_look(&mut rec, g, &cache, kind, stage1, verify_spp, proposal)?;
             evaluations += look.evaluations;
-            if let Some((rung, test)) = look.tested {
-                reports[g].decisions.push(look.decision);
-                (specularity, alpha) = (rung.specularity, rung.roughness);
-                candidate = (rung.model, None);
-                comparison = Some(test);
+            if let Some(found) = look.found {
+                reports[g].decisions.push(found.decision);
+                (specularity, alpha) = (found.rung.specularity, found.rung.roughness);
+                candidate = (found.rung.model, None);
+                comparison = Some(found.test);
                 from_ladder = true;
             }
         }

@@ -353,10 +353,7 @@ fn best_fit(parts: &Parts, kind: Kind, lobes: &[usize], targets: &[Vec3]) -> (Wa
     let mut best: Option<(WardFit, usize)> = None;
     for &k in lobes {
         let sums = sums_with(Some(&parts.specular[k]));
-        let fit = match kind {
-            Kind::Plastic => isotropic::solve_plastic(&sums),
-            Kind::Metal => isotropic::solve_metal(&sums),
-        };
+        let fit = isotropic::solve(kind, &sums);
         if best.as_ref().is_none_or(|(b, _)| fit.sse < b.sse) {
             best = Some((fit, k));
         }
