@@ -302,6 +302,43 @@ fn ward_exponent(hl: Vec3, au: f32, av: f32) -> f32 {
     (x * x + y * y) / (hl.z * hl.z)
 }
 
+/// The W-G-M-D lobe for unit `rho_s` at the un-normalised half vector `h = wo + wi`, given
+/// in the shading frame (`hl`) with its squared length `h2`; `au`, `av` already guarded.
+/// Zero where `h` is below the surface or the exponential underflows.
+#[inline]
+fn ward_lobe(hl: Vec3, h2: f32, au: f32, av: f32) -> f32 {
+    if !(hl.z > 0.0) {
+        return 0.0;
+    }
+    let e = ward_exponent(hl, au, av);
+    if !(e < MAX_EXPONENT) {
+        return 0.0;
+    }
+    let hz2 = hl.z * hl.z;
+    let denom = (PI * au * av * hz2 * hz2).max(TINY);
+    (h2 * math::exp(-e) / denom).min(HUGE)
+}
+
+/// The isotropic Ward lobe of unit `rho_s` and roughness `alpha`, as [`Bsdf::eval`] gives
+/// it for `Material::Ward { rho_d: 0, rho_s: 1, alpha }` at a pixel whose half vector
+/// `wo + wi` is `hl` in [`Frame::from_normal`]'s frame, of squared length `h2` (the same
+/// bits, for a caller that keeps `hl` and `h2` across many roughnesses).
+#[inline]
+pub fn isotropic_ward_lobe(hl: Vec3, h2: f32, alpha: f32) -> f32 {
+    let a = alpha_guard(alpha);
+    ward_lobe(hl, h2, a, a)
+}
+
+/// Whether `isotropic_ward_lobe(hl, _, alpha)` is zero for certain because its exponent
+/// is past the underflow bound, judged from `tan2 = (hl.x^2 + hl.y^2) / hl.z^2` (kept
+/// across roughnesses) with a margin for rounding: it skips the exponential of a sharp
+/// lobe far from its highlight, and never skips a non-zero value.
+#[inline]
+pub fn isotropic_ward_underflows(tan2: f32, alpha: f32) -> bool {
+    let a = alpha_guard(alpha);
+    tan2 > MAX_EXPONENT * 1.001 * a * a
+}
+
 impl Bsdf {
     /// `n` is the unit geometric normal already turned towards `wo` (surfaces reflect on
     /// both sides); `rho_d` overrides the material's diffuse reflectance (a diffuse map;
@@ -389,17 +426,7 @@ impl Bsdf {
 
     /// The W-G-M-D lobe for unit `rho_s` at the un-normalised half vector `h = wo + wi`.
     fn ward(&self, h: Vec3, au: f32, av: f32) -> f32 {
-        let hl = self.frame.to_local(h);
-        if !(hl.z > 0.0) {
-            return 0.0;
-        }
-        let e = ward_exponent(hl, au, av);
-        if !(e < MAX_EXPONENT) {
-            return 0.0;
-        }
-        let hz2 = hl.z * hl.z;
-        let denom = (PI * au * av * hz2 * hz2).max(TINY);
-        (h.length_squared() * math::exp(-e) / denom).min(HUGE)
+        ward_lobe(self.frame.to_local(h), h.length_squared(), au, av)
     }
 
     /// Solid-angle pdf of `wi = reflect(wo, ĥ)` when the Ward lobe samples `ĥ`.

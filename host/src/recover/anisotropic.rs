@@ -319,12 +319,7 @@ mod tests {
                 });
             }
         }
-        GroupCache {
-            pixels,
-            real,
-            entries,
-            samples,
-        }
+        GroupCache::new(pixels, real, entries, samples)
     }
 
     #[test]

@@ -8,7 +8,7 @@ use relume_core::material::{Kind, Material};
 use relume_core::render::RenderSettings;
 use relume_core::scene::Scene;
 use relume_core::stages::isotropic::{self, LinearSums, WardFit};
-use relume_core::transport::{self, IncidentSample, INCIDENT_PER_SAMPLE};
+use relume_core::transport::{self, IncidentSample, LobePoint, INCIDENT_PER_SAMPLE};
 
 use super::pixels::{real_value, PurePixel, CHUNK};
 use crate::images::Image;
@@ -22,9 +22,46 @@ pub struct GroupCache {
     /// `per_pixel` entries per pixel (zero weights where a sample saw another surface).
     pub entries: Vec<IncidentSample>,
     pub samples: u32,
+    /// What does not change between the lobes a fit tries, derived from `entries`: each
+    /// pixel's diffuse part, and the entries an isotropic lobe can reflect as
+    /// [`LobePoint`]s (those of pixel `i` at `point_start[i]..point_start[i + 1]`).
+    diffuse: Vec<Vec3>,
+    lobe_points: Vec<LobePoint>,
+    point_start: Vec<usize>,
 }
 
 impl GroupCache {
+    /// A cache of `samples` pixel samples per pixel, whose entries are `entries` (see
+    /// the fields).
+    pub fn new(
+        pixels: Vec<PurePixel>,
+        real: Vec<Vec3>,
+        entries: Vec<IncidentSample>,
+        samples: u32,
+    ) -> GroupCache {
+        let per_pixel = samples as usize * INCIDENT_PER_SAMPLE;
+        let of_pixel = |i: usize| &entries[i * per_pixel..(i + 1) * per_pixel];
+        let diffuse = (0..pixels.len())
+            .map(|i| transport::diffuse_part(of_pixel(i), samples))
+            .collect();
+        let mut lobe_points = Vec::new();
+        let mut point_start = Vec::with_capacity(pixels.len() + 1);
+        for i in 0..pixels.len() {
+            point_start.push(lobe_points.len());
+            lobe_points.extend(of_pixel(i).iter().filter_map(transport::lobe_point));
+        }
+        point_start.push(lobe_points.len());
+        GroupCache {
+            pixels,
+            real,
+            entries,
+            samples,
+            diffuse,
+            lobe_points,
+            point_start,
+        }
+    }
+
     pub fn per_pixel(&self) -> usize {
         self.samples as usize * INCIDENT_PER_SAMPLE
     }
@@ -33,6 +70,24 @@ impl GroupCache {
     pub fn pixel_entries(&self, i: usize) -> &[IncidentSample] {
         let n = self.per_pixel();
         &self.entries[i * n..(i + 1) * n]
+    }
+
+    /// Pixel `i`'s linear parts under the unit specular `lobe`, as
+    /// [`transport::linear_parts`] gives them (the same bits); a unit isotropic Ward lobe,
+    /// what the closed-form fits try by the dozen, from the kept [`LobePoint`]s.
+    pub fn linear_parts(&self, i: usize, lobe: &Material) -> (Vec3, Vec3) {
+        match *lobe {
+            Material::Ward {
+                rho_d,
+                rho_s,
+                alpha,
+            } if rho_d == Vec3::ZERO && rho_s == Vec3::ONE => {
+                let points = &self.lobe_points[self.point_start[i]..self.point_start[i + 1]];
+                let specular = transport::isotropic_specular_part(points, self.samples, alpha);
+                (self.diffuse[i], specular)
+            }
+            _ => transport::linear_parts(self.pixel_entries(i), self.samples, lobe),
+        }
     }
 }
 
@@ -68,12 +123,7 @@ pub fn build(
             });
     });
     let real = pixels.iter().map(|p| real_value(real, views, p)).collect();
-    GroupCache {
-        pixels,
-        real,
-        entries,
-        samples: settings.spp,
-    }
+    GroupCache::new(pixels, real, entries, settings.spp)
 }
 
 /// The normal-equation sums of the group's pixels for a unit specular `lobe`.
@@ -85,8 +135,7 @@ pub fn linear_sums(pool: &rayon::ThreadPool, cache: &GroupCache, lobe: &Material
             .map(|chunk| {
                 let mut sums = LinearSums::default();
                 for &i in chunk {
-                    let (d, b) =
-                        transport::linear_parts(cache.pixel_entries(i), cache.samples, lobe);
+                    let (d, b) = cache.linear_parts(i, lobe);
                     sums.add(d.to_array(), b.to_array(), cache.real[i].to_array());
                 }
                 sums

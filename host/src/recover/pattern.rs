@@ -25,7 +25,6 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use relume_core::material::{Kind, Material};
 use relume_core::stages::isotropic::{self, LinearSums, WardFit};
-use relume_core::transport;
 
 use super::anisotropic;
 use super::cache::GroupCache;
@@ -101,9 +100,7 @@ impl Parts {
         let kept: Vec<usize> = (0..cache.pixels.len())
             .filter(|&i| uv.get(i).copied().flatten().is_some())
             .collect();
-        let part = |i: usize, lobe: &Material| {
-            transport::linear_parts(cache.pixel_entries(i), cache.samples, lobe)
-        };
+        let part = |i: usize, lobe: &Material| cache.linear_parts(i, lobe);
         let specular: Vec<Vec<Vec3>> = pool.install(|| {
             lobes
                 .par_iter()
