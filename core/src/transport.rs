@@ -10,7 +10,7 @@
 //! is refreshed (re-traced) when the rest of the scene's materials change.
 
 use crate::geometry::{Surface, View};
-use crate::material::{Bsdf, Material};
+use crate::material::{self, Bsdf, Material};
 use crate::math::{self, Vec3, INV_PI};
 use crate::render::{self, RenderSettings};
 use crate::rng::Sampler;
@@ -248,6 +248,7 @@ impl<'a> ReusedBsdf<'a> {
         }
     }
 
+    #[inline]
     fn at(&mut self, n: Vec3) -> &Bsdf {
         // Bitwise equality: -0.0 and 0.0, or two NaNs, are built again, never confused.
         let bits = |v: Vec3| v.to_array().map(f32::to_bits);
@@ -284,40 +285,41 @@ pub fn linear_parts(
     (diffuse * k, specular * k)
 }
 
-/// One incident sample as an isotropic Ward lobe sees it, without the roughness: what
-/// [`isotropic_specular_part`] needs to evaluate many roughnesses over the same samples
-/// at the cost of an exponential each (a closed-form fit tries some sixty per group).
+/// One incident sample a lobe can reflect, with what does not depend on the lobe: what
+/// [`specular_part`] needs to evaluate the many lobes a closed-form fit tries over the
+/// same samples (some sixty roughnesses per group, some 250 anisotropic shapes).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LobePoint {
-    /// The half vector `wo + wi` in [`Frame::from_normal`]'s frame of the sample's normal.
+    /// The sample's normal.
+    pub n: Vec3,
+    /// The half vector `wo + wi`.
+    pub h: Vec3,
+    /// `h` in [`Frame::from_normal`]'s frame of `n`: an isotropic lobe's, kept so that the
+    /// fits' many roughnesses need no frame (a curved group's changes with every sample).
     ///
     /// [`Frame::from_normal`]: crate::math::Frame::from_normal
     pub h_local: Vec3,
-    /// `|wo + wi|^2`.
-    pub h2: f32,
-    /// `tan^2` of the half vector's angle to the normal, to skip the exponential where it
-    /// underflows ([`crate::material::isotropic_ward_underflows`]).
+    /// `tan^2` of the half vector's angle to the normal, to skip the samples where a lobe
+    /// vanishes ([`Bsdf::vanishes_at`]).
     pub tan2: f32,
     /// The sample's weight.
     pub weight: Vec3,
 }
 
-/// The [`LobePoint`] of an incident sample, or `None` where no Ward lobe reflects it
-/// (`wo`, `wi` or the half vector below the surface: [`Bsdf::eval`] is zero there).
+/// The [`LobePoint`] of an incident sample, or `None` where no material reflects it (`wo`
+/// or `wi` below the surface: [`Bsdf::eval`] is zero there).
 pub fn lobe_point(e: &IncidentSample) -> Option<LobePoint> {
     let n = e.n;
     if !(n.dot(e.wo) > 0.0 && n.dot(e.wi) > 0.0) {
         return None;
     }
     let h = e.wo + e.wi;
-    let h_local = math::Frame::from_normal(n).to_local(h);
-    if !(h_local.z > 0.0) {
-        return None;
-    }
+    let hl = math::Frame::from_normal(n).to_local(h);
     Some(LobePoint {
-        h_local,
-        h2: h.length_squared(),
-        tan2: (h_local.x * h_local.x + h_local.y * h_local.y) / (h_local.z * h_local.z),
+        n,
+        h,
+        h_local: hl,
+        tan2: (hl.x * hl.x + hl.y * hl.y) / (hl.z * hl.z),
         weight: e.weight,
     })
 }
@@ -333,18 +335,36 @@ pub fn diffuse_part(entries: &[IncidentSample], n_samples: u32) -> Vec3 {
     diffuse * (1.0 / n_samples.max(1) as f32)
 }
 
-/// The specular part of [`linear_parts`] for the unit isotropic Ward lobe of roughness
-/// `alpha` (`Material::Ward { rho_d: 0, rho_s: 1, alpha }`), from the pixel's
-/// [`LobePoint`]s in entry order: the same bits, since the samples it drops add exactly
-/// zero there (for finite weights, which the tracer's are).
-pub fn isotropic_specular_part(points: &[LobePoint], n_samples: u32, alpha: f32) -> Vec3 {
+/// The specular part of [`linear_parts`] under `specular_lobe`, from the pixel's
+/// [`LobePoint`]s in entry order: the same bits, since every sample it leaves out adds
+/// exactly zero there (for finite weights, which the tracer's are).
+pub fn specular_part(points: &[LobePoint], n_samples: u32, specular_lobe: &Material) -> Vec3 {
     let mut specular = Vec3::ZERO;
-    for p in points {
-        if crate::material::isotropic_ward_underflows(p.tan2, alpha) {
-            continue;
+    match *specular_lobe {
+        // The unit isotropic lobe, what the fits try by the dozen: `f = (w, w, w)`.
+        Material::Ward {
+            rho_d,
+            rho_s,
+            alpha,
+        } if rho_d == Vec3::ZERO && rho_s == Vec3::ONE => {
+            for p in points {
+                if material::unit_isotropic_ward_vanishes(p.tan2, alpha) {
+                    continue;
+                }
+                let w = material::unit_isotropic_ward(p.h_local, p.h.length_squared(), alpha);
+                specular += Vec3::splat(w) * p.weight;
+            }
         }
-        let f = crate::material::isotropic_ward_lobe(p.h_local, p.h2, alpha);
-        specular += Vec3::splat(f) * p.weight;
+        _ => {
+            let mut bsdf = ReusedBsdf::new(specular_lobe, None);
+            for p in points {
+                let bsdf = bsdf.at(p.n);
+                if bsdf.vanishes_at(p.tan2) {
+                    continue;
+                }
+                specular += bsdf.eval_above(p.h) * p.weight;
+            }
+        }
     }
     specular * (1.0 / n_samples.max(1) as f32)
 }
@@ -410,9 +430,10 @@ mod tests {
 
     /// Entries in every direction over a few normals (below the horizon, grazing, near
     /// and far from the mirror direction): the lobe points give the same bits as
-    /// `linear_parts` for roughnesses from below the guard to the search's largest.
+    /// `linear_parts`, for isotropic roughnesses from below the guard to 1 and for
+    /// anisotropic lobes, turned and along the normal (isotropic then).
     #[test]
-    fn lobe_points_give_linear_parts_bits_for_every_roughness() {
+    fn lobe_points_give_linear_parts_bits_for_every_lobe() {
         let mut sampler = crate::rng::Sampler::from_key(7);
         let mut u = || sampler.next_f32() * 2.0 - 1.0;
         let normals = [
@@ -441,21 +462,60 @@ mod tests {
             .collect();
         let points: Vec<LobePoint> = entries.iter().filter_map(lobe_point).collect();
         assert!(points.len() > 100 && points.len() < entries.len());
-        for alpha in [1e-6, 0.005, 0.0173, 0.05, 0.1, 0.3, 1.0] {
-            let lobe = Material::Ward {
-                rho_d: Vec3::ZERO,
-                rho_s: Vec3::ONE,
-                alpha,
-            };
-            let (d, s) = linear_parts(&entries, 3, &lobe);
-            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        let ward = |alpha| Material::Ward {
+            rho_d: Vec3::ZERO,
+            rho_s: Vec3::ONE,
+            alpha,
+        };
+        let turned = |alpha_u, alpha_v, direction| Material::WardAnisotropic {
+            rho_d: Vec3::ZERO,
+            rho_s: Vec3::ONE,
+            alpha_u,
+            alpha_v,
+            direction,
+        };
+        let lobes = [
+            ward(1e-6),
+            ward(0.005),
+            ward(0.0173),
+            ward(0.1),
+            ward(0.3),
+            ward(1.0),
+            turned(0.005, 0.05, Vec3::new(1.0, 0.3, 0.0)),
+            turned(0.2, 0.01, Vec3::new(0.0, 1.0, 1.0)),
+            turned(0.02, 0.3, Vec3::Z),
+            Material::Ward {
+                rho_d: Vec3::splat(0.3),
+                rho_s: Vec3::new(0.1, 0.2, 0.3),
+                alpha: 0.01,
+            },
+        ];
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        for lobe in &lobes {
+            let (d, s) = linear_parts(&entries, 3, lobe);
             assert_eq!(bits(diffuse_part(&entries, 3)), bits(d));
-            assert_eq!(
-                bits(isotropic_specular_part(&points, 3, alpha)),
-                bits(s),
-                "{alpha}"
-            );
-            assert!(s.x > 0.0, "{alpha}");
+            assert_eq!(bits(specular_part(&points, 3, lobe)), bits(s), "{lobe:?}");
+            assert!(s.x > 0.0, "{lobe:?}");
+        }
+
+        // A lone sample whose exponent is just inside the underflow bound, and one just
+        // past it: the first is not skipped, the second is zero either way.
+        let alpha = 0.05f32;
+        for (exponent, reflects) in [(79.0f32, true), (80.5, false)] {
+            let delta = libm::atanf(libm::sqrtf(exponent) * alpha);
+            let h = Vec3::new(libm::sinf(delta), 0.0, libm::cosf(delta));
+            let wo = Vec3::Z;
+            let lone = [IncidentSample {
+                wo,
+                n: Vec3::Z,
+                wi: 2.0 * wo.dot(h) * h - wo,
+                weight: Vec3::ONE,
+                uv: [0.0; 2],
+            }];
+            let points: Vec<LobePoint> = lone.iter().filter_map(lobe_point).collect();
+            let (_, s) = linear_parts(&lone, 1, &ward(alpha));
+            assert_eq!(bits(specular_part(&points, 1, &ward(alpha))), bits(s));
+            assert_eq!(s.x > 0.0, reflects, "{exponent}: {s}");
         }
     }
 }

@@ -303,8 +303,8 @@ fn ward_exponent(hl: Vec3, au: f32, av: f32) -> f32 {
 }
 
 /// The W-G-M-D lobe for unit `rho_s` at the un-normalised half vector `h = wo + wi`, given
-/// in the shading frame (`hl`) with its squared length `h2`; `au`, `av` already guarded.
-/// Zero where `h` is below the surface or the exponential underflows.
+/// in the shading frame (`hl`) with its squared length `h2`. Zero where `h` is below the
+/// surface or the exponential underflows.
 #[inline]
 fn ward_lobe(hl: Vec3, h2: f32, au: f32, av: f32) -> f32 {
     if !(hl.z > 0.0) {
@@ -319,24 +319,29 @@ fn ward_lobe(hl: Vec3, h2: f32, au: f32, av: f32) -> f32 {
     (h2 * math::exp(-e) / denom).min(HUGE)
 }
 
-/// The isotropic Ward lobe of unit `rho_s` and roughness `alpha`, as [`Bsdf::eval`] gives
-/// it for `Material::Ward { rho_d: 0, rho_s: 1, alpha }` at a pixel whose half vector
-/// `wo + wi` is `hl` in [`Frame::from_normal`]'s frame, of squared length `h2` (the same
-/// bits, for a caller that keeps `hl` and `h2` across many roughnesses).
+/// Whether the Ward exponent at a half vector of `tan^2 = tan2` is past its underflow
+/// bound for every roughness up to the (guarded) `alpha`, with a 1% margin for rounding:
+/// true only where the lobe is zero for certain, so that skipping it changes no bit.
 #[inline]
-pub fn isotropic_ward_lobe(hl: Vec3, h2: f32, alpha: f32) -> f32 {
+fn ward_vanishes(tan2: f32, alpha: f32) -> bool {
+    tan2 > MAX_EXPONENT * 1.01 * alpha * alpha
+}
+
+/// The unit isotropic Ward lobe (`rho_d = 0`, `rho_s = 1`) of roughness `alpha`, as
+/// [`Bsdf::eval`] gives it for a `wo` and `wi` both above the surface whose sum has the
+/// coordinates `hl` in [`Frame::from_normal`]'s frame and the squared length `h2`: the same
+/// bits, for a caller that keeps `hl` and `h2` across many roughnesses.
+#[inline]
+pub fn unit_isotropic_ward(hl: Vec3, h2: f32, alpha: f32) -> f32 {
     let a = alpha_guard(alpha);
     ward_lobe(hl, h2, a, a)
 }
 
-/// Whether `isotropic_ward_lobe(hl, _, alpha)` is zero for certain because its exponent
-/// is past the underflow bound, judged from `tan2 = (hl.x^2 + hl.y^2) / hl.z^2` (kept
-/// across roughnesses) with a margin for rounding: it skips the exponential of a sharp
-/// lobe far from its highlight, and never skips a non-zero value.
+/// Whether [`unit_isotropic_ward`] is zero for certain at a half vector of
+/// `tan^2 = tan2` (see [`Bsdf::vanishes_at`]).
 #[inline]
-pub fn isotropic_ward_underflows(tan2: f32, alpha: f32) -> bool {
-    let a = alpha_guard(alpha);
-    tan2 > MAX_EXPONENT * 1.001 * a * a
+pub fn unit_isotropic_ward_vanishes(tan2: f32, alpha: f32) -> bool {
+    ward_vanishes(tan2, alpha_guard(alpha))
 }
 
 impl Bsdf {
@@ -424,7 +429,46 @@ impl Bsdf {
         f
     }
 
+    /// [`Bsdf::eval`] for a `wo` and `wi` both above the surface, given by their sum `h`
+    /// (the same bits): a caller that keeps `h` across many materials skips the rest.
+    #[inline]
+    pub fn eval_above(&self, h: Vec3) -> Vec3 {
+        let Lobes::Glossy {
+            rho_d,
+            rho_s,
+            alpha_u,
+            alpha_v,
+            ..
+        } = self.lobes
+        else {
+            return Vec3::ZERO;
+        };
+        let mut f = rho_d * INV_PI;
+        if rho_s.max_element() > 0.0 {
+            f += rho_s * self.ward(h, alpha_u, alpha_v);
+        }
+        f
+    }
+
+    /// Whether [`Bsdf::eval_above`] is zero for certain at a half vector whose angle to
+    /// the normal has `tan^2 = tan2`: no diffuse part, and the Ward exponent past its
+    /// underflow bound for the larger roughness. A sharp lobe far from its highlight costs
+    /// no exponential then.
+    #[inline]
+    pub fn vanishes_at(&self, tan2: f32) -> bool {
+        match self.lobes {
+            Lobes::Mirror { .. } => true,
+            Lobes::Glossy {
+                rho_d,
+                alpha_u,
+                alpha_v,
+                ..
+            } => rho_d == Vec3::ZERO && ward_vanishes(tan2, alpha_u.max(alpha_v)),
+        }
+    }
+
     /// The W-G-M-D lobe for unit `rho_s` at the un-normalised half vector `h = wo + wi`.
+    #[inline]
     fn ward(&self, h: Vec3, au: f32, av: f32) -> f32 {
         ward_lobe(self.frame.to_local(h), h.length_squared(), au, av)
     }

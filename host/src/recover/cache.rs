@@ -19,20 +19,19 @@ pub struct GroupCache {
     pub pixels: Vec<PurePixel>,
     /// The panorama's values of `pixels`.
     pub real: Vec<Vec3>,
-    /// `per_pixel` entries per pixel (zero weights where a sample saw another surface).
-    pub entries: Vec<IncidentSample>,
+    /// Pixel samples per pixel.
     pub samples: u32,
-    /// What does not change between the lobes a fit tries, derived from `entries`: each
-    /// pixel's diffuse part, and the entries an isotropic lobe can reflect as
-    /// [`LobePoint`]s (those of pixel `i` at `point_start[i]..point_start[i + 1]`).
+    /// What the fits' many lobes need of the traced incident samples: each pixel's
+    /// diffuse part, and the samples a lobe can reflect as [`LobePoint`]s (those of pixel
+    /// `i` at `point_start[i]..point_start[i + 1]`).
     diffuse: Vec<Vec3>,
     lobe_points: Vec<LobePoint>,
     point_start: Vec<usize>,
 }
 
 impl GroupCache {
-    /// A cache of `samples` pixel samples per pixel, whose entries are `entries` (see
-    /// the fields).
+    /// A cache of `samples` pixel samples per pixel, whose incident samples are
+    /// `entries` (`samples * INCIDENT_PER_SAMPLE` per pixel, in pixel order).
     pub fn new(
         pixels: Vec<PurePixel>,
         real: Vec<Vec3>,
@@ -54,7 +53,6 @@ impl GroupCache {
         GroupCache {
             pixels,
             real,
-            entries,
             samples,
             diffuse,
             lobe_points,
@@ -62,32 +60,14 @@ impl GroupCache {
         }
     }
 
-    pub fn per_pixel(&self) -> usize {
-        self.samples as usize * INCIDENT_PER_SAMPLE
-    }
-
-    /// The entries of pixel `i`.
-    pub fn pixel_entries(&self, i: usize) -> &[IncidentSample] {
-        let n = self.per_pixel();
-        &self.entries[i * n..(i + 1) * n]
-    }
-
-    /// Pixel `i`'s linear parts under the unit specular `lobe`, as
-    /// [`transport::linear_parts`] gives them (the same bits); a unit isotropic Ward lobe,
-    /// what the closed-form fits try by the dozen, from the kept [`LobePoint`]s.
+    /// Pixel `i`'s linear parts under the specular `lobe`, as [`transport::linear_parts`]
+    /// gives them (the same bits), from what the cache keeps for the fits' many lobes.
     pub fn linear_parts(&self, i: usize, lobe: &Material) -> (Vec3, Vec3) {
-        match *lobe {
-            Material::Ward {
-                rho_d,
-                rho_s,
-                alpha,
-            } if rho_d == Vec3::ZERO && rho_s == Vec3::ONE => {
-                let points = &self.lobe_points[self.point_start[i]..self.point_start[i + 1]];
-                let specular = transport::isotropic_specular_part(points, self.samples, alpha);
-                (self.diffuse[i], specular)
-            }
-            _ => transport::linear_parts(self.pixel_entries(i), self.samples, lobe),
-        }
+        let points = &self.lobe_points[self.point_start[i]..self.point_start[i + 1]];
+        (
+            self.diffuse[i],
+            transport::specular_part(points, self.samples, lobe),
+        )
     }
 }
 
