@@ -218,7 +218,8 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
 /// Glossy at 64x64 per face (effort fast, seed 1): the yellow box's weak, broad lobe
 /// (specularity 0.1, roughness 0.2) is proposed by its cache at roughness 0.047, which a
 /// render shows removes almost none of its error; stage 2's ladder of roughnesses finds a
-/// broad lobe that does, and no diffuse group is given one on the way.
+/// broad lobe that does, says how loosely its shape is known, and no diffuse group is
+/// given one on the way.
 #[test]
 fn glossy_small_finds_the_yellow_boxs_weak_broad_lobe() {
     let (_tmp, out, rows) = recover_small_reference("glossy");
@@ -241,6 +242,20 @@ fn glossy_small_finds_the_yellow_boxs_weak_broad_lobe() {
         "{:?}",
         yellow_report["decisions"]
     );
+    // Its reported roughness carries the spread of the rungs the ladder could not tell
+    // apart, and covers the truth at two standard errors (the sandwich alone claimed a
+    // few percent: 0.3 +- 0.012 against a true 0.2).
+    let roughness = yellow_report["uncertainty"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|u| u["parameter"] == "roughness")
+        .unwrap();
+    let (value, sigma) = (
+        roughness["value"].as_f64().unwrap(),
+        roughness["sigma"].as_f64().unwrap(),
+    );
+    assert!((value - 0.2).abs() <= 2.0 * sigma, "{roughness:?}");
     for diffuse in ["floor", "ceiling", "walls_warm", "walls_cool"] {
         assert!(row(diffuse).class_ok, "{:?}", row(diffuse));
     }

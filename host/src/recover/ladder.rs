@@ -38,6 +38,7 @@ pub fn rung_roughness(k: usize) -> f64 {
 
 /// The chosen rung: its model, and the gain over the diffuse model that chose it (on the
 /// ladder's samples; the caller decides on its own).
+#[derive(Clone, Copy)]
 pub struct Rung {
     pub model: GroupModel,
     pub specularity: f64,
@@ -75,7 +76,7 @@ fn best_rung(
     kind: Kind,
     diffuse: GroupModel,
     spp: u32,
-) -> Result<(Option<Rung>, u32), Error> {
+) -> Result<(Option<Rung>, Vec<Rung>, u32), Error> {
     let pixels = pixels::of_group(&rec.pure, g);
     let spp = min_samples_spp(spp, pixels.len() as u32, LADDER_SAMPLES);
     let seed = rec.seed ^ 0x001A_DDE2 ^ g as u64;
@@ -115,19 +116,90 @@ fn best_rung(
         (a, b) => a.or(b),
     };
     let mut best = None;
+    let mut measured = Vec::new();
     for k in 0..LADDER_RUNGS {
-        best = better(best, measure(rec, rung_roughness(k))?);
+        let rung = measure(rec, rung_roughness(k))?;
+        measured.extend(rung);
+        best = better(best, rung);
     }
     if let Some(at) = best.as_ref().map(|b| b.roughness) {
-        let half_step = libm::sqrt(rung_roughness(1) / rung_roughness(0));
-        for roughness in [at / half_step, at * half_step] {
+        for roughness in [at / half_step(), at * half_step()] {
             if (ROUGHNESS_MIN..=ROUGHNESS_MAX).contains(&roughness) {
-                best = better(best, measure(rec, roughness)?);
+                let rung = measure(rec, roughness)?;
+                measured.extend(rung);
+                best = better(best, rung);
             }
         }
     }
     rec.models[g] = before;
-    Ok((best, evaluations))
+    Ok((best, measured, evaluations))
+}
+
+/// The ratio of a half-rung's roughness to its rung's.
+fn half_step() -> f64 {
+    libm::sqrt(rung_roughness(1) / rung_roughness(0))
+}
+
+/// How far the ladder's choice can be trusted: the ranges of roughness and specularity
+/// over the rungs it cannot tell from the best (`plausible`), widened in roughness by
+/// half a half-rung either side (a lobe between two measured roughnesses), and the
+/// standard errors they imply for the chosen values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spread {
+    pub roughness: (f64, f64),
+    pub specularity: (f64, f64),
+    /// Rungs in the ranges.
+    pub rungs: usize,
+}
+
+impl Spread {
+    /// The standard errors of the chosen roughness and specularity, taking each range for
+    /// about a 95% interval (two standard errors to its farther end): the sandwich of
+    /// `uncertainty` sees the pixels' pull at the chosen point only, and a weak lobe's
+    /// pixels pull almost as hard at rungs far apart (glossy's yellow box, roughness 0.2:
+    /// chosen at 0.005-0.3 over the seeds, with a sandwich sigma of a few percent).
+    pub fn sigmas(&self, chosen: &Rung) -> [(&'static str, f64); 2] {
+        let half_width = |(lo, hi): (f64, f64), at: f64| (at - lo).max(hi - at).max(0.0) / 2.0;
+        [
+            ("roughness", half_width(self.roughness, chosen.roughness)),
+            (
+                "specularity",
+                half_width(self.specularity, chosen.specularity),
+            ),
+        ]
+    }
+}
+
+/// The rungs of `measured` whose gain is within [`fit::EXCEEDS_SIGMAS`] standard errors of
+/// the `best` one's (each rung's own error and the best's in quadrature: the rungs share
+/// the diffuse model's samples, so this is the wider bound), and their ranges.
+pub fn plausible(best: &Rung, measured: &[Rung]) -> Spread {
+    let close = measured.iter().filter(|r| {
+        let sigma = libm::hypot(r.squared_gain_sigma, best.squared_gain_sigma);
+        r.squared_gain + fit::EXCEEDS_SIGMAS * sigma >= best.squared_gain
+    });
+    let mut spread = Spread {
+        roughness: (best.roughness, best.roughness),
+        specularity: (best.specularity, best.specularity),
+        rungs: 0,
+    };
+    for r in close {
+        spread.roughness = (
+            spread.roughness.0.min(r.roughness),
+            spread.roughness.1.max(r.roughness),
+        );
+        spread.specularity = (
+            spread.specularity.0.min(r.specularity),
+            spread.specularity.1.max(r.specularity),
+        );
+        spread.rungs += 1;
+    }
+    let half = libm::sqrt(half_step());
+    spread.roughness = (
+        (spread.roughness.0 / half).max(ROUGHNESS_MIN),
+        (spread.roughness.1 * half).min(ROUGHNESS_MAX),
+    );
+    spread
 }
 
 /// What [`second_look`] found.
@@ -142,6 +214,8 @@ pub struct SecondLook {
 /// The ladder's best rung and its keep-or-reject test.
 pub struct Found {
     pub rung: Rung,
+    /// The rungs it could not be told from.
+    pub spread: Spread,
     /// The test against the diffuse model and its samples per pixel.
     pub test: (fit::ModelComparison, u32),
     /// What was done, for the group's decisions.
@@ -163,15 +237,16 @@ pub fn second_look(
     spp: u32,
     proposal: Option<fit::ModelComparison>,
 ) -> Result<SecondLook, Error> {
-    let (rung, mut evaluations) = best_rung(rec, g, cache, kind, diffuse, spp)?;
+    let (rung, measured, mut evaluations) = best_rung(rec, g, cache, kind, diffuse, spp)?;
     let Some(rung) = rung.filter(|r| r.squared_gain > 0.0) else {
         return Ok(SecondLook {
             found: None,
             evaluations,
         });
     };
+    let spread = plausible(&rung, &measured);
     let decision = format!(
-        "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test; of LADDER_RUNGS {LADDER_RUNGS} roughnesses and the half-rungs around the best, {:.4} (s {:.4}) removes most ({:.5} +- {:.5} of squared relative error at {} spp) and is tested in its place",
+        "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test; of LADDER_RUNGS {LADDER_RUNGS} roughnesses and the half-rungs around the best, {:.4} (s {:.4}) removes most ({:.5} +- {:.5} of squared relative error at {} spp) and is tested in its place; {} of the {} measured are within EXCEEDS_SIGMAS {} standard errors of it: roughness {:.4}-{:.4}, s {:.4}-{:.4}",
         proposal.map_or(0.0, |c| c.gain),
         proposal.map_or(0.0, |c| c.gain_sigma),
         proposal.map_or(0.0, |c| c.z()),
@@ -180,12 +255,20 @@ pub fn second_look(
         rung.squared_gain,
         rung.squared_gain_sigma,
         rung.spp,
+        spread.rungs,
+        measured.len(),
+        fit::EXCEEDS_SIGMAS,
+        spread.roughness.0,
+        spread.roughness.1,
+        spread.specularity.0,
+        spread.specularity.1,
     );
     let test = rec.compare_models(g, diffuse, rung.model, rung.spp)?;
     evaluations += 2;
     Ok(SecondLook {
         found: test.map(|test| Found {
             rung,
+            spread,
             test,
             decision,
         }),
@@ -213,5 +296,44 @@ mod tests {
         for r in &ratios {
             assert!((r - ratios[0]).abs() < 1e-9 && *r < 2.5, "{ratios:?}");
         }
+    }
+
+    fn rung(roughness: f64, specularity: f64, gain: f64, sigma: f64) -> Rung {
+        Rung {
+            model: GroupModel::Unseen,
+            specularity,
+            roughness,
+            squared_gain: gain,
+            squared_gain_sigma: sigma,
+            lower: gain - fit::EXCEEDS_SIGMAS * sigma,
+            spp: 64,
+        }
+    }
+
+    #[test]
+    fn the_spread_spans_the_rungs_the_gains_cannot_tell_apart() {
+        let best = rung(0.0387, 0.1, 0.0010, 0.0001);
+        let measured = [
+            rung(0.005, 0.05, 0.0002, 0.0001),
+            rung(0.0114, 0.07, 0.0008, 0.0001),
+            best,
+            rung(0.0880, 0.12, 0.0009, 0.0002),
+            rung(0.2, 0.2, 0.0001, 0.0001),
+        ];
+        let spread = plausible(&best, &measured);
+        assert_eq!(spread.rungs, 3);
+        let half = libm::sqrt(half_step());
+        assert!((spread.roughness.0 - 0.0114 / half).abs() < 1e-12);
+        assert!((spread.roughness.1 - 0.0880 * half).abs() < 1e-12);
+        assert_eq!(spread.specularity, (0.07, 0.12));
+        let [(_, roughness), (_, specularity)] = spread.sigmas(&best);
+        assert!((roughness - (0.0880 * half - 0.0387) / 2.0).abs() < 1e-12);
+        assert!((specularity - 0.015).abs() < 1e-12);
+
+        // Clearly the best alone: half a half-rung either side, nothing in specularity.
+        let alone = plausible(&best, &[measured[0], best, measured[4]]);
+        assert_eq!(alone.rungs, 1);
+        assert_eq!(alone.sigmas(&best)[1].1, 0.0);
+        assert!(alone.sigmas(&best)[0].1 > 0.0);
     }
 }

@@ -155,6 +155,10 @@ pub struct GroupReport {
     /// Whether stage 2 kept a lobe from its ladder of roughnesses (see `ladder`), whose
     /// shape is coarse.
     pub lobe_from_ladder: bool,
+    /// The standard errors of such a lobe's roughness and specularity implied by the
+    /// rungs the ladder could not tell from its choice (`ladder::Spread::sigmas`).
+    #[serde(skip)]
+    pub ladder_sigmas: Vec<(&'static str, f64)>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
 }
@@ -182,6 +186,7 @@ impl GroupReport {
             error_measurements: Vec::new(),
             comparisons: Vec::new(),
             lobe_from_ladder: false,
+            ladder_sigmas: Vec::new(),
             uncertainty: Vec::new(),
         }
     }
@@ -1045,7 +1050,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         // second look on a ladder of roughnesses (see `ladder`).
         let mut candidate = candidate;
         let (mut specularity, mut alpha) = (specularity, alpha);
-        let mut from_ladder = false;
+        let mut ladder_sigmas = None;
         let proposal_failed = matches!(comparison, Some((c, _)) if !c.favours_complex());
         if proposal_failed
             && ladder::applies(diffuse_error)
@@ -1060,7 +1065,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
                 (specularity, alpha) = (found.rung.specularity, found.rung.roughness);
                 candidate = (found.rung.model, None);
                 comparison = Some(found.test);
-                from_ladder = true;
+                ladder_sigmas = Some(found.spread.sigmas(&found.rung));
             }
         }
         let r = &mut reports[g];
@@ -1102,7 +1107,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             }
             rec.models[g] = candidate.0;
             r.set_decided(c.complex_estimate());
-            r.lobe_from_ladder = from_ladder;
+            r.lobe_from_ladder = ladder_sigmas.is_some();
+            r.ladder_sigmas = ladder_sigmas.map_or(Vec::new(), Vec::from);
         } else {
             r.decisions.push(format!(
                 "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
@@ -1577,6 +1583,14 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             samples,
             args.seed ^ 0x5160,
         )?;
+        // A ladder's lobe carries the spread of the rungs it could not tell apart.
+        if let GroupModel::Isotropic { .. } = rec.models[g] {
+            for &(name, sigma) in &r.ladder_sigmas {
+                if let Some(u) = r.uncertainty.iter_mut().find(|u| u.parameter == name) {
+                    u.sigma = libm::hypot(u.sigma, sigma);
+                }
+            }
+        }
         // A textured group's lobe also carries the picture's share (`pattern::lobe_spread`).
         if let GroupModel::Textured { lobe, .. } = rec.models[g] {
             if lobe.specularity() > 0.0 {
