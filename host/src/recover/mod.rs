@@ -19,6 +19,8 @@ mod output;
 mod pattern;
 mod pixels;
 mod refine;
+mod stage2;
+mod stage4;
 mod texture;
 mod uncertainty;
 mod warnings;
@@ -29,7 +31,7 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 use relume_core::fit::{self, GroupFit};
 use relume_core::geometry::View;
-use relume_core::material::{Kind, Material};
+use relume_core::material::Kind;
 use relume_core::render::RenderSettings;
 use relume_core::scene::Scene;
 use relume_core::stages::diffuse::{self, DiffuseVerdict};
@@ -584,22 +586,6 @@ fn paired_comparison(
 }
 
 /// The error estimate of one group's paired cross terms (see [`fit::ErrorEstimate`]).
-/// Of two measurements of a diffuse group's error, stage 1's (`earlier`) and stage 2's
-/// test's (`decided`, after the colour's refit), the one with the smaller standard error:
-/// what stages 3 and 4 go on. The test stops at few samples where the lobe is clearly
-/// worse, and its reading is far noisier than stage 1's (the living room's floor, 0.025 +-
-/// 0.002 after stage 1, read 0.083 +- 0.037 there on seed 3 and went on to stage 4 as a
-/// group above `DIFFUSE_THRESHOLD`); the refit moves the colour by a fraction of a percent.
-fn more_precise(
-    earlier: Option<fit::ErrorEstimate>,
-    decided: fit::ErrorEstimate,
-) -> fit::ErrorEstimate {
-    match earlier {
-        Some(e) if e.sigma < decided.sigma => e,
-        _ => decided,
-    }
-}
-
 fn error_estimate_of(terms: &[([f64; 2], f64)]) -> Option<fit::ErrorEstimate> {
     let sum_sq_real: f64 = terms.iter().map(|t| t.1).sum();
     fit::ErrorEstimate::from_cross_terms(terms.iter().map(|t| t.0), sum_sq_real)
@@ -703,11 +689,6 @@ pub(super) fn min_samples_spp(spp: u32, pixels: u32, min_samples: u64) -> u32 {
         .max(min_samples.div_ceil(pixels.max(1) as u64))
         .min(u32::MAX as u64) as u32
 }
-
-/// Colour steps at most when a diffuse alternative is re-fitted in stage 2.
-const REFIT_MAX_STEPS: u32 = 6;
-/// The relative colour change at which that re-fit stops.
-const REFIT_CONVERGED: f64 = 1e-3;
 
 /// The paper's mirror test on an isotropic model: specular part above
 /// `MIRROR_SPECULAR_FRACTION` of the reflectance, a sharp lobe, and a reflected colour close
@@ -899,242 +880,20 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         }
     }
 
-    // Stage 2: isotropic, worst-explained groups first (mirrors before the rest).
-    let stage_start = Instant::now();
-    candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
     let cache_settings = RenderSettings {
         spp: args.budget.cache_spp,
         seed: args.seed ^ 0x1507,
         ..RenderSettings::default()
     };
     let verify_spp = args.budget.loop_spp;
-    let bar = progress_bar(candidates.len() as u64, "2 isotropic");
-    let mut evaluations = 0;
-    for &(g, diffuse_error) in &candidates {
-        let cache = rec.group_cache(g, &cache_settings)?;
-        let diffuse_fit = isotropic::solve_diffuse(&cache::linear_sums(
-            &rec.pool,
-            &cache,
-            &Material::Diffuse {
-                rho_d: glam::Vec3::ZERO,
-            },
-        ));
-        let kinds_to_try = lobe_kinds(kinds[g]);
-        let mut best: Option<(WardFit, f64, Kind)> = None;
-        for &kind in kinds_to_try {
-            let (fit, alpha, n) = fit_ward(&rec.pool, &cache, kind);
-            evaluations += n;
-            // Ties go to the first kind tried (plastic): the simpler explanation.
-            if best
-                .as_ref()
-                .is_none_or(|(b, _, _)| fit.relative_error < b.relative_error - 1e-4)
-            {
-                best = Some((fit, alpha, kind));
-            }
-        }
-        bar.inc(1);
-        let Some((ward, alpha, kind)) = best else {
-            continue;
-        };
-        let r = &mut reports[g];
-        r.cache_error_diffuse = Some(diffuse_fit.relative_error);
-        r.cache_error_specular = Some(ward.relative_error);
-
-        // The cache proposes; annealing on renders of the group's pixels refines; a
-        // render decides. The cache's error carries its own sampling noise and the bias of
-        // a finite set of incident samples, which a specular lobe can partly "explain"; the
-        // render's error is noise-corrected (fit::GroupFit), so the gain it shows is real.
-        let stage1 = rec.models[g];
-        let proposal = GroupModel::Isotropic {
-            kind,
-            color: ward.color,
-            specularity: ward.specularity,
-            roughness: alpha,
-        };
-        let refined = refine::anneal_isotropic(
-            &mut rec,
-            g,
-            proposal,
-            verify_spp,
-            args.budget.anneal_levels,
-            args.budget.optimiser,
-        )?;
-        evaluations += refined.evaluations;
-        if let Some(race) = &refined.race {
-            reports[g]
-                .decisions
-                .push(format!("stage 2 search: {}", race.describe()));
-        }
-        // A perfect mirror is simpler than any lobe: the lobe the race kept stands against
-        // the search's mirror only as a model stands against a simpler one. (The race
-        // asks a challenger to render better; a lobe at the roughness bound and a mirror
-        // render alike, and the living room's mirror stayed a lobe on 2 seeds of 10.)
-        let mut mirror_why = None;
-        let searched = match (refined.model, refined.mirror) {
-            (lobe @ GroupModel::Isotropic { .. }, Some(mirror)) => {
-                let comparison = rec.compare_models(g, mirror, lobe, 4 * verify_spp)?;
-                evaluations += 2;
-                match comparison {
-                    Some((c, spp)) if !c.favours_complex() => {
-                        mirror_why = Some(format!(
-                            "mirror: the lobe renders no better than a perfect mirror (tint <= MIRROR_MAX_TINT {}): it removes {:.4} +- {:.4} more at {spp} spp (z {:.1}); a lobe needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
-                            fit::MIRROR_MAX_TINT,
-                            c.gain,
-                            c.gain_sigma,
-                            c.z(),
-                            fit::SPECULAR_GAIN_THRESHOLD,
-                            fit::GAIN_SIGNIFICANCE,
-                        ));
-                        mirror
-                    }
-                    _ => lobe,
-                }
-            }
-            (model, _) => model,
-        };
-        let candidate = match mirror_test(&searched) {
-            _ if matches!(searched, GroupModel::Mirror { .. }) => (
-                searched,
-                mirror_why.or_else(|| {
-                    Some(format!(
-                        "mirror: a perfect mirror (tint <= MIRROR_MAX_TINT {}) measured best among the search's finalists",
-                        fit::MIRROR_MAX_TINT
-                    ))
-                }),
-            ),
-            Some(why) => {
-                let (_, rho_s) = searched.reflectances();
-                (GroupModel::Mirror { color: rho_s }, Some(why))
-            }
-            None => (searched, None),
-        };
-        let (specularity, alpha) = match searched {
-            GroupModel::Isotropic {
-                specularity,
-                roughness,
-                ..
-            } => (specularity, roughness),
-            _ => (ward.specularity, alpha),
-        };
-        let only_g = |h: u16| h as usize == g;
-        // The diffuse alternative gets the same chance as the specular one: its colour is
-        // re-fitted under the materials found so far (stage 1 saw every group diffuse).
-        let stage1 = match stage1 {
-            GroupModel::Diffuse { mut color } => {
-                // As many colour steps as the annealing's colour had (it stepped at every
-                // point), bounded: until the change is below REFIT_CONVERGED. Each with as
-                // many samples as the specular side's race (a small group's mean at the
-                // loop's samples carries the fireflies of a sharp lobe nearby: the living
-                // room's pedestal, under the statue, came out 10% off on seed 6).
-                let refit_spp =
-                    min_samples_spp(verify_spp, reports[g].pure_pixels, refine::RACE_MIN_SAMPLES);
-                let mut previous = None;
-                for _ in 0..REFIT_MAX_STEPS {
-                    rec.models[g] = GroupModel::Diffuse { color };
-                    let fits = rec.evaluate(refit_spp, rec.decision_seed(), &only_g)?;
-                    evaluations += 1;
-                    let (next, change) = diffuse::update_with_slope(color, &fits[g], previous);
-                    previous = Some((color, fits[g].mean_rendered()));
-                    color = next;
-                    if change <= REFIT_CONVERGED {
-                        break;
-                    }
-                }
-                GroupModel::Diffuse { color }
-            }
-            other => other,
-        };
-        let mut comparison = rec.compare_models(g, stage1, candidate.0, 4 * verify_spp)?;
-        evaluations += 2;
-        // A weak lobe's proposal is the cache's least reliable: a failed one gets a
-        // second look on a ladder of roughnesses (see `ladder`).
-        let mut candidate = candidate;
-        let (mut specularity, mut alpha) = (specularity, alpha);
-        let mut ladder_sigmas = None;
-        let proposal_failed = matches!(comparison, Some((c, _)) if !c.favours_complex());
-        if proposal_failed
-            && ladder::applies(diffuse_error)
-            && matches!(candidate.0, GroupModel::Isotropic { .. })
-        {
-            let proposal = comparison.map(|(c, _)| c);
-            let look =
-                ladder::second_look(&mut rec, g, &cache, kind, stage1, verify_spp, proposal)?;
-            evaluations += look.evaluations;
-            if let Some(found) = look.found {
-                reports[g].decisions.push(found.decision);
-                (specularity, alpha) = (found.rung.specularity, found.rung.roughness);
-                candidate = (found.rung.model, None);
-                comparison = Some(found.test);
-                ladder_sigmas = Some(found.spread.sigmas(&found.rung));
-            }
-        }
-        let r = &mut reports[g];
-        let Some((c, decision_spp)) = comparison else {
-            r.decisions
-                .push("stage 2: stays diffuse: no lit pixel to compare the models on".into());
-            rec.models[g] = stage1;
-            continue;
-        };
-        r.add_comparison(
-            ComparisonReport::new(
-                "2 isotropic",
-                stage1.name(),
-                candidate.0.name(),
-                &c,
-                decision_spp,
-            ),
-            &c,
-        );
-        let measured = format!(
-            "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; diffuse {:.4}, specular {:.4})",
-            c.gain,
-            c.gain_sigma,
-            c.z(),
-            c.error_simple,
-            c.error_complex
-        );
-        if c.favours_complex() {
-            r.decisions.push(format!(
-                "stage 2: {} {:?} (s {specularity:.4}, roughness {alpha:.4}; cache proposed s {:.4}) {measured}: > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
-                candidate.0.name(),
-                kind,
-                ward.specularity,
-                fit::SPECULAR_GAIN_THRESHOLD,
-                fit::GAIN_SIGNIFICANCE,
-            ).to_lowercase());
-            if let Some(why) = candidate.1 {
-                r.decisions.push(format!("stage 2: {why}"));
-            }
-            rec.models[g] = candidate.0;
-            r.set_decided(c.complex_estimate());
-            r.lobe_from_ladder = ladder_sigmas.is_some();
-            r.ladder_sigmas = ladder_sigmas.map_or(Vec::new(), Vec::from);
-        } else {
-            r.decisions.push(format!(
-                "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
-                fit::SPECULAR_GAIN_THRESHOLD,
-                fit::GAIN_SIGNIFICANCE,
-            ));
-            rec.models[g] = stage1;
-            r.set_decided(more_precise(r.latest_error, c.simple_estimate()));
-        }
-    }
-    bar.finish_and_clear();
-    stages.push(StageReport {
-        stage: "2 isotropic".into(),
-        evaluations,
-        samples_per_pixel: cache_settings.spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![
-            "each candidate group fitted on its transport cache: reflectances in closed form, roughness by a log grid and golden section".into(),
-            format!(
-                "a group whose diffuse error is at most DIFFUSE_THRESHOLD {} (room for a weak lobe only) and whose proposal fails the test gets a second look: LADDER_RUNGS {} roughnesses rendered with at least LADDER_SAMPLES {} pixel samples, the best by its gain's lower bound tested in its place",
-                fit::DIFFUSE_THRESHOLD,
-                ladder::LADDER_RUNGS,
-                ladder::LADDER_SAMPLES
-            ),
-        ],
-    });
+    stages.push(stage2::run(
+        &mut rec,
+        &mut reports,
+        &mut candidates,
+        &kinds,
+        &args.budget,
+        &cache_settings,
+    )?);
 
     // Stage 3: texture detection on the groups a uniform model leaves measurably
     // unexplained. Their maps (stage 5) wait for stage 4, which may give the untextured
@@ -1216,232 +975,14 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         notes,
     });
 
-    // Stage 4: anisotropic, for the untextured groups left with more than
-    // DIFFUSE_THRESHOLD of error, and the lobes of textured groups' stand-ins.
-    let stage_start = Instant::now();
-    let mut evaluations = 0;
-    let stage4: Vec<usize> = (0..n_groups)
-        .filter(|&g| match rec.models[g] {
-            // The paper's textured-anisotropic step, on the untextured stand-in as stage 2
-            // fitted it, lobed or not. Its error is the picture's, so no error threshold
-            // can say whether it goes on; the comparison's significance decides, on a
-            // uniform colour for both sides (a map of one texel per pixel would absorb
-            // either lobe's misfit), and the pattern test (`pattern`) that the lobe explains
-            // a highlight rather than follows the picture.
-            GroupModel::Isotropic { .. } | GroupModel::Diffuse { .. } if textured[g] => true,
-            // As the stages: every untextured group that stage 2 tried and left
-            // above the threshold, whether it kept the isotropic lobe or stayed diffuse
-            // (an anisotropic highlight can be one no isotropic lobe explains better than
-            // a colour: cornell's plate, 64 pixels, gains 0.003 from its isotropic fit).
-            GroupModel::Isotropic { .. } | GroupModel::Diffuse { .. } => {
-                !textured[g] && reports[g].error_decided.unwrap_or(0.0) > fit::DIFFUSE_THRESHOLD
-            }
-            _ => false,
-        })
-        .collect();
-    let bar = progress_bar(stage4.len() as u64, "4 anisotropic");
-    for g in stage4 {
-        let mut stage2 = rec.models[g];
-        let Some(basis) = anisotropic::tangent_basis(&rec, g) else {
-            bar.inc(1);
-            continue;
-        };
-        let kinds_to_try = match stage2 {
-            GroupModel::Isotropic { kind, .. } => vec![kind],
-            _ => lobe_kinds(kinds[g]).to_vec(),
-        };
-        let cache = rec.group_cache(g, &cache_settings)?;
-        // A textured group's lobe is fitted on a uniform stand-in, whose misfit is the
-        // picture: the lobe must explain a highlight, not follow the picture.
-        let pictured = match textured[g] {
-            true => Some(pattern::TexturedGroup::new(&mut rec, &cache, basis)?),
-            false => None,
-        };
-        evaluations += pictured.as_ref().map_or(0, |p| p.lobes());
-        if let (Some(pictured), GroupModel::Isotropic { kind, .. }) = (&pictured, stage2) {
-            if let Some(test) = pictured.isotropic(&rec.pool, kind) {
-                let r = &mut reports[g];
-                if !test.passes() {
-                    // The stand-in goes on diffuse, as one stage 2 left diffuse.
-                    stage2 = GroupModel::Diffuse {
-                        color: pictured.diffuse_color(),
-                    };
-                    rec.models[g] = stage2;
-                    // Stage 2's comparison kept a lobe that is no longer there.
-                    for c in r
-                        .comparisons
-                        .iter_mut()
-                        .filter(|c| c.stage.starts_with('2'))
-                    {
-                        c.kept_complex = false;
-                    }
-                    r.decisions.push(format!(
-                        "stage 4: the stand-in's isotropic lobe follows the picture, not a highlight; the stand-in is diffuse: {}",
-                        test.describe()
-                    ));
-                } else {
-                    r.decisions.push(format!(
-                        "stage 4: the stand-in's isotropic lobe explains a highlight: {}",
-                        test.describe()
-                    ));
-                }
-            }
-        }
-        // The anisotropic side as stage 2 found the isotropic one: the cache proposes
-        // (reflectances in closed form, the lobe by grid and simplex), annealing on
-        // renders refines, a race on fresh samples chooses.
-        let mut best: Option<(anisotropic::Proposal, Kind)> = None;
-        for &kind in &kinds_to_try {
-            let (proposal, n) = anisotropic::propose_from_cache(&rec.pool, &cache, kind, basis)?;
-            evaluations += n;
-            // Ties go to the first kind tried (plastic): the simpler explanation.
-            if best
-                .as_ref()
-                .is_none_or(|(b, _)| proposal.fit.relative_error < b.fit.relative_error - 1e-4)
-            {
-                best = Some((proposal, kind));
-            }
-        }
-        let Some((proposal, kind)) = best else {
-            bar.inc(1);
-            continue;
-        };
-        let refined = anisotropic::anneal_anisotropic(
-            &mut rec,
-            g,
-            kind,
-            &proposal,
-            basis,
-            (verify_spp, args.budget.anneal_levels),
-        )?;
-        evaluations += refined.evaluations;
-        if let Some(race) = &refined.race {
-            reports[g]
-                .decisions
-                .push(format!("stage 4 search: {}", race.describe()));
-        }
-        // The isotropic side: stage 2's fit, unless the isotropic fit on this cache (the
-        // scene's other materials are better known now) or the anisotropic fit's own
-        // shadow (roughness sqrt(u v)) measures better; each replaces it only if a render
-        // shows it better.
-        let (iso, alpha, n) = fit_ward(&rec.pool, &cache, kind);
-        evaluations += n;
-        let on_cache = GroupModel::Isotropic {
-            kind,
-            color: iso.color,
-            specularity: iso.specularity,
-            roughness: alpha,
-        };
-        let mut kept = stage2;
-        for alternative in [
-            Some(on_cache),
-            anisotropic::isotropic_projection(refined.model),
-        ]
-        .into_iter()
-        .flatten()
-        {
-            if let Some((c, _)) = rec.compare_models(g, kept, alternative, 4 * verify_spp)? {
-                // Between two isotropic fits the better one; a group stage 2 left diffuse
-                // takes a lobe here only as stage 2 would have kept one (significance).
-                // A picture's lobe must also explain a highlight rather than the picture.
-                let better = match kept {
-                    GroupModel::Diffuse { .. } => {
-                        c.favours_complex()
-                            && pictured
-                                .as_ref()
-                                .and_then(|p| p.isotropic(&rec.pool, kind))
-                                .is_none_or(|t| t.passes())
-                    }
-                    _ => c.gain > 0.0,
-                };
-                if better {
-                    kept = alternative;
-                }
-            }
-            evaluations += 2;
-        }
-        bar.inc(1);
-        let comparison = rec.compare_models(g, kept, refined.model, 4 * verify_spp)?;
-        let r = &mut reports[g];
-        rec.models[g] = kept;
-        let Some((c, decision_spp)) = comparison else {
-            continue;
-        };
-        // For a textured group, the anisotropic gain must also come from a highlight.
-        let over_isotropic = matches!(kept, GroupModel::Isotropic { .. });
-        let pattern = match (&pictured, c.favours_complex()) {
-            (Some(p), true) => p.anisotropic(&rec.pool, kind, over_isotropic),
-            _ => None,
-        };
-        let mut report = ComparisonReport::new(
-            "4 anisotropic",
-            kept.name(),
-            refined.model.name(),
-            &c,
-            decision_spp,
-        );
-        report.kept_complex &= pattern.is_none_or(|t| t.passes());
-        r.add_comparison(report, &c);
-        let measured = format!(
-            "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; {} {:.4}, anisotropic {:.4})",
-            c.gain,
-            c.gain_sigma,
-            c.z(),
-            kept.name(),
-            c.error_simple,
-            c.error_complex
-        );
-        if let Some(test) = pattern.filter(|t| !t.passes()) {
-            r.decisions.push(format!(
-                "stage 4: stays {}: the anisotropic fit {measured}, but its gain follows the picture, not a highlight: {}",
-                kept.name(),
-                test.describe()
-            ));
-        } else if let (
-            true,
-            GroupModel::Anisotropic {
-                roughness_u,
-                roughness_v,
-                direction: d,
-                ..
-            },
-        ) = (c.favours_complex(), refined.model)
-        {
-            if let Some(test) = pattern {
-                r.decisions.push(format!(
-                    "stage 4: the anisotropic gain explains a highlight: {}",
-                    test.describe()
-                ));
-            }
-            r.decisions.push(format!(
-                "stage 4: anisotropic (roughness_u {roughness_u:.4}, roughness_v {roughness_v:.4}, direction [{:.3}, {:.3}, {:.3}]) {measured}: > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
-                d[0], d[1], d[2],
-                fit::SPECULAR_GAIN_THRESHOLD,
-                fit::GAIN_SIGNIFICANCE,
-            ));
-            rec.models[g] = refined.model;
-            r.set_decided(c.complex_estimate());
-        } else {
-            r.decisions.push(format!(
-                "stage 4: stays {}: the best anisotropic fit {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
-                kept.name(),
-                fit::SPECULAR_GAIN_THRESHOLD,
-                fit::GAIN_SIGNIFICANCE,
-            ));
-        }
-    }
-    bar.finish_and_clear();
-    stages.push(StageReport {
-        stage: "4 anisotropic".into(),
-        evaluations,
-        samples_per_pixel: verify_spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![format!(
-            "untextured groups with more than DIFFUSE_THRESHOLD {} of error left, and textured groups' isotropic stand-ins: each fitted on a transport cache of at least CACHE_MIN_SAMPLES {CACHE_MIN_SAMPLES} samples: colour and specularity in closed form, the lobe (log roughness_u, log roughness_v, direction angle) by a grid and Nelder-Mead, then annealing on renders; decided against the best isotropic fit",
-            fit::DIFFUSE_THRESHOLD
-        )],
-    });
-
+    stages.push(stage4::run(
+        &mut rec,
+        &mut reports,
+        &textured,
+        &kinds,
+        &args.budget,
+        &cache_settings,
+    )?);
     stages.push(polish_metal_colours(&mut rec, &mut reports, spp)?);
 
     // Stage 5: the diffuse map of every textured group, under its stand-in's lobe (none,

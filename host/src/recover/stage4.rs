@@ -1,0 +1,257 @@
+//! Stage 4: an anisotropic Ward lobe for the untextured groups left with more than
+//! `DIFFUSE_THRESHOLD` of error after stage 2, and for the uniform stand-ins of textured
+//! groups (the paper's textured-anisotropic step). Found as stage 2 finds the isotropic one
+//! (`anisotropic`), decided against the best isotropic alternative by a render; a textured
+//! group's lobe must also explain a highlight rather than the picture (`pattern`).
+
+use std::time::Instant;
+
+use relume_core::fit;
+use relume_core::material::Kind;
+use relume_core::render::RenderSettings;
+
+use super::model::GroupModel;
+use super::{
+    anisotropic, fit_ward, lobe_kinds, pattern, progress_bar, Budget, ComparisonReport,
+    GroupReport, Recovery, StageReport, CACHE_MIN_SAMPLES,
+};
+use crate::error::Error;
+use crate::scene_file::GroupKind;
+
+/// Runs stage 4 on the groups it applies to (`textured` from stage 3), recording in
+/// `reports` what each group became and why; every cache is traced with
+/// `cache_settings`. Leaves each group's model as decided.
+pub(super) fn run(
+    rec: &mut Recovery,
+    reports: &mut [GroupReport],
+    textured: &[bool],
+    kinds: &[GroupKind],
+    budget: &Budget,
+    cache_settings: &RenderSettings,
+) -> Result<StageReport, Error> {
+    let n_groups = reports.len();
+    let verify_spp = budget.loop_spp;
+    let stage_start = Instant::now();
+    let mut evaluations = 0;
+    let stage4: Vec<usize> = (0..n_groups)
+        .filter(|&g| match rec.models[g] {
+            // The paper's textured-anisotropic step, on the untextured stand-in as stage 2
+            // fitted it, lobed or not. Its error is the picture's, so no error threshold
+            // can say whether it goes on; the comparison's significance decides, on a
+            // uniform colour for both sides (a map of one texel per pixel would absorb
+            // either lobe's misfit), and the pattern test (`pattern`) that the lobe explains
+            // a highlight rather than follows the picture.
+            GroupModel::Isotropic { .. } | GroupModel::Diffuse { .. } if textured[g] => true,
+            // As the stages: every untextured group that stage 2 tried and left
+            // above the threshold, whether it kept the isotropic lobe or stayed diffuse
+            // (an anisotropic highlight can be one no isotropic lobe explains better than
+            // a colour: cornell's plate, 64 pixels, gains 0.003 from its isotropic fit).
+            GroupModel::Isotropic { .. } | GroupModel::Diffuse { .. } => {
+                !textured[g] && reports[g].error_decided.unwrap_or(0.0) > fit::DIFFUSE_THRESHOLD
+            }
+            _ => false,
+        })
+        .collect();
+    let bar = progress_bar(stage4.len() as u64, "4 anisotropic");
+    for g in stage4 {
+        let mut stage2 = rec.models[g];
+        let Some(basis) = anisotropic::tangent_basis(rec, g) else {
+            bar.inc(1);
+            continue;
+        };
+        let kinds_to_try = match stage2 {
+            GroupModel::Isotropic { kind, .. } => vec![kind],
+            _ => lobe_kinds(kinds[g]).to_vec(),
+        };
+        let cache = rec.group_cache(g, cache_settings)?;
+        // A textured group's lobe is fitted on a uniform stand-in, whose misfit is the
+        // picture: the lobe must explain a highlight, not follow the picture.
+        let pictured = match textured[g] {
+            true => Some(pattern::TexturedGroup::new(rec, &cache, basis)?),
+            false => None,
+        };
+        evaluations += pictured.as_ref().map_or(0, |p| p.lobes());
+        if let (Some(pictured), GroupModel::Isotropic { kind, .. }) = (&pictured, stage2) {
+            if let Some(test) = pictured.isotropic(&rec.pool, kind) {
+                let r = &mut reports[g];
+                if !test.passes() {
+                    // The stand-in goes on diffuse, as one stage 2 left diffuse.
+                    stage2 = GroupModel::Diffuse {
+                        color: pictured.diffuse_color(),
+                    };
+                    rec.models[g] = stage2;
+                    // Stage 2's comparison kept a lobe that is no longer there.
+                    for c in r
+                        .comparisons
+                        .iter_mut()
+                        .filter(|c| c.stage.starts_with('2'))
+                    {
+                        c.kept_complex = false;
+                    }
+                    r.decisions.push(format!(
+                        "stage 4: the stand-in's isotropic lobe follows the picture, not a highlight; the stand-in is diffuse: {}",
+                        test.describe()
+                    ));
+                } else {
+                    r.decisions.push(format!(
+                        "stage 4: the stand-in's isotropic lobe explains a highlight: {}",
+                        test.describe()
+                    ));
+                }
+            }
+        }
+        // The anisotropic side as stage 2 found the isotropic one: the cache proposes
+        // (reflectances in closed form, the lobe by grid and simplex), annealing on
+        // renders refines, a race on fresh samples chooses.
+        let mut best: Option<(anisotropic::Proposal, Kind)> = None;
+        for &kind in &kinds_to_try {
+            let (proposal, n) = anisotropic::propose_from_cache(&rec.pool, &cache, kind, basis)?;
+            evaluations += n;
+            // Ties go to the first kind tried (plastic): the simpler explanation.
+            if best
+                .as_ref()
+                .is_none_or(|(b, _)| proposal.fit.relative_error < b.fit.relative_error - 1e-4)
+            {
+                best = Some((proposal, kind));
+            }
+        }
+        let Some((proposal, kind)) = best else {
+            bar.inc(1);
+            continue;
+        };
+        let refined = anisotropic::anneal_anisotropic(
+            rec,
+            g,
+            kind,
+            &proposal,
+            basis,
+            (verify_spp, budget.anneal_levels),
+        )?;
+        evaluations += refined.evaluations;
+        if let Some(race) = &refined.race {
+            reports[g]
+                .decisions
+                .push(format!("stage 4 search: {}", race.describe()));
+        }
+        // The isotropic side: stage 2's fit, unless the isotropic fit on this cache (the
+        // scene's other materials are better known now) or the anisotropic fit's own
+        // shadow (roughness sqrt(u v)) measures better; each replaces it only if a render
+        // shows it better.
+        let (iso, alpha, n) = fit_ward(&rec.pool, &cache, kind);
+        evaluations += n;
+        let on_cache = GroupModel::Isotropic {
+            kind,
+            color: iso.color,
+            specularity: iso.specularity,
+            roughness: alpha,
+        };
+        let mut kept = stage2;
+        for alternative in [
+            Some(on_cache),
+            anisotropic::isotropic_projection(refined.model),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            if let Some((c, _)) = rec.compare_models(g, kept, alternative, 4 * verify_spp)? {
+                // Between two isotropic fits the better one; a group stage 2 left diffuse
+                // takes a lobe here only as stage 2 would have kept one (significance).
+                // A picture's lobe must also explain a highlight rather than the picture.
+                let better = match kept {
+                    GroupModel::Diffuse { .. } => {
+                        c.favours_complex()
+                            && pictured
+                                .as_ref()
+                                .and_then(|p| p.isotropic(&rec.pool, kind))
+                                .is_none_or(|t| t.passes())
+                    }
+                    _ => c.gain > 0.0,
+                };
+                if better {
+                    kept = alternative;
+                }
+            }
+            evaluations += 2;
+        }
+        bar.inc(1);
+        let comparison = rec.compare_models(g, kept, refined.model, 4 * verify_spp)?;
+        let r = &mut reports[g];
+        rec.models[g] = kept;
+        let Some((c, decision_spp)) = comparison else {
+            continue;
+        };
+        // For a textured group, the anisotropic gain must also come from a highlight.
+        let over_isotropic = matches!(kept, GroupModel::Isotropic { .. });
+        let pattern = match (&pictured, c.favours_complex()) {
+            (Some(p), true) => p.anisotropic(&rec.pool, kind, over_isotropic),
+            _ => None,
+        };
+        let mut report = ComparisonReport::new(
+            "4 anisotropic",
+            kept.name(),
+            refined.model.name(),
+            &c,
+            decision_spp,
+        );
+        report.kept_complex &= pattern.is_none_or(|t| t.passes());
+        r.add_comparison(report, &c);
+        let measured = format!(
+            "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; {} {:.4}, anisotropic {:.4})",
+            c.gain,
+            c.gain_sigma,
+            c.z(),
+            kept.name(),
+            c.error_simple,
+            c.error_complex
+        );
+        if let Some(test) = pattern.filter(|t| !t.passes()) {
+            r.decisions.push(format!(
+                "stage 4: stays {}: the anisotropic fit {measured}, but its gain follows the picture, not a highlight: {}",
+                kept.name(),
+                test.describe()
+            ));
+        } else if let (
+            true,
+            GroupModel::Anisotropic {
+                roughness_u,
+                roughness_v,
+                direction: d,
+                ..
+            },
+        ) = (c.favours_complex(), refined.model)
+        {
+            if let Some(test) = pattern {
+                r.decisions.push(format!(
+                    "stage 4: the anisotropic gain explains a highlight: {}",
+                    test.describe()
+                ));
+            }
+            r.decisions.push(format!(
+                "stage 4: anisotropic (roughness_u {roughness_u:.4}, roughness_v {roughness_v:.4}, direction [{:.3}, {:.3}, {:.3}]) {measured}: > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
+                d[0], d[1], d[2],
+                fit::SPECULAR_GAIN_THRESHOLD,
+                fit::GAIN_SIGNIFICANCE,
+            ));
+            rec.models[g] = refined.model;
+            r.set_decided(c.complex_estimate());
+        } else {
+            r.decisions.push(format!(
+                "stage 4: stays {}: the best anisotropic fit {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
+                kept.name(),
+                fit::SPECULAR_GAIN_THRESHOLD,
+                fit::GAIN_SIGNIFICANCE,
+            ));
+        }
+    }
+    bar.finish_and_clear();
+    Ok(StageReport {
+        stage: "4 anisotropic".into(),
+        evaluations,
+        samples_per_pixel: verify_spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "untextured groups with more than DIFFUSE_THRESHOLD {} of error left, and textured groups' isotropic stand-ins: each fitted on a transport cache of at least CACHE_MIN_SAMPLES {CACHE_MIN_SAMPLES} samples: colour and specularity in closed form, the lobe (log roughness_u, log roughness_v, direction angle) by a grid and Nelder-Mead, then annealing on renders; decided against the best isotropic fit",
+            fit::DIFFUSE_THRESHOLD
+        )],
+    })
+}
