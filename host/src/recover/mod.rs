@@ -19,7 +19,9 @@ mod output;
 mod pattern;
 mod pixels;
 mod refine;
+mod stage1;
 mod stage2;
+mod stage3;
 mod stage4;
 mod texture;
 mod uncertainty;
@@ -34,7 +36,7 @@ use relume_core::geometry::View;
 use relume_core::material::Kind;
 use relume_core::render::RenderSettings;
 use relume_core::scene::Scene;
-use relume_core::stages::diffuse::{self, DiffuseVerdict};
+use relume_core::stages::diffuse;
 use relume_core::stages::isotropic::{self, WardFit};
 use relume_core::stages::texture as texture_stage;
 use serde::Serialize;
@@ -779,106 +781,10 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .map(|g| GroupReport::new(&names[g], &format!("{:?}", kinds[g]).to_lowercase()))
         .collect();
 
-    // Stage 1: all diffuse.
-    let stage_start = Instant::now();
     let spp = args.budget.loop_spp;
-    let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "1 diffuse");
-    let all = vec![true; n_groups];
-    let (first, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
-    let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
-    // Which groups go on is decided on the bias-only error, at the decisions' samples and
-    // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
-    // own noise (heavy-tailed paths), by whole percents either way.
-    let mut decided = rec.error_estimates(4 * spp)?;
-    // A small group whose error straddles the gate is measured again alone, with at least
-    // CACHE_MIN_SAMPLES pixel samples: at the loop's samples its standard error (0.024 on
-    // glossy's 492-pixel yellow box) hides a weak lobe either way.
-    for (g, estimate) in decided.iter_mut().enumerate() {
-        let Some(e) = *estimate else { continue };
-        let gate = fit::SPECULAR_GAIN_THRESHOLD;
-        let straddles = e.straddles(gate);
-        let group_spp = min_samples_spp(4 * spp, pure_pixels[g], CACHE_MIN_SAMPLES);
-        if straddles && pure_pixels[g] >= fit::MIN_PIXELS_FOR_MODEL_CHOICE && group_spp > 4 * spp {
-            *estimate = rec.error_estimate(g, group_spp, rec.decision_seed() ^ 0x5A3E)?;
-        }
-    }
-    bar.finish_and_clear();
-    let mut stages = vec![StageReport {
-        stage: "1 diffuse".into(),
-        evaluations: evaluations + 1,
-        samples_per_pixel: spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![format!(
-            "rho_d <- rho_d * mean(real) / mean(rendered) per group and channel, until the largest relative change <= {} or, after {} steps, stops shrinking (the render's noise floor)",
-            fit::DIFFUSE_CONVERGED,
-            diffuse::MIN_STEPS
-        )],
-    }];
-    let mut candidates = Vec::new();
-    for g in 0..n_groups {
-        let r = &mut reports[g];
-        r.pure_pixels = pure_pixels[g];
-        r.error_initial = first[g].relative_error();
-        r.set_diffuse(decided[g]);
-        let e = decided[g].map_or(0.0, |e| e.error);
-        let sigma = decided[g].map_or(0.0, |e| e.sigma);
-        match diffuse::verdict(pure_pixels[g], decided[g]) {
-            DiffuseVerdict::Unseen => {
-                rec.models[g] = GroupModel::Unseen;
-                r.decisions
-                    .push("unseen: no pure pixel in any view; material not recovered".into());
-                warnings.push(format!(
-                    "group '{}': no pure pixel in any view; its material is not recovered",
-                    names[g]
-                ));
-            }
-            DiffuseVerdict::BarelySeen => {
-                r.decisions.push(format!(
-                    "diffuse, barely seen: {} pure pixels < MIN_PIXELS_FOR_MODEL_CHOICE {}; no more complex model is tried",
-                    pure_pixels[g],
-                    fit::MIN_PIXELS_FOR_MODEL_CHOICE
-                ));
-                // Its colour is fitted to the mean of what the pixels show, highlights
-                // included: with much error left, a lobe there went into the colour (the
-                // living room's frames, 15 pixels, came out 2.5-4x too bright at 0.46).
-                let unexplained = match decided[g] {
-                    Some(e) if e.exceeds(fit::DIFFUSE_THRESHOLD) => format!(
-                        ", yet its diffuse fit leaves {:.0}% of error (> DIFFUSE_THRESHOLD {:.0}%): its colour likely holds a specular part and may be far off",
-                        100.0 * e.error,
-                        100.0 * fit::DIFFUSE_THRESHOLD
-                    ),
-                    _ => String::new(),
-                };
-                warnings.push(format!(
-                    "group '{}': only {} pure pixels; kept diffuse{unexplained}",
-                    names[g], pure_pixels[g]
-                ));
-            }
-            DiffuseVerdict::Diffuse => {
-                // A specular lobe cannot remove more error than there is.
-                r.decisions.push(format!(
-                    "stage 1: diffuse, error {e:.4} +- {sigma:.4} not above SPECULAR_GAIN_THRESHOLD {} by EXCEEDS_SIGMAS {} standard errors: no specular model could gain more",
-                    fit::SPECULAR_GAIN_THRESHOLD,
-                    fit::EXCEEDS_SIGMAS
-                ));
-            }
-            DiffuseVerdict::NeedsSpecular => {
-                let how = if e > fit::DIFFUSE_THRESHOLD {
-                    "on to isotropic"
-                } else {
-                    "tested for a weak specular"
-                };
-                r.decisions.push(format!(
-                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than EXCEEDS_SIGMAS {} standard errors ({} DIFFUSE_THRESHOLD {}): {how}",
-                    fit::SPECULAR_GAIN_THRESHOLD,
-                    fit::EXCEEDS_SIGMAS,
-                    if e > fit::DIFFUSE_THRESHOLD { ">" } else { "<=" },
-                    fit::DIFFUSE_THRESHOLD
-                ));
-                candidates.push((g, e));
-            }
-        }
-    }
+    let (stage1_report, mut candidates) =
+        stage1::run(&mut rec, &mut reports, &names, spp, &mut warnings)?;
+    let mut stages = vec![stage1_report];
 
     let cache_settings = RenderSettings {
         spp: args.budget.cache_spp,
@@ -895,85 +801,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &cache_settings,
     )?);
 
-    // Stage 3: texture detection on the groups a uniform model leaves measurably
-    // unexplained. Their maps (stage 5) wait for stage 4, which may give the untextured
-    // stand-in an anisotropic lobe.
-    let stage_start = Instant::now();
-    let mut evaluations = 0;
-    let mut notes = Vec::new();
-    let tested: Vec<usize> = (0..n_groups)
-        .filter(|&g| {
-            reports[g].pure_pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE
-                && kinds[g] != GroupKind::Metal
-                // As stage 1 sends a group on: a texture, like a lobe, cannot remove more
-                // error than there is (the living room's desk, 0.0141 +- 0.0026 after
-                // stage 1, read its missed weak lobe's highlight as a texture).
-                && reports[g]
-                    .latest_error
-                    .is_some_and(|e| e.exceeds(fit::SPECULAR_GAIN_THRESHOLD))
-                && match rec.models[g] {
-                    GroupModel::Diffuse { .. } => true,
-                    GroupModel::Isotropic { kind, .. } => kind == Kind::Plastic,
-                    _ => false,
-                }
-        })
-        .collect();
-    let noise_bound = texture_stage::panorama_noise_bound(
-        reports
-            .iter()
-            .filter(|r| r.pure_pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE)
-            .flat_map(|r| r.error_measurements.iter().copied()),
-    )
-    .unwrap_or(0.0);
-    let mut textured = vec![false; n_groups];
-    let bar = progress_bar(tested.len() as u64, "3 textures");
-    for g in tested {
-        let raw = texture::texture_contrast(&mut rec, g, 4 * verify_spp, args.seed ^ 0x7E57)?;
-        evaluations += 1;
-        bar.inc(1);
-        let r = &mut reports[g];
-        let Some(raw) = raw else {
-            r.decisions
-                .push("stage 3: no pair of lit pixels 3 apart; texture not tested".into());
-            continue;
-        };
-        let contrast = texture_stage::noise_corrected_contrast(raw, noise_bound);
-        r.texture_contrast = Some(contrast);
-        let measured = format!(
-            "step contrast {contrast:.4} (measured {raw:.4}, less the panorama's noise bound {noise_bound:.4})"
-        );
-        if !texture_stage::has_texture_contrast(contrast) {
-            r.decisions.push(format!(
-                "stage 3: untextured: {measured} <= TEXTURE_CONTRAST_THRESHOLD {}",
-                fit::TEXTURE_CONTRAST_THRESHOLD
-            ));
-            continue;
-        }
-        textured[g] = true;
-        r.decisions.push(format!(
-            "stage 3: textured: {measured} > TEXTURE_CONTRAST_THRESHOLD {}",
-            fit::TEXTURE_CONTRAST_THRESHOLD
-        ));
-    }
-    bar.finish_and_clear();
-    notes.push(format!(
-        "plastic groups with more than SPECULAR_GAIN_THRESHOLD {} of error left (by EXCEEDS_SIGMAS {} standard errors): textured when the noise-free step contrast of ln(real / rendered) exceeds TEXTURE_CONTRAST_THRESHOLD {}",
-        fit::SPECULAR_GAIN_THRESHOLD,
-        fit::EXCEEDS_SIGMAS,
-        fit::TEXTURE_CONTRAST_THRESHOLD
-    ));
-    notes.push(format!(
-        "the panorama's noise bound {noise_bound:.4}: the tightest upper bound, NOISE_BOUND_SIGNIFICANCE {} standard errors above the measured square, of any error measured on a group of at least MIN_PIXELS_FOR_MODEL_CHOICE {} pixels",
-        fit::NOISE_BOUND_SIGNIFICANCE,
-        fit::MIN_PIXELS_FOR_MODEL_CHOICE
-    ));
-    stages.push(StageReport {
-        stage: "3 texture detection".into(),
-        evaluations,
-        samples_per_pixel: 4 * verify_spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes,
-    });
+    // Stage 3's textured groups get their maps in stage 5, after stage 4, which may give
+    // the untextured stand-in an anisotropic lobe.
+    let (stage3_report, textured, noise_bound) =
+        stage3::run(&mut rec, &mut reports, &kinds, verify_spp, args.seed)?;
+    stages.push(stage3_report);
 
     stages.push(stage4::run(
         &mut rec,

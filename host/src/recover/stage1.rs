@@ -1,0 +1,126 @@
+//! Stage 1: every group diffuse, `rho_d <- rho_d * mean(real) / mean(rendered)` per group
+//! and channel until converged; then each group's bias-only error decides whether it is
+//! unseen, barely seen, diffuse, or goes on to stage 2 (`diffuse::verdict`).
+
+use std::time::Instant;
+
+use relume_core::fit;
+use relume_core::stages::diffuse::{self, DiffuseVerdict};
+
+use super::model::GroupModel;
+use super::{
+    min_samples_spp, pixels, progress_bar, GroupReport, Recovery, StageReport, CACHE_MIN_SAMPLES,
+};
+use crate::error::Error;
+
+/// Runs stage 1 at `spp` samples per pixel, recording each group's error and verdict in
+/// `reports` (and a warning in `warnings` for a group unseen or barely seen). Returns the
+/// stage's report and the groups that go on to stage 2, each with its error.
+pub(super) fn run(
+    rec: &mut Recovery,
+    reports: &mut [GroupReport],
+    names: &[String],
+    spp: u32,
+    warnings: &mut Vec<String>,
+) -> Result<(StageReport, Vec<(usize, f64)>), Error> {
+    let n_groups = reports.len();
+    let stage_start = Instant::now();
+    let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "1 diffuse");
+    let all = vec![true; n_groups];
+    let (first, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
+    let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
+    // Which groups go on is decided on the bias-only error, at the decisions' samples and
+    // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
+    // own noise (heavy-tailed paths), by whole percents either way.
+    let mut decided = rec.error_estimates(4 * spp)?;
+    // A small group whose error straddles the gate is measured again alone, with at least
+    // CACHE_MIN_SAMPLES pixel samples: at the loop's samples its standard error (0.024 on
+    // glossy's 492-pixel yellow box) hides a weak lobe either way.
+    for (g, estimate) in decided.iter_mut().enumerate() {
+        let Some(e) = *estimate else { continue };
+        let gate = fit::SPECULAR_GAIN_THRESHOLD;
+        let straddles = e.straddles(gate);
+        let group_spp = min_samples_spp(4 * spp, pure_pixels[g], CACHE_MIN_SAMPLES);
+        if straddles && pure_pixels[g] >= fit::MIN_PIXELS_FOR_MODEL_CHOICE && group_spp > 4 * spp {
+            *estimate = rec.error_estimate(g, group_spp, rec.decision_seed() ^ 0x5A3E)?;
+        }
+    }
+    bar.finish_and_clear();
+    let report = StageReport {
+        stage: "1 diffuse".into(),
+        evaluations: evaluations + 1,
+        samples_per_pixel: spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "rho_d <- rho_d * mean(real) / mean(rendered) per group and channel, until the largest relative change <= {} or, after {} steps, stops shrinking (the render's noise floor)",
+            fit::DIFFUSE_CONVERGED,
+            diffuse::MIN_STEPS
+        )],
+    };
+    let mut candidates = Vec::new();
+    for g in 0..n_groups {
+        let r = &mut reports[g];
+        r.pure_pixels = pure_pixels[g];
+        r.error_initial = first[g].relative_error();
+        r.set_diffuse(decided[g]);
+        let e = decided[g].map_or(0.0, |e| e.error);
+        let sigma = decided[g].map_or(0.0, |e| e.sigma);
+        match diffuse::verdict(pure_pixels[g], decided[g]) {
+            DiffuseVerdict::Unseen => {
+                rec.models[g] = GroupModel::Unseen;
+                r.decisions
+                    .push("unseen: no pure pixel in any view; material not recovered".into());
+                warnings.push(format!(
+                    "group '{}': no pure pixel in any view; its material is not recovered",
+                    names[g]
+                ));
+            }
+            DiffuseVerdict::BarelySeen => {
+                r.decisions.push(format!(
+                    "diffuse, barely seen: {} pure pixels < MIN_PIXELS_FOR_MODEL_CHOICE {}; no more complex model is tried",
+                    pure_pixels[g],
+                    fit::MIN_PIXELS_FOR_MODEL_CHOICE
+                ));
+                // Its colour is fitted to the mean of what the pixels show, highlights
+                // included: with much error left, a lobe there went into the colour (the
+                // living room's frames, 15 pixels, came out 2.5-4x too bright at 0.46).
+                let unexplained = match decided[g] {
+                    Some(e) if e.exceeds(fit::DIFFUSE_THRESHOLD) => format!(
+                        ", yet its diffuse fit leaves {:.0}% of error (> DIFFUSE_THRESHOLD {:.0}%): its colour likely holds a specular part and may be far off",
+                        100.0 * e.error,
+                        100.0 * fit::DIFFUSE_THRESHOLD
+                    ),
+                    _ => String::new(),
+                };
+                warnings.push(format!(
+                    "group '{}': only {} pure pixels; kept diffuse{unexplained}",
+                    names[g], pure_pixels[g]
+                ));
+            }
+            DiffuseVerdict::Diffuse => {
+                // A specular lobe cannot remove more error than there is.
+                r.decisions.push(format!(
+                    "stage 1: diffuse, error {e:.4} +- {sigma:.4} not above SPECULAR_GAIN_THRESHOLD {} by EXCEEDS_SIGMAS {} standard errors: no specular model could gain more",
+                    fit::SPECULAR_GAIN_THRESHOLD,
+                    fit::EXCEEDS_SIGMAS
+                ));
+            }
+            DiffuseVerdict::NeedsSpecular => {
+                let how = if e > fit::DIFFUSE_THRESHOLD {
+                    "on to isotropic"
+                } else {
+                    "tested for a weak specular"
+                };
+                r.decisions.push(format!(
+                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than EXCEEDS_SIGMAS {} standard errors ({} DIFFUSE_THRESHOLD {}): {how}",
+                    fit::SPECULAR_GAIN_THRESHOLD,
+                    fit::EXCEEDS_SIGMAS,
+                    if e > fit::DIFFUSE_THRESHOLD { ">" } else { "<=" },
+                    fit::DIFFUSE_THRESHOLD
+                ));
+                candidates.push((g, e));
+            }
+        }
+    }
+    Ok((report, candidates))
+}
