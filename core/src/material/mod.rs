@@ -408,29 +408,15 @@ impl Bsdf {
 
     /// `f(wo, wi)` (without the cosine); zero when `wi` is below the surface.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        let Lobes::Glossy {
-            rho_d,
-            rho_s,
-            alpha_u,
-            alpha_v,
-            ..
-        } = self.lobes
-        else {
-            return Vec3::ZERO;
-        };
         let n = self.frame.z;
         if !(n.dot(wo) > 0.0 && n.dot(wi) > 0.0) {
             return Vec3::ZERO;
         }
-        let mut f = rho_d * INV_PI;
-        if rho_s.max_element() > 0.0 {
-            f += rho_s * self.ward(wo + wi, alpha_u, alpha_v);
-        }
-        f
+        self.eval_above(wo + wi)
     }
 
-    /// [`Bsdf::eval`] for a `wo` and `wi` both above the surface, given by their sum `h`
-    /// (the same bits): a caller that keeps `h` across many materials skips the rest.
+    /// [`Bsdf::eval`] for a `wo` and `wi` both above the surface, given by their sum `h`:
+    /// a caller that keeps `h` across many materials skips the horizon test.
     #[inline]
     pub fn eval_above(&self, h: Vec3) -> Vec3 {
         let Lobes::Glossy {
