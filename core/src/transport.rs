@@ -266,6 +266,10 @@ impl<'a> ReusedBsdf<'a> {
 /// The two linear parts of a pixel under a Ward-type material: `diffuse` is the value for
 /// `rho_d = 1, S = 0` (irradiance / pi) and `specular` the value for `rho_d = 0, S = 1`, so
 /// that the pixel is `rho_d * diffuse + S * specular` (per channel).
+///
+/// This is the definition, straight from the entries; recovery's caches evaluate it as
+/// [`diffuse_part`] and [`specular_part`] over [`LobePoint`]s, which the tests check give
+/// the same bits.
 pub fn linear_parts(
     entries: &[IncidentSample],
     n_samples: u32,
