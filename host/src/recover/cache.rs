@@ -85,20 +85,20 @@ pub fn build(
     let per_pixel = settings.spp as usize * INCIDENT_PER_SAMPLE;
     let mut entries = vec![IncidentSample::default(); pixels.len() * per_pixel];
     pool.install(|| {
+        // Pixel by pixel: each writes its own slot, so the split changes only the balance
+        // between threads (a small group is a handful of pixels at many samples each).
         entries
-            .par_chunks_mut(per_pixel * CHUNK)
-            .zip(pixels.par_chunks(CHUNK))
-            .for_each(|(out, chunk)| {
-                for (p, slot) in chunk.iter().zip(out.chunks_mut(per_pixel)) {
-                    let view = &views[p.view as usize];
-                    for s in 0..settings.spp {
-                        let mut buf = [IncidentSample::default(); INCIDENT_PER_SAMPLE];
-                        let n = transport::trace_pixel_sample(
-                            scene, view, p.view, p.x, p.y, s, group, settings, &mut buf,
-                        );
-                        let at = s as usize * INCIDENT_PER_SAMPLE;
-                        slot[at..at + n].copy_from_slice(&buf[..n]);
-                    }
+            .par_chunks_mut(per_pixel)
+            .zip(pixels.par_iter())
+            .for_each(|(slot, p)| {
+                let view = &views[p.view as usize];
+                for s in 0..settings.spp {
+                    let mut buf = [IncidentSample::default(); INCIDENT_PER_SAMPLE];
+                    let n = transport::trace_pixel_sample(
+                        scene, view, p.view, p.x, p.y, s, group, settings, &mut buf,
+                    );
+                    let at = s as usize * INCIDENT_PER_SAMPLE;
+                    slot[at..at + n].copy_from_slice(&buf[..n]);
                 }
             });
     });
@@ -106,25 +106,23 @@ pub fn build(
     GroupCache::new(pixels, real, entries, settings.spp)
 }
 
-/// The normal-equation sums of the group's pixels for a unit specular `lobe`.
+/// The normal-equation sums of the group's pixels for a unit specular `lobe`. Each
+/// pixel's parts are evaluated in parallel, pixel by pixel; the sums run in one thread,
+/// in fixed chunks of [`CHUNK`] pixels merged in order: the same sums for any thread count.
 pub fn linear_sums(pool: &rayon::ThreadPool, cache: &GroupCache, lobe: &Material) -> LinearSums {
-    let parts: Vec<LinearSums> = pool.install(|| {
+    let parts: Vec<(Vec3, Vec3)> = pool.install(|| {
         (0..cache.pixels.len())
-            .collect::<Vec<_>>()
-            .par_chunks(CHUNK)
-            .map(|chunk| {
-                let mut sums = LinearSums::default();
-                for &i in chunk {
-                    let (d, b) = cache.linear_parts(i, lobe);
-                    sums.add(d.to_array(), b.to_array(), cache.real[i].to_array());
-                }
-                sums
-            })
+            .into_par_iter()
+            .map(|i| cache.linear_parts(i, lobe))
             .collect()
     });
     let mut total = LinearSums::default();
-    for p in &parts {
-        total.merge(p);
+    for (first, chunk) in (0..parts.len()).step_by(CHUNK).zip(parts.chunks(CHUNK)) {
+        let mut sums = LinearSums::default();
+        for (i, (d, b)) in (first..).zip(chunk) {
+            sums.add(d.to_array(), b.to_array(), cache.real[i].to_array());
+        }
+        total.merge(&sums);
     }
     total
 }

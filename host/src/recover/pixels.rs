@@ -132,19 +132,16 @@ pub fn group_counts(pure: &[PurePixel], n_groups: usize) -> Vec<u32> {
     counts
 }
 
-/// `f` of each of `pixels`, in order, in parallel over a fixed partition (the same values
-/// for any thread count).
+/// `f` of each of `pixels`, in order, in parallel (each pixel's value is its own: the
+/// same values for any thread count and any split). Split finely: a small group at many
+/// samples per pixel is a handful of costly pixels, which chunks of [`CHUNK`] would leave
+/// to one thread.
 fn map_in_order<T: Send>(
     pool: &rayon::ThreadPool,
     pixels: &[PurePixel],
     f: impl Fn(&PurePixel) -> T + Sync,
 ) -> Vec<T> {
-    pool.install(|| {
-        pixels
-            .par_chunks(CHUNK)
-            .flat_map_iter(|chunk| chunk.iter().map(&f))
-            .collect()
-    })
+    pool.install(|| pixels.par_iter().map(&f).collect())
 }
 
 /// The panorama's value at a pure pixel.
@@ -172,38 +169,46 @@ pub fn evaluate(
     wanted: &(dyn Fn(u16) -> bool + Sync),
 ) -> Vec<GroupFit> {
     let Observed { views, real, pure } = observed;
-    sum_by_group(pool, pure, n_groups, wanted, |p, fit| {
-        let view = &views[p.view as usize];
-        let (value, variance) =
-            render::render_pixel_with_variance(scene, view, p.view, p.x, p.y, settings);
-        fit.add(real_value(real, views, p), value, variance);
-    })
+    sum_by_group(
+        pool,
+        pure,
+        n_groups,
+        wanted,
+        |p| {
+            let view = &views[p.view as usize];
+            let (value, variance) =
+                render::render_pixel_with_variance(scene, view, p.view, p.x, p.y, settings);
+            (real_value(real, views, p), value, variance)
+        },
+        |(t, value, variance), fit| fit.add(t, value, variance),
+    )
 }
 
-/// Sums `add(pixel, fit of its group)` over the pure pixels of the groups `wanted`, in
-/// fixed chunks merged in order: the same sums for any thread count.
-fn sum_by_group(
+/// Sums `add(measure(pixel), fit of its group)` over the pure pixels of the groups
+/// `wanted`. The measures (the renders) run in parallel, split finely (see
+/// [`map_in_order`]); the sums then run in one thread, in fixed chunks of [`CHUNK`] pixels
+/// of `pure` merged in order: the same sums for any thread count.
+fn sum_by_group<M: Send>(
     pool: &rayon::ThreadPool,
     pure: &[PurePixel],
     n_groups: usize,
     wanted: &(dyn Fn(u16) -> bool + Sync),
-    add: impl Fn(&PurePixel, &mut GroupFit) + Sync,
+    measure: impl Fn(&PurePixel) -> M + Sync,
+    add: impl Fn(M, &mut GroupFit),
 ) -> Vec<GroupFit> {
-    let partials: Vec<Vec<GroupFit>> = pool.install(|| {
-        pure.par_chunks(CHUNK)
-            .map(|chunk| {
-                let mut fits = vec![GroupFit::default(); n_groups];
-                for p in chunk.iter().filter(|p| wanted(p.group)) {
-                    add(p, &mut fits[p.group as usize]);
-                }
-                fits
-            })
-            .collect()
-    });
+    let chosen: Vec<PurePixel> = pure.iter().filter(|p| wanted(p.group)).copied().collect();
+    let mut measures = map_in_order(pool, &chosen, measure).into_iter();
     let mut total = vec![GroupFit::default(); n_groups];
-    for part in &partials {
-        for (t, p) in total.iter_mut().zip(part) {
-            t.merge(p);
+    for chunk in pure.chunks(CHUNK) {
+        let mut fits = vec![GroupFit::default(); n_groups];
+        for p in chunk.iter().filter(|p| wanted(p.group)) {
+            // One measure per chosen pixel, in the same order.
+            if let Some(m) = measures.next() {
+                add(m, &mut fits[p.group as usize]);
+            }
+        }
+        for (t, part) in total.iter_mut().zip(&fits) {
+            t.merge(part);
         }
     }
     total
@@ -225,11 +230,13 @@ pub fn evaluate_cross(
 ) -> Vec<GroupFit> {
     let Observed { views, real, pure } = observed;
     let (a, b) = cross_settings(settings);
-    sum_by_group(pool, pure, n_groups, wanted, |p, fit| {
+    let measure = |p: &PurePixel| {
         let view = &views[p.view as usize];
         let ra = render::render_pixel(scene, view, p.view, p.x, p.y, &a);
         let rb = render::render_pixel(scene, view, p.view, p.x, p.y, &b);
-        let t = real_value(real, views, p);
+        (real_value(real, views, p), ra, rb)
+    };
+    sum_by_group(pool, pure, n_groups, wanted, measure, |(t, ra, rb), fit| {
         fit.pixels += 1;
         for c in 0..3 {
             fit.sum_real[c] += t[c] as f64;
