@@ -116,8 +116,9 @@ pub fn propose_from_cache(
         Proposal { fit, x }
     };
     let grid = proposal_grid();
-    // The grid's points in parallel (a small group's sums are one chunk, one thread),
-    // chosen in grid order: the same proposal as one at a time.
+    // The grid's points in parallel (a point's sums split a small group's few pixels no
+    // further than pixel by pixel), chosen in grid order: the same proposal as one at a
+    // time.
     let fits: Vec<Proposal> = pool.install(|| grid.par_iter().map(|&x| fit_at(x)).collect());
     let mut evaluations = fits.len() as u32;
     let offer = |p: Proposal, best: &mut Proposal| {
