@@ -292,11 +292,16 @@ impl ModelComparison {
             && self.z() > -1.0
     }
 
+    /// The z this comparison's gain needs: [`gain_significance`] of its pixels.
+    pub fn significance(&self) -> f64 {
+        gain_significance(self.pixels)
+    }
+
     /// Whether the complex model is worth its parameters: it removes more than
     /// [`SPECULAR_GAIN_THRESHOLD`] of relative error, and that gain is at least
-    /// [`GAIN_SIGNIFICANCE`] standard errors.
+    /// [`gain_significance`] standard errors.
     pub fn favours_complex(&self) -> bool {
-        self.gain > SPECULAR_GAIN_THRESHOLD && self.z() >= GAIN_SIGNIFICANCE
+        self.gain > SPECULAR_GAIN_THRESHOLD && self.z() >= self.significance()
     }
 }
 
@@ -317,10 +322,27 @@ pub const DIFFUSE_MAX_STEPS: u32 = 30;
 /// much relative error compared with the diffuse model (host `recover`, stage 2); a group
 /// whose diffuse error is already below it is not tried.
 pub const SPECULAR_GAIN_THRESHOLD: f64 = 0.01;
-/// A more complex model is kept only when its gain is at least this many standard errors
-/// ([`ModelComparison`]): one-sided, about one chance in a thousand that a model with no
-/// real gain passes on noise alone.
+/// A more complex model is kept only when its gain is significant at the level a normal z
+/// of this many standard errors has ([`ModelComparison`]): one-sided, about one chance in
+/// a thousand that a model with no real gain passes on noise alone.
 pub const GAIN_SIGNIFICANCE: f64 = 3.0;
+
+/// The z a gain measured over `pixels` pixels needs: the gain's standard error is
+/// estimated from as many squared differences as pixels, so its z is Student's t with that
+/// many degrees of freedom, and this is t's critical value at the level of a normal z of
+/// [`GAIN_SIGNIFICANCE`] (0.135%, one-sided). 6.62 at 4 pixels, 3.59 at 15, 3.10 at 80,
+/// 3.01 at 1000: a group of a few pixels can still show a lobe, when its gain stands far enough
+/// above the noise that so few pixels measure (the living room's frames at 64 px: 15
+/// pixels, 46% of error left diffuse). Infinite without pixels.
+pub fn gain_significance(pixels: u32) -> f64 {
+    if pixels == 0 {
+        return f64::INFINITY;
+    }
+    crate::student_t::critical_value(
+        crate::student_t::normal_upper_tail(GAIN_SIGNIFICANCE),
+        pixels,
+    )
+}
 /// A promising comparison ([`ModelComparison::is_promising`]) is measured again with this
 /// many times the samples per pixel, at most [`DECISION_MAX_ROUNDS`] more times and while
 /// the group's pixels times the samples stay within [`DECISION_MAX_SAMPLES`] per model:
@@ -343,9 +365,18 @@ pub const MIRROR_MAX_ROUGHNESS: f64 = 0.02;
 /// Largest relative spread of the mirror's specular colour over the channels (the paper's
 /// "reflected colour close to the incident colour").
 pub const MIRROR_MAX_TINT: f64 = 0.1;
-/// Fewer pure pixels than this: the group is reported as barely seen, and its fit is not
-/// trusted to pick a more complex model.
-pub const MIN_PIXELS_FOR_MODEL_CHOICE: u32 = 16;
+/// Fewer pure pixels than this: the group is reported as barely seen, and kept diffuse.
+/// From this many the keep-or-reject test decides, at [`gain_significance`] of the
+/// group's pixels (6.6 standard errors at 4 pixels, 3.6 at 15); below it the gain's
+/// standard error would rest on two or three squared differences of heavy-tailed render
+/// noise, which no critical value makes trustworthy. (It was 16, with a normal z of 3 above
+/// it: the living room's frames, 15 pixels at 64 px and 46% of error left diffuse, were
+/// kept diffuse and came out 2.5-4x too bright.)
+pub const MIN_PIXELS_FOR_MODEL_CHOICE: u32 = 4;
+/// Fewer pure pixels than this: a group is not tested for texture (stage 3), and its
+/// errors do not bound the panorama's noise: a step contrast over pixels 3 apart has only a
+/// few pairs to go on.
+pub const MIN_PIXELS_FOR_TEXTURE: u32 = 16;
 
 /// Texture detection (stage 3): pixel step of the differences of the difference image.
 pub const TEXTURE_STEP: u32 = 3;
@@ -540,6 +571,34 @@ mod tests {
             mean.abs() < 0.3 && (sd - 1.0).abs() < 0.25,
             "mean {mean}, sd {sd}"
         );
+    }
+
+    #[test]
+    fn a_small_group_needs_a_larger_z_to_keep_noise_out() {
+        // Two equally good models under independent noise, compared over 6 pixels: the
+        // gain's sigma rests on 6 squared differences, so its z is t with 6 degrees of
+        // freedom, which passes a normal 3 about 1.2% of the time (0.94% here); gain_significance(6)
+        // (4.9) keeps noise to the 0.135% a z of 3 claims.
+        let mut rng = crate::rng::Sampler::from_key(8);
+        let trials = 20_000;
+        let (mut at_normal_z, mut kept) = (0u32, 0u32);
+        for _ in 0..trials {
+            let terms: std::vec::Vec<PairedTerms> = (0..6)
+                .map(|_| {
+                    let mut t = paired(&mut rng, 0.3, 0.3, 0.3);
+                    t.complex = paired(&mut rng, 0.3, 0.3, 0.3).complex;
+                    t
+                })
+                .collect();
+            let c = ModelComparison::from_cross_terms(terms.into_iter(), 6.0).unwrap();
+            at_normal_z += (c.gain > SPECULAR_GAIN_THRESHOLD && c.z() >= GAIN_SIGNIFICANCE) as u32;
+            kept += c.favours_complex() as u32;
+        }
+        let rate = |n: u32| n as f64 / trials as f64;
+        assert!(rate(at_normal_z) > 0.006, "{}", rate(at_normal_z));
+        assert!(rate(kept) < 0.003, "{}", rate(kept));
+        assert!((gain_significance(6) - 4.90).abs() < 0.01);
+        assert!(gain_significance(0).is_infinite());
     }
 
     #[test]

@@ -46,6 +46,7 @@ pub mod render;
 pub mod rng;
 pub mod scene;
 pub mod stages;
+pub mod student_t;
 pub mod transport;
 
 pub use error::Error;

@@ -204,6 +204,9 @@ mod tests {
         // 3% of error measured with a 2.5% standard error: not shown to be above 1%.
         assert_eq!(verdict(100, e(0.03, 0.025)), DiffuseVerdict::Diffuse);
         assert_eq!(verdict(3, e(0.2, 0.01)), DiffuseVerdict::BarelySeen);
+        // From 4 pixels the keep-or-reject test, strict on so few, decides.
+        assert_eq!(verdict(4, e(0.2, 0.01)), DiffuseVerdict::NeedsSpecular);
+        assert_eq!(verdict(15, e(0.46, 0.013)), DiffuseVerdict::NeedsSpecular);
         assert_eq!(verdict(0, None), DiffuseVerdict::Unseen);
         assert_eq!(verdict(100, None), DiffuseVerdict::Unseen);
     }

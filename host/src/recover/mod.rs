@@ -230,9 +230,23 @@ pub struct ComparisonReport {
     /// The gain's standard error.
     pub gain_sigma: f64,
     pub z: f64,
+    /// The z the gain needed: `fit::gain_significance` of the pixels compared.
+    pub z_needed: f64,
     pub kept_complex: bool,
     /// Samples per pixel of the measurement that decided.
     pub samples_per_pixel: u32,
+}
+
+/// What the keep-or-reject test asks of comparison `c`, for the decisions' text: the gain
+/// threshold and the z its pixels need (`fit::gain_significance`).
+pub(super) fn keep_rule(c: &fit::ModelComparison) -> String {
+    format!(
+        "> SPECULAR_GAIN_THRESHOLD {} and z >= {:.2} (GAIN_SIGNIFICANCE {}'s level over {} pixels)",
+        fit::SPECULAR_GAIN_THRESHOLD,
+        c.significance(),
+        fit::GAIN_SIGNIFICANCE,
+        c.pixels
+    )
 }
 
 impl ComparisonReport {
@@ -252,6 +266,7 @@ impl ComparisonReport {
             gain: c.gain,
             gain_sigma: c.gain_sigma,
             z: c.z(),
+            z_needed: c.significance(),
             kept_complex: c.favours_complex(),
             samples_per_pixel,
         }
@@ -928,7 +943,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         },
     );
     for (g, r) in reports.iter_mut().enumerate() {
-        if r.pure_pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE {
+        if r.pure_pixels >= fit::MIN_PIXELS_FOR_TEXTURE {
             r.texture_feature = texture_stage::texture_feature(&differences[g]);
         }
     }
@@ -1016,6 +1031,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "MIRROR_MAX_ROUGHNESS": fit::MIRROR_MAX_ROUGHNESS,
             "MIRROR_MAX_TINT": fit::MIRROR_MAX_TINT,
             "MIN_PIXELS_FOR_MODEL_CHOICE": fit::MIN_PIXELS_FOR_MODEL_CHOICE,
+            "MIN_PIXELS_FOR_TEXTURE": fit::MIN_PIXELS_FOR_TEXTURE,
             "TEXTURE_STEP": fit::TEXTURE_STEP,
             "TEXTURE_FLOOR": fit::TEXTURE_FLOOR,
             "TEXTURE_THRESHOLD": fit::TEXTURE_THRESHOLD,

@@ -16,8 +16,8 @@ use relume_core::stages::isotropic::{self, WardFit};
 
 use super::model::GroupModel;
 use super::{
-    cache, fit_ward, ladder, lobe_kinds, min_samples_spp, mirror_test, progress_bar, refine,
-    Budget, ComparisonReport, GroupReport, Recovery, StageReport,
+    cache, fit_ward, keep_rule, ladder, lobe_kinds, min_samples_spp, mirror_test, progress_bar,
+    refine, Budget, ComparisonReport, GroupReport, Recovery, StageReport,
 };
 use crate::error::Error;
 use crate::scene_file::GroupKind;
@@ -127,13 +127,12 @@ pub(super) fn run(
                 match comparison {
                     Some((c, spp)) if !c.favours_complex() => {
                         mirror_why = Some(format!(
-                            "mirror: the lobe renders no better than a perfect mirror (tint <= MIRROR_MAX_TINT {}): it removes {:.4} +- {:.4} more at {spp} spp (z {:.1}); a lobe needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
+                            "mirror: the lobe renders no better than a perfect mirror (tint <= MIRROR_MAX_TINT {}): it removes {:.4} +- {:.4} more at {spp} spp (z {:.1}); a lobe needs {}",
                             fit::MIRROR_MAX_TINT,
                             c.gain,
                             c.gain_sigma,
                             c.z(),
-                            fit::SPECULAR_GAIN_THRESHOLD,
-                            fit::GAIN_SIGNIFICANCE,
+                            keep_rule(&c),
                         ));
                         mirror
                     }
@@ -244,13 +243,12 @@ pub(super) fn run(
         );
         if c.favours_complex() {
             r.decisions.push(format!(
-                "stage 2: {} {:?} (s {specularity:.4}, roughness {alpha:.4}; cache proposed s {:.4}) {measured}: > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
+                "stage 2: {} {} (s {specularity:.4}, roughness {alpha:.4}; cache proposed s {:.4}) {measured}: {}",
                 candidate.0.name(),
-                kind,
+                format!("{kind:?}").to_lowercase(),
                 ward.specularity,
-                fit::SPECULAR_GAIN_THRESHOLD,
-                fit::GAIN_SIGNIFICANCE,
-            ).to_lowercase());
+                keep_rule(&c),
+            ));
             if let Some(why) = candidate.1 {
                 r.decisions.push(format!("stage 2: {why}"));
             }
@@ -260,9 +258,8 @@ pub(super) fn run(
             r.ladder_sigmas = ladder_sigmas.map_or(Vec::new(), Vec::from);
         } else {
             r.decisions.push(format!(
-                "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
-                fit::SPECULAR_GAIN_THRESHOLD,
-                fit::GAIN_SIGNIFICANCE,
+                "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: needs {}",
+                keep_rule(&c),
             ));
             rec.models[g] = stage1;
             r.set_decided(more_precise(r.latest_error, c.simple_estimate()));

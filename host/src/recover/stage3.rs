@@ -29,7 +29,7 @@ pub(super) fn run(
     let mut notes = Vec::new();
     let tested: Vec<usize> = (0..n_groups)
         .filter(|&g| {
-            reports[g].pure_pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE
+            reports[g].pure_pixels >= fit::MIN_PIXELS_FOR_TEXTURE
                 && kinds[g] != GroupKind::Metal
                 // As stage 1 sends a group on: a texture, like a lobe, cannot remove more
                 // error than there is (the living room's desk, 0.0141 +- 0.0026 after
@@ -47,7 +47,7 @@ pub(super) fn run(
     let noise_bound = texture_stage::panorama_noise_bound(
         reports
             .iter()
-            .filter(|r| r.pure_pixels >= fit::MIN_PIXELS_FOR_MODEL_CHOICE)
+            .filter(|r| r.pure_pixels >= fit::MIN_PIXELS_FOR_TEXTURE)
             .flat_map(|r| r.error_measurements.iter().copied()),
     )
     .unwrap_or(0.0);
@@ -89,9 +89,9 @@ pub(super) fn run(
         fit::TEXTURE_CONTRAST_THRESHOLD
     ));
     notes.push(format!(
-        "the panorama's noise bound {noise_bound:.4}: the tightest upper bound, NOISE_BOUND_SIGNIFICANCE {} standard errors above the measured square, of any error measured on a group of at least MIN_PIXELS_FOR_MODEL_CHOICE {} pixels",
+        "the panorama's noise bound {noise_bound:.4}: the tightest upper bound, NOISE_BOUND_SIGNIFICANCE {} standard errors above the measured square, of any error measured on a group of at least MIN_PIXELS_FOR_TEXTURE {} pixels",
         fit::NOISE_BOUND_SIGNIFICANCE,
-        fit::MIN_PIXELS_FOR_MODEL_CHOICE
+        fit::MIN_PIXELS_FOR_TEXTURE
     ));
     let report = StageReport {
         stage: "3 texture detection".into(),

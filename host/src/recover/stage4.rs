@@ -12,7 +12,7 @@ use relume_core::render::RenderSettings;
 
 use super::model::GroupModel;
 use super::{
-    anisotropic, fit_ward, lobe_kinds, pattern, progress_bar, Budget, ComparisonReport,
+    anisotropic, fit_ward, keep_rule, lobe_kinds, pattern, progress_bar, Budget, ComparisonReport,
     GroupReport, Recovery, StageReport, CACHE_MIN_SAMPLES,
 };
 use crate::error::Error;
@@ -227,19 +227,17 @@ pub(super) fn run(
                 ));
             }
             r.decisions.push(format!(
-                "stage 4: anisotropic (roughness_u {roughness_u:.4}, roughness_v {roughness_v:.4}, direction [{:.3}, {:.3}, {:.3}]) {measured}: > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
+                "stage 4: anisotropic (roughness_u {roughness_u:.4}, roughness_v {roughness_v:.4}, direction [{:.3}, {:.3}, {:.3}]) {measured}: {}",
                 d[0], d[1], d[2],
-                fit::SPECULAR_GAIN_THRESHOLD,
-                fit::GAIN_SIGNIFICANCE,
+                keep_rule(&c),
             ));
             rec.models[g] = refined.model;
             r.set_decided(c.complex_estimate());
         } else {
             r.decisions.push(format!(
-                "stage 4: stays {}: the best anisotropic fit {measured}: needs > SPECULAR_GAIN_THRESHOLD {} and z >= GAIN_SIGNIFICANCE {}",
+                "stage 4: stays {}: the best anisotropic fit {measured}: needs {}",
                 kept.name(),
-                fit::SPECULAR_GAIN_THRESHOLD,
-                fit::GAIN_SIGNIFICANCE,
+                keep_rule(&c),
             ));
         }
     }

@@ -13,7 +13,7 @@ pub const FEW_PIXELS: u32 = 256;
 /// A lobe weaker than this (specularity) flipped class with the seed or with 1-2%
 /// perturbations (glossy's box_teal, box_yellow, sphere_white).
 pub const WEAK_SPECULARITY: f64 = 0.1;
-/// A decision this close (in standard errors) to `GAIN_SIGNIFICANCE`, or with a gain
+/// A decision this close (in standard errors) to the z it needed, or with a gain
 /// below twice `SPECULAR_GAIN_THRESHOLD`, could go the other way on another seed.
 pub const BORDERLINE_Z: f64 = 2.0;
 /// A panorama noise bound above this. The bound is an upper confidence bound
@@ -92,7 +92,7 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
             ));
         }
         for c in &report.comparisons {
-            let near_significance = (c.z - fit::GAIN_SIGNIFICANCE).abs() < BORDERLINE_Z;
+            let near_significance = (c.z - c.z_needed).abs() < BORDERLINE_Z;
             let small_gain = c.kept_complex && c.gain < 2.0 * fit::SPECULAR_GAIN_THRESHOLD;
             if c.gain > fit::SPECULAR_GAIN_THRESHOLD && (near_significance || small_gain) {
                 warnings.push(format!(
@@ -144,6 +144,7 @@ mod tests {
             gain,
             gain_sigma: sigma,
             z: gain / sigma,
+            z_needed: fit::GAIN_SIGNIFICANCE,
             kept_complex: gain > fit::SPECULAR_GAIN_THRESHOLD
                 && gain / sigma >= fit::GAIN_SIGNIFICANCE,
             samples_per_pixel: 32,
