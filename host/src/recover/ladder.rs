@@ -204,9 +204,9 @@ pub fn plausible(best: &Rung, measured: &[Rung]) -> Spread {
 
 /// What [`second_look`] found.
 pub struct SecondLook {
-    /// The best rung, tested (`None` when no rung showed any gain or the test found no lit
-    /// pixel).
-    pub found: Option<Found>,
+    /// The best rung, tested; or why none was (no rung showed any gain, or the test found
+    /// no lit pixel), for the group's decisions.
+    pub found: Result<Found, String>,
     /// Renders spent.
     pub evaluations: u32,
 }
@@ -240,7 +240,13 @@ pub fn second_look(
     let (rung, measured, mut evaluations) = best_rung(rec, g, cache, kind, diffuse, spp)?;
     let Some(rung) = rung.filter(|r| r.squared_gain > 0.0) else {
         return Ok(SecondLook {
-            found: None,
+            found: Err(format!(
+                "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test; none of the {} rungs measured (those with a positive specularity in closed form) removes any error over the diffuse model",
+                proposal.map_or(0.0, |c| c.gain),
+                proposal.map_or(0.0, |c| c.gain_sigma),
+                proposal.map_or(0.0, |c| c.z()),
+                measured.len(),
+            )),
             evaluations,
         });
     };
@@ -266,12 +272,15 @@ pub fn second_look(
     let test = rec.compare_models(g, diffuse, rung.model, rung.spp)?;
     evaluations += 2;
     Ok(SecondLook {
-        found: test.map(|test| Found {
-            rung,
-            spread,
-            test,
-            decision,
-        }),
+        found: match test {
+            Some(test) => Ok(Found {
+                rung,
+                spread,
+                test,
+                decision,
+            }),
+            None => Err(format!("{decision}; but no pixel of it is lit")),
+        },
         evaluations,
     })
 }

@@ -208,12 +208,15 @@ pub(super) fn run(
             let proposal = comparison.map(|(c, _)| c);
             let look = ladder::second_look(rec, g, &cache, kind, stage1, verify_spp, proposal)?;
             evaluations += look.evaluations;
-            if let Some(found) = look.found {
-                reports[g].decisions.push(found.decision);
-                (specularity, alpha) = (found.rung.specularity, found.rung.roughness);
-                candidate = (found.rung.model, None);
-                comparison = Some(found.test);
-                ladder_sigmas = Some(found.spread.sigmas(&found.rung));
+            match look.found {
+                Err(why) => reports[g].decisions.push(why),
+                Ok(found) => {
+                    reports[g].decisions.push(found.decision);
+                    (specularity, alpha) = (found.rung.specularity, found.rung.roughness);
+                    candidate = (found.rung.model, None);
+                    comparison = Some(found.test);
+                    ladder_sigmas = Some(found.spread.sigmas(&found.rung));
+                }
             }
         }
         let r = &mut reports[g];
