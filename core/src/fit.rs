@@ -518,6 +518,23 @@ mod tests {
         );
     }
 
+    /// `pixels` pixels' terms for two models of the same relative `bias`, each under its own
+    /// independent noise: no real gain, and the worst case for the pairing.
+    fn equal_models(
+        rng: &mut crate::rng::Sampler,
+        pixels: usize,
+        bias: f64,
+        noise: f64,
+    ) -> std::vec::Vec<PairedTerms> {
+        (0..pixels)
+            .map(|_| {
+                let mut t = paired(rng, bias, bias, noise);
+                t.complex = paired(rng, bias, bias, noise).complex;
+                t
+            })
+            .collect()
+    }
+
     /// One pixel's terms for two models of relative bias `simple` and `complex`, on a
     /// panorama value of 1, each seen through four renders of relative noise `noise`
     /// (shared between the models, as the host renders them on the same samples).
@@ -551,14 +568,7 @@ mod tests {
         let mut rejected = 0;
         let mut gains = std::vec::Vec::new();
         for _ in 0..200 {
-            let terms: std::vec::Vec<PairedTerms> = (0..300)
-                .map(|_| {
-                    let mut t = paired(&mut rng, 0.03, 0.03, 0.2);
-                    // Independent noise for the complex model: the worst case for pairing.
-                    t.complex = paired(&mut rng, 0.03, 0.03, 0.2).complex;
-                    t
-                })
-                .collect();
+            let terms = equal_models(&mut rng, 300, 0.03, 0.2);
             let c = ModelComparison::from_cross_terms(terms.into_iter(), 300.0).unwrap();
             rejected += !c.favours_complex() as u32;
             gains.push(c.gain / c.gain_sigma);
@@ -577,19 +587,13 @@ mod tests {
     fn a_small_group_needs_a_larger_z_to_keep_noise_out() {
         // Two equally good models under independent noise, compared over 6 pixels: the
         // gain's sigma rests on 6 squared differences, so its z is t with 6 degrees of
-        // freedom, which passes a normal 3 about 1.2% of the time (0.94% here); gain_significance(6)
-        // (4.9) keeps noise to the 0.135% a z of 3 claims.
+        // freedom, which passes a normal 3 about 1.2% of the time (0.94% here);
+        // gain_significance(6) (4.9) keeps noise to the 0.135% a z of 3 claims.
         let mut rng = crate::rng::Sampler::from_key(8);
         let trials = 20_000;
         let (mut at_normal_z, mut kept) = (0u32, 0u32);
         for _ in 0..trials {
-            let terms: std::vec::Vec<PairedTerms> = (0..6)
-                .map(|_| {
-                    let mut t = paired(&mut rng, 0.3, 0.3, 0.3);
-                    t.complex = paired(&mut rng, 0.3, 0.3, 0.3).complex;
-                    t
-                })
-                .collect();
+            let terms = equal_models(&mut rng, 6, 0.3, 0.3);
             let c = ModelComparison::from_cross_terms(terms.into_iter(), 6.0).unwrap();
             at_normal_z += (c.gain > SPECULAR_GAIN_THRESHOLD && c.z() >= GAIN_SIGNIFICANCE) as u32;
             kept += c.favours_complex() as u32;
