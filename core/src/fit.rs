@@ -353,10 +353,11 @@ pub const DECISION_SPP_GROWTH: u32 = 4;
 pub const DECISION_MAX_ROUNDS: u32 = 3;
 pub const DECISION_MAX_SAMPLES: u64 = 1 << 20;
 /// An unresolved comparison ([`ModelComparison::is_unresolved`]) is measured again only
-/// within this many pixel samples per model: every group under 256 pixels gets all its
-/// rounds, a mid-sized one (the living room's 1344-pixel brushed plate at 256 px, 0.0123
-/// standard error at 32 spp) one more, and a large one none (on the references that
-/// doubled the time and changed no class).
+/// within this many pixel samples per model (counted over the whole group, whose samples
+/// a large group's test concentrates on a subset): every group under 256 pixels gets all
+/// its rounds, a mid-sized one (the living room's 1344-pixel brushed plate at 256 px) one
+/// more, and a large one none (on the references that doubled the time and changed no
+/// class).
 pub const UNRESOLVED_MAX_SAMPLES: u64 = 1 << 19;
 /// A fitted isotropic metal whose specular part is above this fraction of its reflectance,
 /// with a roughness at most [`MIRROR_MAX_ROUGHNESS`], is tested as a mirror (the paper's 90%).
@@ -546,6 +547,42 @@ mod tests {
             simple: [q(simple, 0), q(simple, 2)],
             complex: [q(complex, 0), q(complex, 2)],
         }
+    }
+
+    /// A comparison's noise is a product of two renders' noises per pixel, whose variance
+    /// falls with the square of the samples per pixel: at the same pixel samples in all,
+    /// fewer pixels at more samples each read a gain far more steadily. (Why a large
+    /// group's decisions render an even subset of it, the host's
+    /// `Recovery::decision_pixels`.)
+    #[test]
+    fn fewer_pixels_at_more_samples_each_read_a_gain_more_steadily_at_the_same_cost() {
+        let mut rng = crate::rng::Sampler::from_key(9);
+        let mut measure = |pixels: usize, noise: f64| {
+            let terms: std::vec::Vec<PairedTerms> = (0..pixels)
+                .map(|_| {
+                    // Each model on samples of its own: the pairing cancels nothing.
+                    let mut t = paired(&mut rng, 0.20, 0.10, noise);
+                    t.complex = paired(&mut rng, 0.20, 0.10, noise).complex;
+                    t
+                })
+                .collect();
+            ModelComparison::from_cross_terms(terms.into_iter(), pixels as f64).unwrap()
+        };
+        // 6400 pixels whose quarter-renders have a relative noise of 1, against 800 of
+        // them at 8 times the samples (noise 1 / sqrt 8).
+        let all = measure(6400, 1.0);
+        let subset = measure(800, 1.0 / libm::sqrt(8.0));
+        assert!(
+            subset.squared_gain_sigma < all.squared_gain_sigma / 2.0,
+            "{subset:?} against {all:?}"
+        );
+        let true_squared_gain = 0.20 * 0.20 - 0.10 * 0.10;
+        assert!(
+            (subset.squared_gain - true_squared_gain).abs() < 3.0 * subset.squared_gain_sigma,
+            "{subset:?}"
+        );
+        assert!(subset.favours_complex(), "{subset:?}");
+        assert!(!all.favours_complex(), "{all:?}");
     }
 
     #[test]

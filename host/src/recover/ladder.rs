@@ -75,10 +75,9 @@ fn best_rung(
     cache: &GroupCache,
     kind: Kind,
     diffuse: GroupModel,
-    spp: u32,
+    group_spp: u32,
 ) -> Result<(Option<Rung>, Vec<Rung>, u32), Error> {
-    let pixels = pixels::of_group(&rec.pure, g);
-    let spp = min_samples_spp(spp, pixels.len() as u32, LADDER_SAMPLES);
+    let (pixels, spp) = rec.decision_pixels(g, group_spp);
     let seed = rec.seed ^ 0x001A_DDE2 ^ g as u64;
     let before = rec.models[g];
     rec.models[g] = diffuse;
@@ -237,7 +236,8 @@ pub fn second_look(
     spp: u32,
     proposal: Option<fit::ModelComparison>,
 ) -> Result<SecondLook, Error> {
-    let (rung, measured, mut evaluations) = best_rung(rec, g, cache, kind, diffuse, spp)?;
+    let group_spp = ladder_spp(rec, g, spp);
+    let (rung, measured, mut evaluations) = best_rung(rec, g, cache, kind, diffuse, group_spp)?;
     let Some(rung) = rung.filter(|r| r.squared_gain > 0.0) else {
         return Ok(SecondLook {
             found: Err(format!(
@@ -269,7 +269,7 @@ pub fn second_look(
         spread.specularity.0,
         spread.specularity.1,
     );
-    let test = rec.compare_models(g, diffuse, rung.model, rung.spp)?;
+    let test = rec.compare_models(g, diffuse, rung.model, group_spp)?;
     evaluations += 2;
     Ok(SecondLook {
         found: match test {
@@ -283,6 +283,14 @@ pub fn second_look(
         },
         evaluations,
     })
+}
+
+/// Samples per pixel of the whole group `g` for its ladder's renders, from the loop's
+/// `spp`: at least [`LADDER_SAMPLES`] in all (rendered on the decisions' pixels,
+/// `Recovery::decision_pixels`).
+fn ladder_spp(rec: &Recovery, g: usize, spp: u32) -> u32 {
+    let pixels = pixels::of_group(&rec.pure, g).len() as u32;
+    min_samples_spp(spp, pixels, LADDER_SAMPLES)
 }
 
 /// Whether stage 2 gives group `g` a second look: its diffuse error (stage 1's) leaves

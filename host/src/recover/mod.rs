@@ -484,8 +484,29 @@ impl Recovery {
         self.seed ^ 0x5E1F
     }
 
+    /// The pixels a decision about group `g` renders and their samples per pixel, for
+    /// `spp` samples per pixel of the whole group: a large group's fixed search subset
+    /// (`refine::search_subset`, at most `MAX_SEARCH_PIXELS`) with as many pixel samples
+    /// in all, concentrated on fewer pixels. A comparison's noise is a product of two
+    /// renders' noises per pixel, whose variance falls with the square of the samples per
+    /// pixel, so at the same cost a subset reads far steadier: on glossy at 256 px, the
+    /// steel box (6472 pixels) read its lobe against a perfect mirror as -0.064 +- 0.073
+    /// at 32 spp on all its pixels (and became a mirror by default), and 0.199 +- 0.0026
+    /// at 224 spp on 925 of them for the lobe against the diffuse model, where all its
+    /// pixels gave +- 0.021.
+    fn decision_pixels(&self, g: usize, spp: u32) -> (Vec<PurePixel>, u32) {
+        let all = pixels::of_group(&self.pure, g).len() as u64;
+        let subset = refine::search_subset(&self.pure, g);
+        let samples = all * spp as u64;
+        let spp = samples
+            .div_ceil(subset.len().max(1) as u64)
+            .min(u32::MAX as u64) as u32;
+        (subset, spp)
+    }
+
     /// What a stage decides on for group `g`: the `simple` model against the `complex` one
-    /// on all the group's pure pixels, both with bias-only errors (see
+    /// on the group's pure pixels ([`Recovery::decision_pixels`], at `spp` samples per
+    /// pixel of the whole group), both with bias-only errors (see
     /// [`pixels::evaluate_cross`]) on the decisions' own seed, paired pixel by pixel
     /// ([`fit::ModelComparison`]), from `spp` samples per pixel up while the comparison is
     /// promising or unresolved ([`fit::DECISION_SPP_GROWTH`]). A subtracted variance
@@ -499,8 +520,7 @@ impl Recovery {
         complex: GroupModel,
         spp: u32,
     ) -> Result<Option<(fit::ModelComparison, u32)>, Error> {
-        let pixels = pixels::of_group(&self.pure, g);
-        let mut spp = spp;
+        let (pixels, mut spp) = self.decision_pixels(g, spp);
         let mut round = 0;
         loop {
             let seed = self.decision_seed() ^ ((round as u64) << 32);
