@@ -41,6 +41,33 @@ fn recover_small_reference(
     (tmp, out, rows)
 }
 
+/// Group `name`'s entry in the report.json of the recovery in `out`.
+fn group_report(out: &std::path::Path, name: &str) -> serde_json::Value {
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    report["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|g| g["group"] == name)
+        .unwrap_or_else(|| panic!("no group {name} in the report"))
+        .clone()
+}
+
+/// The first of a group report's comparisons that `matches`.
+fn comparison(
+    group: &serde_json::Value,
+    matches: impl Fn(&serde_json::Value) -> bool,
+) -> serde_json::Value {
+    group["comparisons"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| matches(c))
+        .unwrap_or_else(|| panic!("no such comparison in {group}"))
+        .clone()
+}
+
 /// The same scene and seed give the same materials.toml bytes on 1 and 2 threads, and the
 /// committed golden (regenerate with RELUME_UPDATE_GOLDEN=1, and say why in the commit).
 #[test]
@@ -233,10 +260,7 @@ fn glossy_small_finds_the_yellow_boxs_weak_broad_lobe() {
         "{yellow:?}"
     );
     assert!(yellow.specularity_rel_err.unwrap() <= 0.5, "{yellow:?}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    let groups = report["groups"].as_array().unwrap();
-    let yellow_report = groups.iter().find(|g| g["group"] == "box_yellow").unwrap();
+    let yellow_report = group_report(&out, "box_yellow");
     assert_eq!(
         yellow_report["lobe_from_ladder"], true,
         "{:?}",
@@ -272,17 +296,9 @@ fn living_room_small_gives_its_15_pixel_frames_their_lobe() {
     assert!(frames.class_ok, "{frames:?}");
     assert!(frames.specularity_rel_err.unwrap() <= 0.25, "{frames:?}");
     assert!(frames.roughness_rel_err.unwrap() <= 0.25, "{frames:?}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    let groups = report["groups"].as_array().unwrap();
-    let frames_report = groups.iter().find(|g| g["group"] == "frames").unwrap();
+    let frames_report = group_report(&out, "frames");
     assert_eq!(frames_report["pure_pixels"], 15);
-    let kept = frames_report["comparisons"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|c| c["kept_complex"] == true)
-        .unwrap();
+    let kept = comparison(&frames_report, |c| c["kept_complex"] == true);
     let needed = kept["z_needed"].as_f64().unwrap();
     assert!((needed - 3.59).abs() < 0.01, "{kept:?}");
     assert!(kept["z"].as_f64().unwrap() >= needed, "{kept:?}");
@@ -311,17 +327,9 @@ fn glossy_at_256_px_decides_its_steel_box_on_a_subset_and_keeps_its_lobe() {
     assert!(steel.class_ok, "{steel:?}");
     assert!(steel.specularity_rel_err.unwrap() <= 0.25, "{steel:?}");
     assert!(steel.roughness_rel_err.unwrap() <= 0.5, "{steel:?}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    let groups = report["groups"].as_array().unwrap();
-    let steel_report = groups.iter().find(|g| g["group"] == "metal_steel").unwrap();
+    let steel_report = group_report(&out, "metal_steel");
     assert_eq!(steel_report["pure_pixels"], 6472);
-    let kept = steel_report["comparisons"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|c| c["stage"] == "2 isotropic")
-        .unwrap();
+    let kept = comparison(&steel_report, |c| c["stage"] == "2 isotropic");
     // On the subset (t's critical value for at most 1024 pixels is above 3.005), at the
     // samples all 6472 pixels would have had at 32 spp, and steady.
     assert!(kept["z_needed"].as_f64().unwrap() > 3.005, "{kept:?}");
