@@ -305,39 +305,60 @@ fn living_room_small_gives_its_15_pixel_frames_their_lobe() {
 }
 
 /// At 256 px glossy's steel box (roughness 0.14) has 6472 pure pixels. Measured on all of
-/// them at the test's 32 spp, its lobe against a perfect mirror read -0.064 +- 0.073 and
-/// the box became a mirror by default; a large group is now decided on its search subset
-/// with the same samples concentrated there, where the noise of a specular render, a
-/// product of two renders' noises per pixel, falls with the square of the samples per
-/// pixel. (The one full-resolution reference in the suite: about 2 minutes on 2 cores.)
+/// them at the test's 32 spp, its lobe against a perfect mirror read -0.064 +- 0.073 on
+/// seed 1 and the box became a mirror by default; a large group is now decided on its
+/// search subset with the same samples concentrated there, where the noise of a specular
+/// render, a product of two renders' noises per pixel, falls with the square of the
+/// samples per pixel. On seed 3 that still read 0.036 +- 0.044, and the box stayed a
+/// mirror until an unresolved test could take one more round on the subset
+/// (`fit::UNRESOLVED_MAX_SAMPLES`). (The suite's full-resolution recoveries: about 2
+/// minutes each on 2 cores.)
 #[test]
 fn glossy_at_256_px_decides_its_steel_box_on_a_subset_and_keeps_its_lobe() {
+    for seed in ["1", "3"] {
+        steel_box_at_256_px_keeps_its_lobe(seed);
+    }
+}
+
+fn steel_box_at_256_px_keeps_its_lobe(seed: &str) {
     let bench = shared().join("bench").join("glossy");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("rec");
     recover(
         &bench.join("scene.toml"),
         &out,
-        &["--effort", "fast", "--seed", "1"],
+        &["--effort", "fast", "--seed", seed],
     );
     let rows =
         relume::compare::materials_report(&bench.join("truth.toml"), &out.join("materials.toml"))
             .unwrap();
     let steel = rows.iter().find(|r| r.group == "metal_steel").unwrap();
-    assert!(steel.class_ok, "{steel:?}");
-    assert!(steel.specularity_rel_err.unwrap() <= 0.25, "{steel:?}");
-    assert!(steel.roughness_rel_err.unwrap() <= 0.5, "{steel:?}");
+    assert!(steel.class_ok, "seed {seed}: {steel:?}");
+    assert!(
+        steel.specularity_rel_err.unwrap() <= 0.25,
+        "seed {seed}: {steel:?}"
+    );
+    assert!(
+        steel.roughness_rel_err.unwrap() <= 0.5,
+        "seed {seed}: {steel:?}"
+    );
     let steel_report = group_report(&out, "metal_steel");
     assert_eq!(steel_report["pure_pixels"], 6472);
     let kept = comparison(&steel_report, |c| c["stage"] == "2 isotropic");
     // On the subset (t's critical value for at most 1024 pixels is above 3.005), at the
     // samples all 6472 pixels would have had at 32 spp, and steady.
-    assert!(kept["z_needed"].as_f64().unwrap() > 3.005, "{kept:?}");
+    assert!(
+        kept["z_needed"].as_f64().unwrap() > 3.005,
+        "seed {seed}: {kept:?}"
+    );
     let spp = kept["samples_per_pixel"].as_u64().unwrap();
-    assert!(spp * 925 >= 32 * 6472, "{kept:?}");
-    assert!(kept["gain_sigma"].as_f64().unwrap() < 0.01, "{kept:?}");
+    assert!(spp * 925 >= 32 * 6472, "seed {seed}: {kept:?}");
+    assert!(
+        kept["gain_sigma"].as_f64().unwrap() < 0.01,
+        "seed {seed}: {kept:?}"
+    );
     for diffuse in ["floor", "ceiling", "walls_warm", "walls_cool"] {
         let row = rows.iter().find(|r| r.group == diffuse).unwrap();
-        assert!(row.class_ok, "{row:?}");
+        assert!(row.class_ok, "seed {seed}: {row:?}");
     }
 }
