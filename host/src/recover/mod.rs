@@ -452,17 +452,24 @@ impl Recovery {
     /// The pixel samples in all of group `g`'s transport cache at `base_spp` (see
     /// [`Recovery::group_cache`]): what its lobe's estimate saw.
     fn cache_samples(&self, g: usize, base_spp: u32) -> u64 {
-        let pixels = refine::search_subset(&self.pure, g).len() as u32;
+        let pixels = self.cache_subset(g).len() as u32;
         pixels as u64 * min_samples_spp(base_spp, pixels, CACHE_MIN_SAMPLES) as u64
     }
 
-    /// The transport cache of group `g` under the current models: over the search's
-    /// fixed subset of its pure pixels (`refine::search_subset`: as many as the renders
-    /// of its searches see), at `base`'s samples per pixel or more, so that it holds at
-    /// least [`CACHE_MIN_SAMPLES`] pixel samples.
+    /// The pixels of group `g`'s transport cache: every k-th of the search's fixed subset
+    /// (`refine::search_subset`), at most [`MAX_CACHE_PIXELS`].
+    fn cache_subset(&self, g: usize) -> Vec<PurePixel> {
+        let subset = refine::search_subset(&self.pure, g);
+        let stride = subset.len().div_ceil(MAX_CACHE_PIXELS).max(1);
+        subset.into_iter().step_by(stride).collect()
+    }
+
+    /// The transport cache of group `g` under the current models: over
+    /// [`Recovery::cache_subset`], at `base`'s samples per pixel or more, so that it holds
+    /// at least [`CACHE_MIN_SAMPLES`] pixel samples.
     fn group_cache(&mut self, g: usize, base: &RenderSettings) -> Result<cache::GroupCache, Error> {
         self.apply_models();
-        let subset = refine::search_subset(&self.pure, g);
+        let subset = self.cache_subset(g);
         let settings = RenderSettings {
             spp: min_samples_spp(base.spp, subset.len() as u32, CACHE_MIN_SAMPLES),
             ..*base
@@ -709,6 +716,18 @@ const METAL_POLISH_MIN_SAMPLES: u64 = 1 << 16;
 /// room's 20-pixel statue: specularity 0.85 and roughness 0.15 against a true 0.9 and
 /// 0.1; 0.92 and 0.10 at this many samples).
 const CACHE_MIN_SAMPLES: u64 = 1 << 16;
+
+/// A group's transport cache holds at most this many of its pixels, so that its
+/// [`CACHE_MIN_SAMPLES`] are at least 128 per pixel. The cache's fits are least squares
+/// through the origin on each pixel's estimated parts, and a part's sampling noise biases
+/// them (a noisy regressor's coefficient comes out scaled by about `1 / (1 + var / D^2)`):
+/// on 1024 pixels at 64 spp, at 256 px per face, glossy's metals were proposed 7-13% off
+/// in specularity and the living room's floor, walls and ceiling came out 2.5-8% dark. At
+/// 512 pixels and 128 spp the metals are 3-4% off; at 256 pixels and 256 spp 1-2%, but a
+/// quarter of the pixels loses what only some of them show (the textured checker's
+/// anisotropy at 256 px, the steel box's roughness at 64 px). docs/recovery.md, "The
+/// cache on fewer pixels".
+const MAX_CACHE_PIXELS: usize = 512;
 
 /// The kinds of lobe a group of `kind` is fitted with, simpler first.
 fn lobe_kinds(kind: GroupKind) -> &'static [Kind] {
