@@ -459,9 +459,7 @@ impl Recovery {
     /// The pixels of group `g`'s transport cache: every k-th of the search's fixed subset
     /// (`refine::search_subset`), at most [`MAX_CACHE_PIXELS`].
     fn cache_subset(&self, g: usize) -> Vec<PurePixel> {
-        let subset = refine::search_subset(&self.pure, g);
-        let stride = subset.len().div_ceil(MAX_CACHE_PIXELS).max(1);
-        subset.into_iter().step_by(stride).collect()
+        pixels::every_kth(refine::search_subset(&self.pure, g), MAX_CACHE_PIXELS)
     }
 
     /// The transport cache of group `g` under the current models: over

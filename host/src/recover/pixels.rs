@@ -85,6 +85,13 @@ pub fn spread_subset(pure: &[PurePixel], n_groups: usize, limit: usize) -> Vec<P
         .collect()
 }
 
+/// Every k-th of `pixels`, from the first, with k the smallest stride that leaves at most
+/// `at_most` (all of them when they are no more).
+pub fn every_kth(pixels: Vec<PurePixel>, at_most: usize) -> Vec<PurePixel> {
+    let stride = pixels.len().div_ceil(at_most.max(1)).max(1);
+    pixels.into_iter().step_by(stride).collect()
+}
+
 /// Every pure pixel of every view, in view and row order, and the views that see none.
 pub fn find_pure_pixels(
     pool: &rayon::ThreadPool,

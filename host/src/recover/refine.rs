@@ -51,9 +51,7 @@ pub const MAX_SEARCH_PIXELS: usize = 1024;
 
 /// Every `k`-th pure pixel of group `g`, so that at most [`MAX_SEARCH_PIXELS`] remain.
 pub(super) fn search_subset(pure: &[PurePixel], g: usize) -> Vec<PurePixel> {
-    let of_g = super::pixels::of_group(pure, g);
-    let stride = of_g.len().div_ceil(MAX_SEARCH_PIXELS).max(1);
-    of_g.into_iter().step_by(stride).collect()
+    super::pixels::every_kth(super::pixels::of_group(pure, g), MAX_SEARCH_PIXELS)
 }
 
 /// What the search found.
