@@ -530,10 +530,22 @@ mod tests {
         bias: f64,
         noise: f64,
     ) -> std::vec::Vec<PairedTerms> {
+        independent_models(rng, pixels, bias, bias, noise)
+    }
+
+    /// `pixels` pixels' terms for models of relative bias `simple` and `complex`, each
+    /// under its own independent noise (the pairing cancels nothing).
+    fn independent_models(
+        rng: &mut crate::rng::Sampler,
+        pixels: usize,
+        simple: f64,
+        complex: f64,
+        noise: f64,
+    ) -> std::vec::Vec<PairedTerms> {
         (0..pixels)
             .map(|_| {
-                let mut t = paired(rng, bias, bias, noise);
-                t.complex = paired(rng, bias, bias, noise).complex;
+                let mut t = paired(rng, simple, complex, noise);
+                t.complex = paired(rng, simple, complex, noise).complex;
                 t
             })
             .collect()
@@ -561,14 +573,7 @@ mod tests {
     fn fewer_pixels_at_more_samples_each_read_a_gain_more_steadily_at_the_same_cost() {
         let mut rng = crate::rng::Sampler::from_key(9);
         let mut measure = |pixels: usize, noise: f64| {
-            let terms: std::vec::Vec<PairedTerms> = (0..pixels)
-                .map(|_| {
-                    // Each model on samples of its own: the pairing cancels nothing.
-                    let mut t = paired(&mut rng, 0.20, 0.10, noise);
-                    t.complex = paired(&mut rng, 0.20, 0.10, noise).complex;
-                    t
-                })
-                .collect();
+            let terms = independent_models(&mut rng, pixels, 0.20, 0.10, noise);
             ModelComparison::from_cross_terms(terms.into_iter(), pixels as f64).unwrap()
         };
         // 6400 pixels whose quarter-renders have a relative noise of 1, against 800 of
