@@ -77,7 +77,7 @@ impl LinearSums {
 }
 
 /// The best reflectances for one roughness.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct WardFit {
     /// RADIANCE colour (a1 a2 a3).
     pub color: [f64; 3],

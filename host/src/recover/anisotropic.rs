@@ -15,9 +15,11 @@ use glam::Vec3;
 use rayon::prelude::*;
 use relume_core::anneal::Annealer;
 use relume_core::geometry::Surface;
-use relume_core::material::{Kind, Material};
-use relume_core::nelder_mead::NelderMead;
-use relume_core::stages::isotropic::{self, WardFit, ROUGHNESS_MAX, ROUGHNESS_MIN};
+use relume_core::material::Kind;
+use relume_core::stages::anisotropic::{
+    self as stage, lobe_at, shape_bounds, unit_lobe, Proposal, Shape,
+};
+use relume_core::stages::isotropic::{self, WardFit};
 
 use super::cache::{self, GroupCache};
 use super::model::GroupModel;
@@ -28,7 +30,8 @@ use super::refine::{
 use super::Recovery;
 use crate::error::Error;
 
-/// Two unit tangents of the group's largest triangle (`None` for a group of no area).
+/// Two unit tangents of the group's largest triangle (`None` for a group of no area): the
+/// plane its lobe directions turn in.
 pub fn tangent_basis(rec: &Recovery, g: usize) -> Option<(Vec3, Vec3)> {
     let largest = rec
         .owned
@@ -36,125 +39,31 @@ pub fn tangent_basis(rec: &Recovery, g: usize) -> Option<(Vec3, Vec3)> {
         .iter()
         .filter(|t| t.surface == Surface::Group(g as u16))
         .max_by(|a, b| a.area().total_cmp(&b.area()))?;
-    let n = largest.normal_area2().try_normalize()?;
-    let t = (largest.v[1] - largest.v[0]).try_normalize()?;
-    Some((t, n.cross(t)))
+    stage::tangent_basis(largest)
 }
 
-/// Log-spaced roughness levels of the cache proposal's grid (pairs with u <= v).
-const PROPOSAL_ROUGHNESS_GRID: usize = 6;
-/// Direction angles of the grid, over [0, pi).
-const PROPOSAL_ANGLE_GRID: usize = 8;
-/// Nelder-Mead evaluations after the grid.
-const PROPOSAL_REFINE_EVALUATIONS: u32 = 80;
-
-/// Bounds of a lobe shape's search (log roughness_u, log roughness_v, angle): the angle
-/// may leave [0, pi) by up to a half turn, so that no search stalls at 0.
-fn shape_bounds() -> ([f64; 3], [f64; 3]) {
-    let (lo, hi) = (ROUGHNESS_MIN.ln(), ROUGHNESS_MAX.ln());
-    (
-        [lo, lo, -std::f64::consts::FRAC_PI_2],
-        [hi, hi, 1.5 * std::f64::consts::PI],
-    )
-}
-
-/// The shapes of the cache proposal's grid: log-spaced roughness levels with `u <= v` (a
-/// shape with `u > v` is the same lobe turned by pi/2) at every angle. The first angle's
-/// `u == v` points are the isotropic lobes of the same levels.
-pub fn proposal_grid() -> Vec<[f64; 3]> {
-    let (lo, hi) = (ROUGHNESS_MIN.ln(), ROUGHNESS_MAX.ln());
-    let level = |i: usize| lo + (hi - lo) * i as f64 / (PROPOSAL_ROUGHNESS_GRID - 1) as f64;
-    let angle = |k: usize| std::f64::consts::PI * k as f64 / PROPOSAL_ANGLE_GRID as f64;
-    let mut grid = Vec::new();
-    for i in 0..PROPOSAL_ROUGHNESS_GRID {
-        for j in i..PROPOSAL_ROUGHNESS_GRID {
-            for k in 0..PROPOSAL_ANGLE_GRID {
-                grid.push([level(i), level(j), angle(k)]);
-            }
-        }
-    }
-    grid
-}
-
-/// The unit specular lobe (`rho_s = 1`, no diffuse part) of shape `x` (see [`lobe_at`]),
-/// for the cache's linear parts.
-pub fn unit_lobe(x: [f64; 3], basis: (Vec3, Vec3)) -> Material {
-    let (alpha_u, alpha_v, direction) = lobe_at(x, basis);
-    Material::WardAnisotropic {
-        rho_d: Vec3::ZERO,
-        rho_s: Vec3::ONE,
-        alpha_u: alpha_u as f32,
-        alpha_v: alpha_v as f32,
-        direction,
-    }
-}
-
-/// The anisotropic lobe of roughnesses `(exp x0, exp x1)`, `x2` the angle of its `u`
-/// direction from `t` towards `b`.
-fn lobe_at(x: [f64; 3], (t, b): (Vec3, Vec3)) -> (f64, f64, Vec3) {
-    let (sin, cos) = x[2].sin_cos();
-    (x[0].exp(), x[1].exp(), t * cos as f32 + b * sin as f32)
-}
-
-/// Stage 4's proposal from the group's transport cache, as stage 2's is: for each lobe
-/// shape (log roughness_u, log roughness_v, angle) the best colour and specularity in
-/// closed form (`isotropic::solve_plastic` / `solve_metal`, which hold for any unit lobe),
-/// the shape by a grid (u <= v: a shape with u > v is the same lobe turned by pi/2), then
-/// Nelder-Mead from the best grid point. Unlike the paper, colour and specularity are not
-/// kept from stage 2: an isotropic lobe fitted to an anisotropic highlight takes a biased
-/// specularity (the living room's brushed plate: 0.44 against a true 0.9), under which no
-/// anisotropic shape fits. Returns the proposal and the evaluations spent.
+/// Stage 4's proposal from the group's transport cache (`stage::propose`): every shape's
+/// colour and specularity in closed form on the cache, the grid's shapes measured in
+/// parallel. Returns the proposal and the evaluations spent.
 pub fn propose_from_cache(
     pool: &rayon::ThreadPool,
     cache: &GroupCache,
     kind: Kind,
     basis: (Vec3, Vec3),
 ) -> Result<(Proposal, u32), Error> {
-    let fit_at = |x: [f64; 3]| {
-        let sums = cache::linear_sums(pool, cache, &unit_lobe(x, basis));
-        let fit = isotropic::solve(kind, &sums);
-        Proposal { fit, x }
-    };
-    let grid = proposal_grid();
-    // The grid's points in parallel (a point's sums split a small group's few pixels no
-    // further than pixel by pixel), chosen in grid order: the same proposal as one at a
-    // time.
-    let fits: Vec<Proposal> = pool.install(|| grid.par_iter().map(|&x| fit_at(x)).collect());
-    let mut evaluations = fits.len() as u32;
-    let offer = |p: Proposal, best: &mut Proposal| {
-        if p.fit.sse < best.fit.sse {
-            *best = p;
-        }
-    };
-    let mut best = fits[0];
-    for &p in &fits[1..] {
-        offer(p, &mut best);
-    }
-    let (lower, upper) = shape_bounds();
-    let mut search = NelderMead::new(
-        lower,
-        upper,
-        best.x,
-        best.fit.sse,
-        PROPOSAL_REFINE_EVALUATIONS,
-        0.05,
-    )
-    .map_err(|e| Error::core("stage 4 proposal", e))?;
-    while !search.is_done() {
-        evaluations += 1;
-        let p = fit_at(search.propose());
-        search.tell(p.fit.sse);
-        offer(p, &mut best);
-    }
-    Ok((best, evaluations))
-}
-
-/// A lobe shape on the cache and its closed-form reflectances.
-#[derive(Clone, Copy, Debug)]
-pub struct Proposal {
-    pub fit: WardFit,
-    /// (log roughness_u, log roughness_v, angle of `u` from the basis' first tangent).
-    pub x: [f64; 3],
+    let fit_at =
+        |x: Shape| isotropic::solve(kind, &cache::linear_sums(pool, cache, &unit_lobe(x, basis)));
+    let grid = stage::proposal_grid();
+    // A point's sums split a small group's few pixels no further than pixel by pixel, so
+    // the grid's points run in parallel too; each fit is the same as one at a time.
+    let mut grid_fits = [WardFit::default(); stage::GRID_SHAPES];
+    pool.install(|| {
+        grid_fits
+            .par_iter_mut()
+            .zip(grid.par_iter())
+            .for_each(|(fit, &x)| *fit = fit_at(x))
+    });
+    stage::propose(&grid_fits, fit_at).map_err(|e| Error::core("stage 4 proposal", e))
 }
 
 /// The anisotropic model of `proposal`'s reflectances and lobe `x`.
@@ -283,78 +192,99 @@ fn search_and_race<const D: usize>(
 mod tests {
     use super::*;
     use crate::recover::pixels::PurePixel;
-    use relume_core::transport::{self, IncidentSample};
+    use relume_core::material::Material;
+    use relume_core::rng::Sampler;
+    use relume_core::transport::{self, IncidentSample, INCIDENT_PER_SAMPLE};
 
-    /// A flat group (normal +z) whose pixels see a small bright source from many
-    /// viewing directions: its highlight's shape is what tells the lobe apart.
-    fn synthetic_cache(truth: &Material) -> GroupCache {
-        let n = Vec3::Z;
-        let source = Vec3::new(0.3, -0.2, 1.0).normalize();
-        let samples = 64u32;
+    /// A flat group (normal +z) lit by a bright patch, viewed from scattered directions
+    /// around its mirror direction, the incident samples at random in a cone about it;
+    /// the pixels rendered exactly under an anisotropic metal.
+    fn synthetic_cache() -> GroupCache {
+        let truth = Material::WardAnisotropic {
+            rho_d: Vec3::splat(0.07),
+            rho_s: Vec3::new(0.7, 0.65, 0.5),
+            alpha_u: 0.04,
+            alpha_v: 0.15,
+            direction: Vec3::new(0.8, 0.6, 0.0),
+        };
+        let source = Vec3::new(-0.2, 0.4, 1.0).normalize();
+        let samples = 48u32;
         let (mut pixels, mut real, mut entries) = (Vec::new(), Vec::new(), Vec::new());
-        for i in 0..12u32 {
-            for j in 0..12u32 {
-                let (x, y) = (i as f32 / 11.0 - 0.5, j as f32 / 11.0 - 0.5);
-                // Viewed around the mirror direction of the source.
-                let wo = Vec3::new(-source.x + 0.5 * x, -source.y + 0.5 * y, source.z).normalize();
-                let mut pixel = Vec::new();
-                for k in 0..samples * 2 {
-                    let (a, b) = ((k % 16) as f32 / 15.0 - 0.5, (k / 16) as f32 / 7.0 - 0.5);
-                    let wi = (source + Vec3::new(0.4 * a, 0.4 * b, 0.0)).normalize();
-                    let spot = libm::expf(-(wi - source).length_squared() / 0.01);
-                    pixel.push(IncidentSample {
+        for p in 0..150u32 {
+            let mut rng = Sampler::from_key(0x5EED ^ p as u64);
+            let [x, y] = rng.next_2d();
+            let wo = Vec3::new(
+                -source.x + 0.6 * (x - 0.5),
+                -source.y + 0.6 * (y - 0.5),
+                source.z,
+            )
+            .normalize();
+            let pixel: Vec<IncidentSample> = (0..samples as usize * INCIDENT_PER_SAMPLE)
+                .map(|_| {
+                    let [a, b] = rng.next_2d();
+                    let wi =
+                        (source + Vec3::new(0.5 * (a - 0.5), 0.5 * (b - 0.5), 0.0)).normalize();
+                    let bright = if (wi - source).length() < 0.08 {
+                        6.0
+                    } else {
+                        0.3
+                    };
+                    IncidentSample {
                         wo,
-                        n,
+                        n: Vec3::Z,
                         wi,
-                        weight: Vec3::splat(0.2 + 5.0 * spot),
+                        weight: Vec3::splat(bright),
                         uv: [0.0, 0.0],
-                    });
-                }
-                real.push(transport::shade(&pixel, samples, truth, None));
-                entries.extend(pixel);
-                pixels.push(PurePixel {
-                    view: 0,
-                    x: i,
-                    y: j,
-                    group: 0,
-                });
-            }
+                    }
+                })
+                .collect();
+            real.push(transport::shade(&pixel, samples, &truth, None));
+            entries.extend(pixel);
+            pixels.push(PurePixel {
+                view: 0,
+                x: p,
+                y: 0,
+                group: 0,
+            });
         }
         GroupCache::new(pixels, real, entries, samples)
     }
 
-    #[test]
-    fn the_cache_proposal_recovers_an_anisotropic_metal_lobe_and_its_direction() {
-        let (color, s) = (Vec3::new(0.75, 0.76, 0.78), 0.9);
-        let direction = Vec3::new(1.0, 1.0, 0.0).normalize();
-        let truth = Material::WardAnisotropic {
-            rho_d: color * (1.0 - s),
-            rho_s: color * s,
-            alpha_u: 0.05,
-            alpha_v: 0.2,
-            direction,
-        };
-        let cache = synthetic_cache(&truth);
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
             .build()
-            .unwrap();
-        let (p, evaluations) =
-            propose_from_cache(&pool, &cache, Kind::Metal, (Vec3::X, Vec3::Y)).unwrap();
-        assert!(evaluations > 100);
-        let (u, v, d) = lobe_at(p.x, (Vec3::X, Vec3::Y));
-        // The proposal may name the lobe with u and v swapped and d turned by 90 degrees.
-        let (u, v, d) = if u <= v {
-            (u, v, d)
-        } else {
-            (v, u, Vec3::Z.cross(d))
+            .unwrap()
+    }
+
+    #[test]
+    fn the_cache_proposal_is_the_cores_on_the_caches_sums_for_any_thread_count() {
+        let cache = synthetic_cache();
+        let basis = (Vec3::X, Vec3::Y);
+        let one = propose_from_cache(&pool(1), &cache, Kind::Metal, basis).unwrap();
+        let two = propose_from_cache(&pool(2), &cache, Kind::Metal, basis).unwrap();
+        assert_eq!(one, two);
+        // The same, one shape at a time through the core.
+        let sequential = pool(1);
+        let fit_at = |x: Shape| {
+            isotropic::solve(
+                Kind::Metal,
+                &cache::linear_sums(&sequential, &cache, &unit_lobe(x, basis)),
+            )
         };
-        assert!((u / 0.05 - 1.0).abs() < 0.05, "{p:?}");
-        assert!((v / 0.2 - 1.0).abs() < 0.05, "{p:?}");
-        let off = libm::acosf(d.dot(direction).abs().min(1.0)).to_degrees();
-        assert!(off < 3.0, "direction {off} degrees off: {p:?}");
-        assert!((p.fit.specularity - 0.9).abs() < 0.02, "{p:?}");
-        assert!(p.fit.relative_error < 0.01, "{p:?}");
+        let grid = stage::proposal_grid();
+        let grid_fits = std::array::from_fn(|i| fit_at(grid[i]));
+        assert_eq!(one, stage::propose(&grid_fits, fit_at).unwrap());
+        // And it found the lobe: far below the diffuse model's error.
+        let diffuse = isotropic::solve_diffuse(&cache::linear_sums(
+            &sequential,
+            &cache,
+            &unit_lobe(grid[0], basis),
+        ));
+        assert!(
+            one.0.fit.relative_error < 0.1 * diffuse.relative_error,
+            "{one:?} against {diffuse:?}"
+        );
     }
 
     #[test]

@@ -24,9 +24,9 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use relume_core::material::{Kind, Material};
+use relume_core::stages::anisotropic;
 use relume_core::stages::isotropic::{self, LinearSums, WardFit};
 
-use super::anisotropic;
 use super::cache::GroupCache;
 use super::model::MapLobe;
 use super::pixels;

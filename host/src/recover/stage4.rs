@@ -9,6 +9,7 @@ use std::time::Instant;
 use relume_core::fit;
 use relume_core::material::Kind;
 use relume_core::render::RenderSettings;
+use relume_core::stages::anisotropic::Proposal;
 
 use super::model::GroupModel;
 use super::{
@@ -103,7 +104,7 @@ pub(super) fn run(
         // The anisotropic side as stage 2 found the isotropic one: the cache proposes
         // (reflectances in closed form, the lobe by grid and simplex), annealing on
         // renders refines, a race on fresh samples chooses.
-        let mut best: Option<(anisotropic::Proposal, Kind)> = None;
+        let mut best: Option<(Proposal, Kind)> = None;
         for &kind in &kinds_to_try {
             let (proposal, n) = anisotropic::propose_from_cache(&rec.pool, &cache, kind, basis)?;
             evaluations += n;
