@@ -347,7 +347,10 @@ mod tests {
 
     #[test]
     fn is_deterministic() {
-        let f = |p: &[f64; 3]| (p[0] - 0.1).abs() + (p[1] * p[2] - 0.2).powi(2) + p[2] * p[2];
+        let f = |p: &[f64; 3]| {
+            let d = p[1] * p[2] - 0.2;
+            (p[0] - 0.1).abs() + d * d + p[2] * p[2]
+        };
         let a = run(f, [-1.0; 3], [1.0; 3], [0.5; 3], 150);
         let b = run(f, [-1.0; 3], [1.0; 3], [0.5; 3], 150);
         assert_eq!(a, b);

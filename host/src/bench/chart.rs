@@ -87,8 +87,8 @@ impl Scale {
                 .unwrap_or(if axis.log { (1.0, 10.0) } else { (0.0, 1.0) }),
         };
         if axis.log {
-            let lo = min.log10().floor();
-            let hi = max.log10().ceil();
+            let lo = libm::log10(min).floor();
+            let hi = libm::log10(max).ceil();
             return Scale {
                 lo,
                 hi: if hi > lo { hi } else { lo + 1.0 },
@@ -124,7 +124,7 @@ impl Scale {
         if !v.is_finite() || (self.log && v <= 0.0) {
             return None;
         }
-        let u = if self.log { v.log10() } else { v };
+        let u = if self.log { libm::log10(v) } else { v };
         Some((u - self.lo) / (self.hi - self.lo))
     }
 
@@ -135,7 +135,7 @@ impl Scale {
             let mut ticks = Vec::new();
             let mut k = self.lo;
             while k <= self.hi + 1e-9 {
-                let decade = 10f64.powf(k);
+                let decade = libm::pow(10.0, k);
                 ticks.push(decade);
                 if few && k < self.hi - 1e-9 {
                     ticks.extend([2.0 * decade, 5.0 * decade]);
@@ -154,7 +154,7 @@ impl Scale {
 /// A step of 1, 2 or 5 times a power of ten that cuts `span` into about five parts.
 fn nice_step(span: f64) -> f64 {
     let raw = (span / 5.0).max(f64::MIN_POSITIVE);
-    let magnitude = 10f64.powf(raw.log10().floor());
+    let magnitude = libm::pow(10.0, libm::log10(raw).floor());
     let unit = [1.0, 2.0, 5.0, 10.0]
         .into_iter()
         .find(|&u| u * magnitude >= raw * (1.0 - 1e-9))
@@ -168,8 +168,8 @@ fn tick_label(v: f64, percent: bool) -> String {
     if v == 0.0 {
         return if percent { "0%".into() } else { "0".into() };
     }
-    let digits = 5 - v.abs().log10().floor() as i32;
-    let scale = 10f64.powi(digits.clamp(-300, 300));
+    let digits = 5 - libm::log10(v.abs()).floor() as i32;
+    let scale = libm::pow(10.0, digits.clamp(-300, 300) as f64);
     let rounded = (v * scale).round() / scale;
     if percent {
         format!("{rounded}%")

@@ -40,7 +40,8 @@ const SPECULARITY_MAX: f64 = 1.0;
 /// own noise chooses what the pixels show, not what the dice did.
 pub(super) fn pessimistic_cost(estimate: Option<fit::ErrorEstimate>) -> f64 {
     estimate.map_or(f64::INFINITY, |e| {
-        (e.error + fit::EXCEEDS_SIGMAS * e.sigma).powi(2)
+        let pessimistic = e.error + fit::EXCEEDS_SIGMAS * e.sigma;
+        pessimistic * pessimistic
     })
 }
 

@@ -109,7 +109,7 @@ pub fn texture_contrast(
     let log_ratio = |i: usize, r: Vec3| {
         let real = lum(pixels::real_value(&rec.real, &rec.views, &pixels[i]));
         if rendered[i] > floor && real > 0.0 && lum(r) > 0.0 {
-            Some((real / lum(r)).ln())
+            Some(libm::log(real / lum(r)))
         } else {
             None
         }

@@ -182,7 +182,10 @@ pub fn parameter_uncertainty(
         let half_variance: f64 = first
             .iter()
             .zip(&second)
-            .map(|(a, b)| 0.5 * ((a[c] - b[c]) as f64).powi(2))
+            .map(|(a, b)| {
+                let d = (a[c] - b[c]) as f64;
+                0.5 * d * d
+            })
             .sum();
         let sum: f64 = base.iter().map(|v| v[c] as f64).sum();
         let variance = half_variance * half_spp as f64 / loop_spp.max(1) as f64;
