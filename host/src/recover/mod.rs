@@ -5,11 +5,20 @@
 //! do not depend on the thread count) and write the results atomically. The decisions and
 //! the math are the core's (`relume_core::stages`, `relume_core::fit`).
 //!
-//! 1. Diffuse: every group diffuse, `rho_d <- rho_d mean(real) / mean(rendered)`.
-//! 2. Isotropic: groups in decreasing order of their diffuse error (mirrors first, so that
-//!    a mirror is found before it corrupts the others), each fitted on its transport cache;
-//!    kept only when it removes measurably more error than the diffuse model; mirror test.
-//! 3. Diffuse groups are refined again under the specular materials found.
+//! The stages, in order (each its own module here, its decisions in the core's):
+//!
+//! 1. `stage1`: every group diffuse, `rho_d <- rho_d mean(real) / mean(rendered)`; which
+//!    groups are unseen, diffuse, or go on.
+//! 2. `stage2`: an isotropic lobe per group that went on, worst-explained first (mirrors
+//!    first, so that a mirror is found before it corrupts the others), proposed by its
+//!    transport cache and refined on renders; kept only when a render shows it removes
+//!    measurably more error than the diffuse model; the mirror test; `ladder` for weak lobes.
+//! 3. `stage3`: is what the uniform model leaves a picture?
+//! 4. `stage4`: an anisotropic lobe for the groups still poorly explained and for textured
+//!    groups' stand-ins (`anisotropic`, `pattern`); then `polish`, the metals' colours.
+//! 5. `texture`: the textured groups' diffuse maps. Diffuse groups are then refined again
+//!    under everything found, the scene rendered once more and `output` writes the results
+//!    with `report` and `uncertainty`.
 
 mod anisotropic;
 mod cache;
@@ -18,7 +27,9 @@ mod model;
 mod output;
 mod pattern;
 mod pixels;
+mod polish;
 mod refine;
+mod report;
 mod stage1;
 mod stage2;
 mod stage3;
@@ -48,6 +59,8 @@ use crate::parallel;
 use crate::scene_file::GroupKind;
 pub use model::GroupModel;
 use pixels::PurePixel;
+use report::keep_rule;
+pub use report::{ComparisonReport, GroupReport, RecoverReport, StageReport};
 
 /// How much work the recovery may spend: samples per pixel of the renders and caches in
 /// the loop, and of the final render that the report's errors come from.
@@ -111,192 +124,6 @@ pub struct RecoverArgs {
     /// Keep at most this many pure pixels of the named group (an even subset): for
     /// studying how recovery degrades as a group is seen in fewer pixels.
     pub limit_group_pixels: Option<(String, u32)>,
-}
-
-/// What the report says of one group.
-#[derive(Serialize, Clone, Debug)]
-pub struct GroupReport {
-    pub group: String,
-    pub kind: String,
-    pub pure_pixels: u32,
-    pub model: String,
-    /// Every decision taken for the group, in order, with the threshold and statistic.
-    pub decisions: Vec<String>,
-    /// Error of the first all-diffuse render (on the diffuse iteration's pixels, at most
-    /// `DIFFUSE_GROUP_PIXELS` of the group).
-    pub error_initial: Option<f64>,
-    /// Bias-only error after stage 1 (diffuse), which decides whether the group goes on.
-    pub error_diffuse: Option<f64>,
-    /// Its standard error.
-    pub error_diffuse_sigma: Option<f64>,
-    /// Relative error of the diffuse and the Ward fit on the group's transport cache.
-    pub cache_error_diffuse: Option<f64>,
-    pub cache_error_specular: Option<f64>,
-    /// Error of the final render of the recovered model.
-    pub error_final: Option<f64>,
-    /// Stage 3's texture feature on the final render's difference image (see
-    /// `relume_core::stages::texture`), for groups with enough pixels.
-    pub texture_feature: Option<f64>,
-    /// Stage 3's decision statistic (`relume_core::stages::texture::cross_contrast`) under
-    /// the best untextured model, for the groups tested.
-    pub texture_contrast: Option<f64>,
-    /// The bias-only error of the group's model when stage 2 or 5 decided (see
-    /// `pixels::evaluate_cross`; for a group stage 2 left diffuse, stage 1's measurement
-    /// where it is the more precise, see `more_precise`).
-    pub error_decided: Option<f64>,
-    /// Its standard error.
-    pub error_decided_sigma: Option<f64>,
-    /// The latest measurement of the error of the group's model: stage 1's of its diffuse
-    /// fit, then `error_decided`'s (kept by `set_diffuse` and `set_decided` alone).
-    #[serde(skip)]
-    pub latest_error: Option<fit::ErrorEstimate>,
-    /// Every measurement of a model's bias-only error on the group's pixels (stages 1, 2
-    /// and 4): each bounds the panorama's noise from above.
-    #[serde(skip)]
-    pub error_measurements: Vec<fit::ErrorEstimate>,
-    /// Every comparison of a simpler with a more complex model (stages 2 and 4).
-    pub comparisons: Vec<ComparisonReport>,
-    /// Whether stage 2 kept a lobe from its ladder of roughnesses (see `ladder`), whose
-    /// shape is coarse.
-    pub lobe_from_ladder: bool,
-    /// The standard errors of such a lobe's roughness and specularity implied by the
-    /// rungs the ladder could not tell from its choice (`ladder::Spread::sigmas`).
-    #[serde(skip)]
-    pub ladder_sigmas: Vec<(&'static str, f64)>,
-    /// Each recovered parameter with its standard error (see `uncertainty`).
-    pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
-}
-
-impl GroupReport {
-    /// An empty report for group `group` of kind `kind`, filled in as the stages run.
-    fn new(group: &str, kind: &str) -> Self {
-        GroupReport {
-            group: group.into(),
-            kind: kind.into(),
-            pure_pixels: 0,
-            model: String::new(),
-            decisions: Vec::new(),
-            error_initial: None,
-            error_diffuse: None,
-            error_diffuse_sigma: None,
-            cache_error_diffuse: None,
-            cache_error_specular: None,
-            error_final: None,
-            texture_feature: None,
-            texture_contrast: None,
-            error_decided: None,
-            error_decided_sigma: None,
-            latest_error: None,
-            error_measurements: Vec::new(),
-            comparisons: Vec::new(),
-            lobe_from_ladder: false,
-            ladder_sigmas: Vec::new(),
-            uncertainty: Vec::new(),
-        }
-    }
-
-    /// Records stage 1's measurement of the diffuse fit's error.
-    fn set_diffuse(&mut self, estimate: Option<fit::ErrorEstimate>) {
-        self.error_diffuse = estimate.map(|e| e.error);
-        self.error_diffuse_sigma = estimate.map(|e| e.sigma);
-        self.error_measurements.extend(estimate);
-        self.latest_error = estimate;
-    }
-
-    /// Records the bias-only error of the model a stage decided on.
-    fn set_decided(&mut self, estimate: fit::ErrorEstimate) {
-        self.error_decided = Some(estimate.error);
-        self.error_decided_sigma = Some(estimate.sigma);
-        self.latest_error = Some(estimate);
-    }
-
-    /// Records a comparison of two models, and both errors it measured.
-    fn add_comparison(&mut self, report: ComparisonReport, c: &fit::ModelComparison) {
-        self.comparisons.push(report);
-        self.error_measurements
-            .extend([c.simple_estimate(), c.complex_estimate()]);
-    }
-}
-
-/// One keep-or-reject comparison of two models of a group ([`fit::ModelComparison`]).
-#[derive(Serialize, Clone, Debug)]
-pub struct ComparisonReport {
-    pub stage: String,
-    pub simple: String,
-    pub complex: String,
-    pub error_simple: f64,
-    pub error_complex: f64,
-    pub gain: f64,
-    /// The gain's standard error.
-    pub gain_sigma: f64,
-    pub z: f64,
-    /// The z the gain needed: `fit::gain_significance` of the pixels compared.
-    pub z_needed: f64,
-    pub kept_complex: bool,
-    /// Samples per pixel of the measurement that decided.
-    pub samples_per_pixel: u32,
-}
-
-/// What the keep-or-reject test asks of comparison `c`, for the decisions' text: the gain
-/// threshold and the z its pixels need (`fit::gain_significance`).
-pub(super) fn keep_rule(c: &fit::ModelComparison) -> String {
-    format!(
-        "> SPECULAR_GAIN_THRESHOLD {} and z >= {:.2} (GAIN_SIGNIFICANCE {}'s level over {} pixels)",
-        fit::SPECULAR_GAIN_THRESHOLD,
-        c.significance(),
-        fit::GAIN_SIGNIFICANCE,
-        c.pixels
-    )
-}
-
-impl ComparisonReport {
-    fn new(
-        stage: &str,
-        simple: &str,
-        complex: &str,
-        c: &fit::ModelComparison,
-        samples_per_pixel: u32,
-    ) -> Self {
-        ComparisonReport {
-            stage: stage.into(),
-            simple: simple.into(),
-            complex: complex.into(),
-            error_simple: c.error_simple,
-            error_complex: c.error_complex,
-            gain: c.gain,
-            gain_sigma: c.gain_sigma,
-            z: c.z(),
-            z_needed: c.significance(),
-            kept_complex: c.favours_complex(),
-            samples_per_pixel,
-        }
-    }
-}
-
-#[derive(Serialize, Debug)]
-pub struct StageReport {
-    pub stage: String,
-    pub evaluations: u32,
-    pub samples_per_pixel: u32,
-    pub seconds: f64,
-    pub notes: Vec<String>,
-}
-
-#[derive(Serialize, Debug)]
-pub struct RecoverReport {
-    pub scene: String,
-    pub seed: u64,
-    pub budget: Budget,
-    pub error_definition: &'static str,
-    pub thresholds: serde_json::Value,
-    /// An upper bound on the panorama's relative pixel noise: the tightest upper confidence
-    /// bound on any well-seen group's bias-only error
-    /// (`relume_core::stages::texture::panorama_noise_bound`).
-    pub panorama_noise_bound: f64,
-    pub stages: Vec<StageReport>,
-    pub groups: Vec<GroupReport>,
-    pub warnings: Vec<String>,
-    pub seconds: f64,
 }
 
 /// The state of a recovery between stages.
@@ -703,11 +530,6 @@ const POLISH_SPP_FACTOR: u32 = 8;
 /// 60000-130000 pixels, a step costs about a quarter.
 const DIFFUSE_GROUP_PIXELS: usize = 1 << 14;
 
-/// The metal colour polish renders each metal or mirror group with at least this many
-/// samples in all (more per pixel for small groups): a mirror's pixels carry the heavy-
-/// tailed noise of the light paths it reflects, and the living room's 192-pixel mirror
-/// took 10-15% colour errors from the search's renders without it.
-const METAL_POLISH_MIN_SAMPLES: u64 = 1 << 16;
 /// A group's transport cache holds at least this many pixel samples: a small group's
 /// lobe is seen in a few pixels, and a cache of the effort level's samples per pixel
 /// alone (16 at fast) cannot tell its specularity and shape from noise (the living
@@ -867,7 +689,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &args.budget,
         &cache_settings,
     )?);
-    stages.push(polish_metal_colours(&mut rec, &mut reports, spp)?);
+    stages.push(polish::polish_metal_colours(&mut rec, &mut reports, spp)?);
 
     // Stage 5: the diffuse map of every textured group, under its stand-in's lobe (none,
     // stage 2's isotropic or stage 4's anisotropic one), with E from the scene as now known.
@@ -1086,100 +908,4 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     };
     output::write_all(&args.out, &rec, &renders, &report)?;
     Ok(report)
-}
-
-/// After stage 4: one colour step for every metal and mirror group, then the paper's mirror
-/// test once more on the polished colour (see the comments inside).
-fn polish_metal_colours(
-    rec: &mut Recovery,
-    reports: &mut [GroupReport],
-    spp: u32,
-) -> Result<StageReport, Error> {
-    // Metal colour polish: a metal's or a mirror's reflected radiance is proportional to its
-    // colour (diffuse c (1 - s), specular c s), so one ratio step at many samples sets it
-    // exactly to the group's mean. Before the diffuse refinement, which sees these groups.
-    let stage_start = Instant::now();
-    let mut evaluations = 0;
-    for (g, report) in reports.iter_mut().enumerate() {
-        let Some(color) = metal_color(&rec.models[g]) else {
-            continue;
-        };
-        if report.pure_pixels == 0 {
-            continue;
-        }
-        let group_spp = min_samples_spp(
-            POLISH_SPP_FACTOR.saturating_mul(spp),
-            report.pure_pixels,
-            METAL_POLISH_MIN_SAMPLES,
-        );
-        let (polished, change) = colour_step(rec, g, color, group_spp, 0x3E7A_1C01)?;
-        evaluations += 1;
-        set_metal_color(&mut rec.models[g], polished);
-        report.decisions.push(format!(
-            "metal colour polish: colour scaled by the mean ratio of a render at {group_spp} spp (at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
-            100.0 * change
-        ));
-        // The paper's mirror test once more, on the polished colour: stage 2 tested a
-        // colour whose channels carried the search's noise, and a sharp, strong lobe failed
-        // the tint limit by that noise alone (the living room's mirror, seed 8: tint above
-        // 0.1 before the polish, 0.07 after). The mirror's colour is then polished too.
-        if let Some(why) = mirror_test(&rec.models[g]) {
-            let (_, rho_s) = rec.models[g].reflectances();
-            rec.models[g] = GroupModel::Mirror { color: rho_s };
-            let (polished, _) = colour_step(rec, g, rho_s, group_spp, 0x3E7A_1C02)?;
-            evaluations += 1;
-            rec.models[g] = GroupModel::Mirror { color: polished };
-            report.decisions.push(format!("metal colour polish: {why}"));
-        }
-    }
-    Ok(StageReport {
-        stage: "metal colour polish".into(),
-        evaluations,
-        samples_per_pixel: POLISH_SPP_FACTOR * spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![format!(
-            "metal and mirror groups: one colour step at POLISH_SPP_FACTOR {POLISH_SPP_FACTOR}x the loop's samples, at least METAL_POLISH_MIN_SAMPLES {METAL_POLISH_MIN_SAMPLES} per group"
-        )],
-    })
-}
-
-/// One ratio step of group `g`'s `color` from a render of its pixels alone at `spp`, on
-/// the recovery's seed with `key` and the group: the new colour and its largest relative
-/// change.
-fn colour_step(
-    rec: &mut Recovery,
-    g: usize,
-    color: [f64; 3],
-    spp: u32,
-    key: u64,
-) -> Result<([f64; 3], f64), Error> {
-    let fit = rec.evaluate(spp, rec.seed ^ key ^ g as u64, &|h| h as usize == g)?[g];
-    Ok(diffuse::update(color, &fit))
-}
-
-/// The colour of a metal or mirror model, whose whole reflection scales with it.
-fn metal_color(model: &GroupModel) -> Option<[f64; 3]> {
-    match *model {
-        GroupModel::Mirror { color }
-        | GroupModel::Isotropic {
-            kind: Kind::Metal,
-            color,
-            ..
-        }
-        | GroupModel::Anisotropic {
-            kind: Kind::Metal,
-            color,
-            ..
-        } => Some(color),
-        _ => None,
-    }
-}
-
-fn set_metal_color(model: &mut GroupModel, new: [f64; 3]) {
-    match model {
-        GroupModel::Mirror { color }
-        | GroupModel::Isotropic { color, .. }
-        | GroupModel::Anisotropic { color, .. } => *color = new,
-        _ => {}
-    }
 }

@@ -1,0 +1,193 @@
+//! What `report.json` says: per stage and per group, every decision with its threshold and
+//! statistic, the errors before and after, evaluations and time.
+
+use relume_core::fit;
+use serde::Serialize;
+
+use super::{uncertainty, Budget};
+
+/// What the report says of one group.
+#[derive(Serialize, Clone, Debug)]
+pub struct GroupReport {
+    pub group: String,
+    pub kind: String,
+    pub pure_pixels: u32,
+    pub model: String,
+    /// Every decision taken for the group, in order, with the threshold and statistic.
+    pub decisions: Vec<String>,
+    /// Error of the first all-diffuse render (on the diffuse iteration's pixels, at most
+    /// `DIFFUSE_GROUP_PIXELS` of the group).
+    pub error_initial: Option<f64>,
+    /// Bias-only error after stage 1 (diffuse), which decides whether the group goes on.
+    pub error_diffuse: Option<f64>,
+    /// Its standard error.
+    pub error_diffuse_sigma: Option<f64>,
+    /// Relative error of the diffuse and the Ward fit on the group's transport cache.
+    pub cache_error_diffuse: Option<f64>,
+    pub cache_error_specular: Option<f64>,
+    /// Error of the final render of the recovered model.
+    pub error_final: Option<f64>,
+    /// Stage 3's texture feature on the final render's difference image (see
+    /// `relume_core::stages::texture`), for groups with enough pixels.
+    pub texture_feature: Option<f64>,
+    /// Stage 3's decision statistic (`relume_core::stages::texture::cross_contrast`) under
+    /// the best untextured model, for the groups tested.
+    pub texture_contrast: Option<f64>,
+    /// The bias-only error of the group's model when stage 2 or 5 decided (see
+    /// `pixels::evaluate_cross`; for a group stage 2 left diffuse, stage 1's measurement
+    /// where it is the more precise, see `more_precise`).
+    pub error_decided: Option<f64>,
+    /// Its standard error.
+    pub error_decided_sigma: Option<f64>,
+    /// The latest measurement of the error of the group's model: stage 1's of its diffuse
+    /// fit, then `error_decided`'s (kept by `set_diffuse` and `set_decided` alone).
+    #[serde(skip)]
+    pub latest_error: Option<fit::ErrorEstimate>,
+    /// Every measurement of a model's bias-only error on the group's pixels (stages 1, 2
+    /// and 4): each bounds the panorama's noise from above.
+    #[serde(skip)]
+    pub error_measurements: Vec<fit::ErrorEstimate>,
+    /// Every comparison of a simpler with a more complex model (stages 2 and 4).
+    pub comparisons: Vec<ComparisonReport>,
+    /// Whether stage 2 kept a lobe from its ladder of roughnesses (see `ladder`), whose
+    /// shape is coarse.
+    pub lobe_from_ladder: bool,
+    /// The standard errors of such a lobe's roughness and specularity implied by the
+    /// rungs the ladder could not tell from its choice (`ladder::Spread::sigmas`).
+    #[serde(skip)]
+    pub ladder_sigmas: Vec<(&'static str, f64)>,
+    /// Each recovered parameter with its standard error (see `uncertainty`).
+    pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
+}
+
+impl GroupReport {
+    /// An empty report for group `group` of kind `kind`, filled in as the stages run.
+    pub(super) fn new(group: &str, kind: &str) -> Self {
+        GroupReport {
+            group: group.into(),
+            kind: kind.into(),
+            pure_pixels: 0,
+            model: String::new(),
+            decisions: Vec::new(),
+            error_initial: None,
+            error_diffuse: None,
+            error_diffuse_sigma: None,
+            cache_error_diffuse: None,
+            cache_error_specular: None,
+            error_final: None,
+            texture_feature: None,
+            texture_contrast: None,
+            error_decided: None,
+            error_decided_sigma: None,
+            latest_error: None,
+            error_measurements: Vec::new(),
+            comparisons: Vec::new(),
+            lobe_from_ladder: false,
+            ladder_sigmas: Vec::new(),
+            uncertainty: Vec::new(),
+        }
+    }
+
+    /// Records stage 1's measurement of the diffuse fit's error.
+    pub(super) fn set_diffuse(&mut self, estimate: Option<fit::ErrorEstimate>) {
+        self.error_diffuse = estimate.map(|e| e.error);
+        self.error_diffuse_sigma = estimate.map(|e| e.sigma);
+        self.error_measurements.extend(estimate);
+        self.latest_error = estimate;
+    }
+
+    /// Records the bias-only error of the model a stage decided on.
+    pub(super) fn set_decided(&mut self, estimate: fit::ErrorEstimate) {
+        self.error_decided = Some(estimate.error);
+        self.error_decided_sigma = Some(estimate.sigma);
+        self.latest_error = Some(estimate);
+    }
+
+    /// Records a comparison of two models, and both errors it measured.
+    pub(super) fn add_comparison(&mut self, report: ComparisonReport, c: &fit::ModelComparison) {
+        self.comparisons.push(report);
+        self.error_measurements
+            .extend([c.simple_estimate(), c.complex_estimate()]);
+    }
+}
+
+/// One keep-or-reject comparison of two models of a group ([`fit::ModelComparison`]).
+#[derive(Serialize, Clone, Debug)]
+pub struct ComparisonReport {
+    pub stage: String,
+    pub simple: String,
+    pub complex: String,
+    pub error_simple: f64,
+    pub error_complex: f64,
+    pub gain: f64,
+    /// The gain's standard error.
+    pub gain_sigma: f64,
+    pub z: f64,
+    /// The z the gain needed: `fit::gain_significance` of the pixels compared.
+    pub z_needed: f64,
+    pub kept_complex: bool,
+    /// Samples per pixel of the measurement that decided.
+    pub samples_per_pixel: u32,
+}
+
+/// What the keep-or-reject test asks of comparison `c`, for the decisions' text: the gain
+/// threshold and the z its pixels need (`fit::gain_significance`).
+pub(super) fn keep_rule(c: &fit::ModelComparison) -> String {
+    format!(
+        "> SPECULAR_GAIN_THRESHOLD {} and z >= {:.2} (GAIN_SIGNIFICANCE {}'s level over {} pixels)",
+        fit::SPECULAR_GAIN_THRESHOLD,
+        c.significance(),
+        fit::GAIN_SIGNIFICANCE,
+        c.pixels
+    )
+}
+
+impl ComparisonReport {
+    pub(super) fn new(
+        stage: &str,
+        simple: &str,
+        complex: &str,
+        c: &fit::ModelComparison,
+        samples_per_pixel: u32,
+    ) -> Self {
+        ComparisonReport {
+            stage: stage.into(),
+            simple: simple.into(),
+            complex: complex.into(),
+            error_simple: c.error_simple,
+            error_complex: c.error_complex,
+            gain: c.gain,
+            gain_sigma: c.gain_sigma,
+            z: c.z(),
+            z_needed: c.significance(),
+            kept_complex: c.favours_complex(),
+            samples_per_pixel,
+        }
+    }
+}
+
+#[derive(Serialize, Debug)]
+pub struct StageReport {
+    pub stage: String,
+    pub evaluations: u32,
+    pub samples_per_pixel: u32,
+    pub seconds: f64,
+    pub notes: Vec<String>,
+}
+
+#[derive(Serialize, Debug)]
+pub struct RecoverReport {
+    pub scene: String,
+    pub seed: u64,
+    pub budget: Budget,
+    pub error_definition: &'static str,
+    pub thresholds: serde_json::Value,
+    /// An upper bound on the panorama's relative pixel noise: the tightest upper confidence
+    /// bound on any well-seen group's bias-only error
+    /// (`relume_core::stages::texture::panorama_noise_bound`).
+    pub panorama_noise_bound: f64,
+    pub stages: Vec<StageReport>,
+    pub groups: Vec<GroupReport>,
+    pub warnings: Vec<String>,
+    pub seconds: f64,
+}
