@@ -34,6 +34,7 @@ mod stage1;
 mod stage2;
 mod stage3;
 mod stage4;
+mod stage5;
 mod texture;
 mod uncertainty;
 mod warnings;
@@ -691,88 +692,15 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     )?);
     stages.push(polish::polish_metal_colours(&mut rec, &mut reports, spp)?);
 
-    // Stage 5: the diffuse map of every textured group, under its stand-in's lobe (none,
-    // stage 2's isotropic or stage 4's anisotropic one), with E from the scene as now known.
-    let stage_start = Instant::now();
-    let map_spp = MAP_SPP_FACTOR * args.budget.final_spp;
-    let mut evaluations = 0;
-    for g in (0..n_groups).filter(|&g| textured[g]) {
-        let standin = rec.models[g];
-        let summary = texture::recover_map(&mut rec, g, map_spp, args.seed)?;
-        evaluations += 2;
-        reports[g].decisions.push(format!(
-            "stage 5: {} map {}x{} from {} pixels (T = (I_real - I_specular) / E under the {} stand-in's lobe); {} highlight and {} shadow pixels removed, {} texels unseen and filled from neighbours",
-            rec.models[g].name(),
-            summary.side,
-            summary.side,
-            summary.pixels,
-            standin.name(),
-            summary.highlights,
-            summary.shadows,
-            summary.unseen_texels
-        ));
-    }
-    stages.push(StageReport {
-        stage: "5 diffuse maps".into(),
-        evaluations,
-        samples_per_pixel: map_spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![
-            "textured groups: maps solved by least squares at about one texel per pure pixel, under the untextured stand-in's lobe".into(),
-        ],
-    });
+    stages.push(stage5::run(
+        &mut rec,
+        &mut reports,
+        &textured,
+        MAP_SPP_FACTOR * args.budget.final_spp,
+        args.seed,
+    )?);
 
-    // Diffuse refinement: the diffuse groups again, under the specular materials now known.
-    let stage_start = Instant::now();
-    let active: Vec<bool> = rec
-        .models
-        .iter()
-        .map(|m| matches!(m, GroupModel::Diffuse { .. }))
-        .collect();
-    let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "diffuse again");
-    // With no group other than diffuse the scene is stage 1's, whose iteration already
-    // stopped at its noise floor: only the polish step below is new (box-diffuse at 256
-    // px: 18 more renders, 35 s, for nothing).
-    let all_diffuse = rec
-        .models
-        .iter()
-        .all(|m| matches!(m, GroupModel::Diffuse { .. } | GroupModel::Unseen));
-    let mut evaluations = 0;
-    if !all_diffuse {
-        evaluations += rec.diffuse_iteration(spp, &active, &bar)?.1;
-    }
-    // The iteration stops at its own noise floor, so each colour carries the noise of one
-    // render at the loop's samples (on box-diffuse at effort fast, up to 0.94% between
-    // seeds on the smallest group). One more step at POLISH_SPP_FACTOR times the samples,
-    // on a fresh seed, replaces most of it.
-    // On the iteration's pixels (`DIFFUSE_GROUP_PIXELS` at most per group).
-    let polish_spp = POLISH_SPP_FACTOR * spp;
-    let subset = rec.diffuse_subset();
-    let fits = rec.evaluate_pixels(&subset, polish_spp, rec.seed ^ 0x9011_5400, &|g| {
-        active[g as usize]
-    })?;
-    evaluations += 1;
-    for (g, fit) in fits.iter().enumerate() {
-        if let (true, GroupModel::Diffuse { color }) = (active[g], rec.models[g]) {
-            rec.models[g] = GroupModel::Diffuse {
-                color: diffuse::update(color, fit).0,
-            };
-        }
-    }
-    bar.finish_and_clear();
-    stages.push(StageReport {
-        stage: "diffuse refinement".into(),
-        evaluations,
-        samples_per_pixel: spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![
-            if all_diffuse {
-                format!("every group diffuse, the scene is stage 1's: one step at {POLISH_SPP_FACTOR}x the samples")
-            } else {
-                format!("diffuse groups updated again with the specular groups' materials in the scene, then one step at {POLISH_SPP_FACTOR}x the samples")
-            },
-        ],
-    });
+    stages.push(stage1::refine_diffuse_groups(&mut rec, spp)?);
 
     // Final render: errors, views and error images.
     let stage_start = Instant::now();
@@ -816,50 +744,13 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         ],
     });
 
-    let stage_start = Instant::now();
-    let uncertainty_spp = 4 * args.budget.loop_spp;
-    for (g, r) in reports.iter_mut().enumerate() {
-        let samples = uncertainty::EstimateSamples {
-            colour_spp: args.budget.loop_spp,
-            lobe_samples: rec.cache_samples(g, cache_settings.spp),
-        };
-        r.uncertainty = uncertainty::parameter_uncertainty(
-            &mut rec,
-            g,
-            uncertainty_spp,
-            samples,
-            args.seed ^ 0x5160,
-        )?;
-        // A ladder's lobe carries the spread of the rungs it could not tell apart.
-        if let GroupModel::Isotropic { .. } = rec.models[g] {
-            for &(name, sigma) in &r.ladder_sigmas {
-                if let Some(u) = r.uncertainty.iter_mut().find(|u| u.parameter == name) {
-                    u.sigma = libm::hypot(u.sigma, sigma);
-                }
-            }
-        }
-        // A textured group's lobe also carries the picture's share (`pattern::lobe_spread`).
-        if let GroupModel::Textured { lobe, .. } = rec.models[g] {
-            if lobe.specularity() > 0.0 {
-                let cache = rec.group_cache(g, &cache_settings)?;
-                for (name, sigma) in pattern::lobe_spread(&mut rec, &cache, &lobe)? {
-                    if let Some(u) = r.uncertainty.iter_mut().find(|u| u.parameter == name) {
-                        u.sigma = libm::hypot(u.sigma, sigma);
-                    }
-                }
-            }
-        }
-    }
-    stages.push(StageReport {
-        stage: "uncertainty".into(),
-        evaluations: n_groups as u32,
-        samples_per_pixel: uncertainty_spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![format!(
-            "standard error of every parameter: cluster-robust least squares over tiles of {0}x{0} pixels, derivatives by finite differences on common random numbers",
-            uncertainty::TILE
-        )],
-    });
+    stages.push(uncertainty::run(
+        &mut rec,
+        &mut reports,
+        &args.budget,
+        &cache_settings,
+        args.seed,
+    )?);
 
     warnings.extend(warnings::stability_warnings(&warnings::Inputs {
         groups: &reports,

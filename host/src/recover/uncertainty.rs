@@ -12,12 +12,14 @@
 //! cannot see is an error common to every pixel (the light's radiance, the camera's
 //! exposure, our renderer against RADIANCE): docs/stability.md measures those separately.
 
+use std::time::Instant;
+
 use glam::Vec3;
+use relume_core::render::RenderSettings;
 use serde::Serialize;
 
 use super::model::{GroupModel, MapLobe};
-use super::pixels;
-use super::Recovery;
+use super::{pattern, pixels, Budget, GroupReport, Recovery, StageReport};
 use crate::error::Error;
 
 /// Side of the square tiles of pixels that are taken to share their misfit.
@@ -340,6 +342,56 @@ fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
         }
     }
     Some(m.into_iter().map(|r| r[n..].to_vec()).collect())
+}
+
+/// The uncertainty stage, after the final render: every group's parameters with their
+/// standard errors in `reports`; a ladder's lobe and a textured group's lobe carry their
+/// extra spread too.
+pub(super) fn run(
+    rec: &mut Recovery,
+    reports: &mut [GroupReport],
+    budget: &Budget,
+    cache_settings: &RenderSettings,
+    seed: u64,
+) -> Result<StageReport, Error> {
+    let stage_start = Instant::now();
+    let uncertainty_spp = 4 * budget.loop_spp;
+    for (g, r) in reports.iter_mut().enumerate() {
+        let samples = EstimateSamples {
+            colour_spp: budget.loop_spp,
+            lobe_samples: rec.cache_samples(g, cache_settings.spp),
+        };
+        r.uncertainty = parameter_uncertainty(rec, g, uncertainty_spp, samples, seed ^ 0x5160)?;
+        // A ladder's lobe carries the spread of the rungs it could not tell apart.
+        if let GroupModel::Isotropic { .. } = rec.models[g] {
+            for &(name, sigma) in &r.ladder_sigmas {
+                if let Some(u) = r.uncertainty.iter_mut().find(|u| u.parameter == name) {
+                    u.sigma = libm::hypot(u.sigma, sigma);
+                }
+            }
+        }
+        // A textured group's lobe also carries the picture's share (`pattern::lobe_spread`).
+        if let GroupModel::Textured { lobe, .. } = rec.models[g] {
+            if lobe.specularity() > 0.0 {
+                let cache = rec.group_cache(g, cache_settings)?;
+                for (name, sigma) in pattern::lobe_spread(rec, &cache, &lobe)? {
+                    if let Some(u) = r.uncertainty.iter_mut().find(|u| u.parameter == name) {
+                        u.sigma = libm::hypot(u.sigma, sigma);
+                    }
+                }
+            }
+        }
+    }
+    Ok(StageReport {
+        stage: "uncertainty".into(),
+        evaluations: reports.len() as u32,
+        samples_per_pixel: uncertainty_spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "standard error of every parameter: cluster-robust least squares over tiles of {0}x{0} pixels, derivatives by finite differences on common random numbers",
+            TILE
+        )],
+    })
 }
 
 #[cfg(test)]
