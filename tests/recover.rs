@@ -41,6 +41,36 @@ fn recover_small_reference(
     (tmp, out, rows)
 }
 
+/// The living room at 64 px, effort fast, seed 1, recovered once for the tests that read
+/// it (into the integration tests' scratch folder): the output folder and its materials
+/// compared with the truth.
+fn living_room_small() -> &'static (std::path::PathBuf, Vec<relume::compare::MaterialRow>) {
+    static RECOVERED: std::sync::OnceLock<(std::path::PathBuf, Vec<relume::compare::MaterialRow>)> =
+        std::sync::OnceLock::new();
+    RECOVERED.get_or_init(|| {
+        let bench = shared().join("bench").join("living-room");
+        let out =
+            std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("living-room-small-fast-1");
+        if out.exists() {
+            std::fs::remove_dir_all(&out).unwrap();
+        }
+        recover(
+            &bench.join("scene-small.toml"),
+            &out,
+            &["--effort", "fast", "--seed", "1"],
+        );
+        let rows = relume::compare::materials_report(
+            &bench.join("truth.toml"),
+            &out.join("materials.toml"),
+        )
+        .unwrap();
+        for r in &rows {
+            println!("{r:?}");
+        }
+        (out, rows)
+    })
+}
+
 /// Group `name`'s entry in the report.json of the recovery in `out`.
 fn group_report(out: &std::path::Path, name: &str) -> serde_json::Value {
     let report: serde_json::Value =
@@ -291,17 +321,38 @@ fn glossy_small_finds_the_yellow_boxs_weak_broad_lobe() {
 /// where a fixed floor of 16 pixels kept the frames diffuse and 2.5-4x too bright.
 #[test]
 fn living_room_small_gives_its_15_pixel_frames_their_lobe() {
-    let (_tmp, out, rows) = recover_small_reference("living-room");
+    let (out, rows) = living_room_small();
     let frames = rows.iter().find(|r| r.group == "frames").unwrap();
     assert!(frames.class_ok, "{frames:?}");
     assert!(frames.specularity_rel_err.unwrap() <= 0.25, "{frames:?}");
     assert!(frames.roughness_rel_err.unwrap() <= 0.25, "{frames:?}");
-    let frames_report = group_report(&out, "frames");
+    let frames_report = group_report(out, "frames");
     assert_eq!(frames_report["pure_pixels"], 15);
     let kept = comparison(&frames_report, |c| c["kept_complex"] == true);
     let needed = kept["z_needed"].as_f64().unwrap();
     assert!((needed - 3.59).abs() < 0.01, "{kept:?}");
     assert!(kept["z"].as_f64().unwrap() >= needed, "{kept:?}");
+}
+
+/// The living room's picture_2 (a picture under a lobe of s 0.05, roughness 0.08) has its
+/// lobe fitted on a uniform stand-in, where the picture passes for part of the lobe (s
+/// 0.063, roughness 0.12 at 64 px). Fitted again with the map on its highlights, where the
+/// map was filled from neighbours rather than solved, it comes within 5% and 30%; its
+/// own view then renders +0.7% where it rendered +2.3%.
+#[test]
+fn living_room_small_fits_picture_2s_lobe_again_with_its_map() {
+    let (out, rows) = living_room_small();
+    let picture = rows.iter().find(|r| r.group == "picture_2").unwrap();
+    assert!(picture.class_ok, "{picture:?}");
+    assert!(picture.specularity_rel_err.unwrap() <= 0.1, "{picture:?}");
+    assert!(picture.roughness_rel_err.unwrap() <= 0.4, "{picture:?}");
+    let report = group_report(out, "picture_2");
+    let refit = report["decisions"].as_array().unwrap().iter().any(|d| {
+        d.as_str()
+            .unwrap()
+            .contains("fitted again with a first map")
+    });
+    assert!(refit, "{report}");
 }
 
 /// At 256 px glossy's steel box (roughness 0.14) has 6472 pure pixels. Measured on all of

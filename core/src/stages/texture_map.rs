@@ -144,6 +144,62 @@ pub fn solve_map(
     Ok(fill_unseen(width, height, texels, denominator))
 }
 
+/// A `width x height` map's value at a pixel as [`solve_map`] models it: the mean of its
+/// bilinear lookups at the pixel's [`FOOTPRINT_OFFSETS`] (`uv`).
+pub fn footprint_value(
+    texels: &[Vec3],
+    width: u32,
+    height: u32,
+    uv: &[Vec2; FOOTPRINT_SAMPLES],
+) -> Vec3 {
+    let mut value = Vec3::ZERO;
+    for &p in uv {
+        for (k, a) in bilinear_taps(width, height, p) {
+            value += texels.get(k).copied().unwrap_or(Vec3::ZERO) * (a / FOOTPRINT_SAMPLES as f32);
+        }
+    }
+    value
+}
+
+/// The sums that scale a unit specular lobe to what a map leaves unexplained: per pixel the
+/// residual `r = I_real - T E` and the unit lobe's part `b`, summed over channels. The
+/// best white specularity is `s = sum r.b / sum b.b` (at least 0).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LobeScaleSums {
+    pub rb: f64,
+    pub bb: f64,
+    pub rr: f64,
+    pub pixels: u32,
+}
+
+impl LobeScaleSums {
+    pub fn add(&mut self, residual: Vec3, lobe: Vec3) {
+        for c in 0..3 {
+            let (r, b) = (residual[c] as f64, lobe[c] as f64);
+            self.rb += r * b;
+            self.bb += b * b;
+            self.rr += r * r;
+        }
+        self.pixels += 1;
+    }
+
+    /// The best specularity (0 where the lobe cannot help) and the sum of squared
+    /// residuals it leaves.
+    pub fn best(&self) -> (f64, f64) {
+        let s = if self.bb > 0.0 {
+            (self.rb / self.bb).max(0.0)
+        } else {
+            0.0
+        };
+        (s, self.sse(s))
+    }
+
+    /// The sum of squared residuals under specularity `s`.
+    pub fn sse(&self, s: f64) -> f64 {
+        (self.rr - 2.0 * s * self.rb + s * s * self.bb).max(0.0)
+    }
+}
+
 /// Gives every texel no observation touched (zero weight in `seen`) the mean of its
 /// already known 4-neighbours, growing inwards from the known texels ring by ring.
 fn fill_unseen(width: u32, height: u32, texels: &mut [Vec3], seen: &mut [Vec3]) -> usize {
@@ -299,5 +355,32 @@ mod tests {
         let mut a = vec![Vec3::ZERO; 16];
         let mut b = vec![Vec3::ZERO; 16];
         assert!(solve_map(&[], 4, 4, 1.0, &mut small, &mut a, &mut b).is_err());
+    }
+
+    #[test]
+    fn a_pixels_footprint_value_is_its_lookups_mean() {
+        // Columns 0 and 1 of a 2x1 map, dark and bright: a footprint over the middle
+        // takes their mean; a uniform map gives its value anywhere.
+        let texels = [Vec3::splat(0.2), Vec3::splat(0.6)];
+        let middle = [Vec2::new(0.5, 0.5); FOOTPRINT_SAMPLES];
+        assert!((footprint_value(&texels, 2, 1, &middle) - Vec3::splat(0.4)).length() < 1e-6);
+        let uniform = [Vec3::splat(0.3); 4];
+        let corner = [Vec2::new(0.9, 0.1); FOOTPRINT_SAMPLES];
+        assert!((footprint_value(&uniform, 2, 2, &corner) - Vec3::splat(0.3)).length() < 1e-6);
+    }
+
+    #[test]
+    fn the_lobe_scale_recovers_the_specularity_and_never_goes_negative() {
+        let mut sums = LobeScaleSums::default();
+        for i in 0..20 {
+            let b = Vec3::new(1.0, 0.9, 1.1) * (0.5 + i as f32 * 0.1);
+            sums.add(b * 0.05, b);
+        }
+        let (s, sse) = sums.best();
+        assert!((s - 0.05).abs() < 1e-6 && sse < 1e-9, "{s} {sse}");
+        let mut against = LobeScaleSums::default();
+        against.add(Vec3::splat(-0.1), Vec3::splat(1.0));
+        assert_eq!(against.best(), (0.0, against.sse(0.0)));
+        assert!((against.sse(0.0) - 0.03).abs() < 1e-9);
     }
 }

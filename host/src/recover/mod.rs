@@ -698,6 +698,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &textured,
         MAP_SPP_FACTOR * args.budget.final_spp,
         args.seed,
+        &cache_settings,
     )?);
 
     stages.push(stage1::refine_diffuse_groups(&mut rec, spp)?);

@@ -4,6 +4,8 @@
 
 use std::time::Instant;
 
+use relume_core::render::RenderSettings;
+
 use super::{texture, GroupReport, Recovery, StageReport};
 use crate::error::Error;
 
@@ -15,20 +17,30 @@ pub(super) fn run(
     textured: &[bool],
     map_spp: u32,
     seed: u64,
+    cache_settings: &RenderSettings,
 ) -> Result<StageReport, Error> {
     let stage_start = Instant::now();
     let mut evaluations = 0;
     for g in (0..rec.n_groups()).filter(|&g| textured[g]) {
         let standin = rec.models[g];
-        let summary = texture::recover_map(rec, g, map_spp, seed)?;
+        let summary = texture::recover_map(rec, g, map_spp, seed, cache_settings)?;
         evaluations += 2;
+        if let Some(r) = summary.lobe_refit {
+            reports[g].decisions.push(format!(
+                "stage 5: the stand-in's lobe fitted again with a first map, on the {} highlight pixels of the group's cache (where the map was filled from neighbours, not solved): specularity {:.4} -> {:.4}, roughness {:.4} -> {:.4}, squared residual {:.5} -> {:.5}",
+                r.pixels, r.before[0], r.after[0], r.before[1], r.after[1], r.sse_before, r.sse_after
+            ));
+        }
+        let lobe = match summary.lobe_refit {
+            Some(_) => "the lobe refitted with the map".to_string(),
+            None => format!("the {} stand-in's lobe", standin.name()),
+        };
         reports[g].decisions.push(format!(
-            "stage 5: {} map {}x{} from {} pixels (T = (I_real - I_specular) / E under the {} stand-in's lobe); {} highlight and {} shadow pixels removed, {} texels unseen and filled from neighbours",
+            "stage 5: {} map {}x{} from {} pixels (T = (I_real - I_specular) / E under {lobe}); {} highlight and {} shadow pixels removed, {} texels unseen and filled from neighbours",
             rec.models[g].name(),
             summary.side,
             summary.side,
             summary.pixels,
-            standin.name(),
             summary.highlights,
             summary.shadows,
             summary.unseen_texels

@@ -2,11 +2,16 @@
 //! solve need. The statistic and the solver are the core's (`relume_core::stages::texture`
 //! and `texture_map`).
 
+use std::collections::HashMap;
+
 use glam::{Vec2, Vec3};
 use relume_core::fit;
 use relume_core::geometry::Surface;
+use relume_core::material::Material;
 use relume_core::math::luminance;
+use relume_core::render::RenderSettings;
 use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
+use relume_core::stages::isotropic;
 use relume_core::stages::texture;
 use relume_core::stages::texture_map::{self, MapObservation, FOOTPRINT_SAMPLES};
 
@@ -29,6 +34,8 @@ pub struct MapSummary {
     pub highlights: usize,
     pub shadows: usize,
     pub unseen_texels: usize,
+    /// The isotropic lobe fitted again with the map, where it was.
+    pub lobe_refit: Option<LobeRefit>,
 }
 
 fn median(mut values: Vec<f64>) -> f64 {
@@ -124,9 +131,16 @@ pub fn texture_contrast(
 /// Stage 5: the diffuse map of group `g` under its untextured stand-in's lobe (the group's
 /// current model: a diffuse, isotropic or anisotropic plastic, whose diffuse colour starts
 /// the map), `T = (I_real - I_specular) / E`, with E from full global-illumination renders
-/// of the recovered scene. Sets the group's model to the textured one and returns what was
-/// done.
-pub fn recover_map(rec: &mut Recovery, g: usize, spp: u32, seed: u64) -> Result<MapSummary, Error> {
+/// of the recovered scene. An isotropic lobe is then fitted again with the map
+/// ([`lobe_with_map`]) and the map solved once more under it. Sets the group's model to
+/// the textured one and returns what was done.
+pub fn recover_map(
+    rec: &mut Recovery,
+    g: usize,
+    spp: u32,
+    seed: u64,
+    cache_settings: &RenderSettings,
+) -> Result<MapSummary, Error> {
     let pixels = pixels::of_group(&rec.pure, g);
     let uvs: Vec<Option<[Vec2; FOOTPRINT_SAMPLES]>> =
         rec.with_scene(1, seed, |_, scene, observed, _| {
@@ -150,61 +164,226 @@ pub fn recover_map(rec: &mut Recovery, g: usize, spp: u32, seed: u64) -> Result<
         map,
         lobe: MapLobe::of_stand_in(&rec.models[g]),
     };
-    let settings_seed = seed ^ 0x7E47;
-    let full = render_once(rec, &pixels, spp, settings_seed)?;
-    // The specular part alone: the same paths (same seed) with a black map.
-    rec.maps[map].texels[0] = Vec3::ZERO;
-    let specular = render_once(rec, &pixels, spp, settings_seed)?;
+    let solve = MapSolve {
+        g,
+        map,
+        pixels: &pixels,
+        uvs: &uvs,
+        start,
+        spp,
+        seed,
+    };
+    let mut solved = solve.run(rec)?;
+    let mut lobe_refit = None;
+    if let GroupModel::Textured {
+        lobe: stand_in @ MapLobe::Isotropic { .. },
+        ..
+    } = rec.models[g]
+    {
+        let refit = lobe_with_map(rec, &solve, &solved.highlight, stand_in, cache_settings)?;
+        if let Some(refit) = refit {
+            let [specularity, roughness] = refit.after;
+            rec.models[g] = GroupModel::Textured {
+                map,
+                lobe: MapLobe::Isotropic {
+                    specularity,
+                    roughness,
+                },
+            };
+            solved = solve.run(rec)?;
+            lobe_refit = Some(refit);
+        }
+    }
+    Ok(MapSummary {
+        side: solved.side,
+        pixels: pixels.len(),
+        highlights: solved.highlight.iter().filter(|&&h| h).count(),
+        shadows: solved.shadows,
+        unseen_texels: solved.unseen_texels,
+        lobe_refit,
+    })
+}
 
-    let gains: Vec<Vec3> = full
+/// One solve of a group's map under its current lobe: what [`MapSolve::run`] needs.
+struct MapSolve<'a> {
+    g: usize,
+    /// The map's index in `Recovery::maps`.
+    map: usize,
+    pixels: &'a [PurePixel],
+    uvs: &'a [Option<[Vec2; FOOTPRINT_SAMPLES]>],
+    /// The constant map E is rendered against.
+    start: Vec3,
+    spp: u32,
+    seed: u64,
+}
+
+/// What a solve found besides the map.
+struct Solved {
+    side: u32,
+    /// Per pixel of `MapSolve::pixels`: removed as a highlight (its light mostly the lobe's).
+    highlight: Vec<bool>,
+    shadows: usize,
+    unseen_texels: usize,
+}
+
+impl MapSolve<'_> {
+    /// Renders E against the constant map and the lobe alone, then solves the map (stored
+    /// in `rec.maps`) from the pixels that are neither highlights nor in shadow.
+    fn run(&self, rec: &mut Recovery) -> Result<Solved, Error> {
+        let (map, pixels) = (self.map, self.pixels);
+        rec.maps[map] = RecoveredMap {
+            side: 1,
+            texels: vec![self.start],
+        };
+        let settings_seed = self.seed ^ 0x7E47;
+        let full = render_once(rec, pixels, self.spp, settings_seed)?;
+        // The specular part alone: the same paths (same seed) with a black map.
+        rec.maps[map].texels[0] = Vec3::ZERO;
+        let specular = render_once(rec, pixels, self.spp, settings_seed)?;
+
+        let gains: Vec<Vec3> = full
+            .iter()
+            .zip(&specular)
+            .map(|(f, s)| ((*f - *s) / self.start).max(Vec3::ZERO))
+            .collect();
+        let gain_floor =
+            fit::SHADOW_FRACTION * median(gains.iter().map(|v| luminance(*v) as f64).collect());
+        let mut highlight = vec![false; pixels.len()];
+        let mut shadows = 0;
+        let observations: Vec<MapObservation> = pixels
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| {
+                let uv = self.uvs[i]?;
+                let real = pixels::real_value(&rec.real, &rec.views, p);
+                highlight[i] = luminance(specular[i]) as f64
+                    > fit::HIGHLIGHT_FRACTION * luminance(real) as f64;
+                let shadow = (luminance(gains[i]) as f64) <= gain_floor;
+                shadows += (shadow && !highlight[i]) as usize;
+                Some(MapObservation {
+                    uv,
+                    gain: gains[i],
+                    target: real - specular[i],
+                    weight: if highlight[i] || shadow { 0.0 } else { 1.0 },
+                })
+            })
+            .collect();
+        let side = texture_map::map_side(pixels.len());
+        let n = (side * side) as usize;
+        let mut texels = vec![self.start; n];
+        let (mut numerator, mut denominator) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
+        let unseen_texels = texture_map::solve_map(
+            &observations,
+            side,
+            side,
+            MAX_DIFFUSE_REFLECTANCE as f32,
+            &mut texels,
+            &mut numerator,
+            &mut denominator,
+        )
+        .map_err(|e| Error::core(format!("recovering the map of group {}", self.g), e))?;
+        rec.maps[map] = RecoveredMap { side, texels };
+        Ok(Solved {
+            side,
+            highlight,
+            shadows,
+            unseen_texels,
+        })
+    }
+}
+
+/// A textured group's isotropic lobe fitted again with its map.
+#[derive(Clone, Copy, Debug)]
+pub struct LobeRefit {
+    /// (specularity, roughness) of the stand-in's lobe and of the refitted one.
+    pub before: [f64; 2],
+    pub after: [f64; 2],
+    /// The highlight pixels of the group's cache it was fitted on.
+    pub pixels: u32,
+    /// The sum of squared residuals there under each.
+    pub sse_before: f64,
+    pub sse_after: f64,
+}
+
+/// The isotropic lobe of group `g` fitted on its highlights with the map it now has. The
+/// stand-in's lobe was fitted with a uniform colour where the picture varies, and took
+/// part of the picture for the lobe (the living room's picture_2 at 64 px: specularity
+/// 0.063, roughness 0.12, against 0.05 and 0.08). Its highlights are the pixels the map
+/// was not solved from (filled from their neighbours), so there the map gives the diffuse
+/// part independently of the lobe, and the lobe is fitted to what is left: specularity in
+/// closed form for each roughness, the roughness by stage 2's 1-D search, on the group's
+/// transport cache. Elsewhere the map was solved to leave exactly the stand-in's lobe, and
+/// would only return it. `None` where the cache holds fewer than
+/// `MIN_PIXELS_FOR_MODEL_CHOICE` highlight pixels.
+fn lobe_with_map(
+    rec: &mut Recovery,
+    solve: &MapSolve,
+    highlight: &[bool],
+    stand_in: MapLobe,
+    cache_settings: &RenderSettings,
+) -> Result<Option<LobeRefit>, Error> {
+    let MapLobe::Isotropic {
+        specularity,
+        roughness,
+    } = stand_in
+    else {
+        return Ok(None);
+    };
+    let footprints: HashMap<(u32, u32, u32), [Vec2; FOOTPRINT_SAMPLES]> = solve
+        .pixels
         .iter()
-        .zip(&specular)
-        .map(|(f, s)| ((*f - *s) / start).max(Vec3::ZERO))
+        .zip(solve.uvs)
+        .zip(highlight)
+        .filter(|(_, &h)| h)
+        .filter_map(|((p, uv), _)| Some(((p.view, p.x, p.y), (*uv)?)))
         .collect();
-    let gain_floor =
-        fit::SHADOW_FRACTION * median(gains.iter().map(|v| luminance(*v) as f64).collect());
-    let (mut highlights, mut shadows) = (0, 0);
-    let observations: Vec<MapObservation> = pixels
+    let cache = rec.group_cache(solve.g, cache_settings)?;
+    let map = &rec.maps[solve.map];
+    // Each cached highlight pixel with the map's value there.
+    let rows: Vec<(usize, Vec3)> = cache
+        .pixels
         .iter()
         .enumerate()
         .filter_map(|(i, p)| {
-            let uv = uvs[i]?;
-            let real = pixels::real_value(&rec.real, &rec.views, p);
-            let highlight =
-                luminance(specular[i]) as f64 > fit::HIGHLIGHT_FRACTION * luminance(real) as f64;
-            let shadow = (luminance(gains[i]) as f64) <= gain_floor;
-            highlights += highlight as usize;
-            shadows += (shadow && !highlight) as usize;
-            Some(MapObservation {
-                uv,
-                gain: gains[i],
-                target: real - specular[i],
-                weight: if highlight || shadow { 0.0 } else { 1.0 },
-            })
+            let uv = footprints.get(&(p.view, p.x, p.y))?;
+            Some((
+                i,
+                texture_map::footprint_value(&map.texels, map.side, map.side, uv),
+            ))
         })
         .collect();
-    let side = texture_map::map_side(pixels.len());
-    let n = (side * side) as usize;
-    let mut texels = vec![start; n];
-    let (mut numerator, mut denominator) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
-    let unseen_texels = texture_map::solve_map(
-        &observations,
-        side,
-        side,
-        MAX_DIFFUSE_REFLECTANCE as f32,
-        &mut texels,
-        &mut numerator,
-        &mut denominator,
-    )
-    .map_err(|e| Error::core(format!("recovering the map of group {g}"), e))?;
-    rec.maps[map] = RecoveredMap { side, texels };
-    Ok(MapSummary {
-        side,
-        pixels: pixels.len(),
-        highlights,
-        shadows,
-        unseen_texels,
-    })
+    if rows.len() < fit::MIN_PIXELS_FOR_MODEL_CHOICE as usize {
+        return Ok(None);
+    }
+    let sums_at = |alpha: f64| {
+        let lobe = Material::Ward {
+            rho_d: Vec3::ZERO,
+            rho_s: Vec3::ONE,
+            alpha: alpha as f32,
+        };
+        let mut sums = texture_map::LobeScaleSums::default();
+        for &(i, texel) in &rows {
+            let (diffuse, specular) = cache.linear_parts(i, &lobe);
+            sums.add(cache.real[i] - texel * diffuse, specular);
+        }
+        sums
+    };
+    let (alpha, sse_after) = isotropic::minimise_1d(
+        |alpha| sums_at(alpha).best().1,
+        isotropic::ROUGHNESS_MIN,
+        isotropic::ROUGHNESS_MAX,
+        isotropic::ROUGHNESS_GRID,
+        isotropic::ROUGHNESS_REFINE_STEPS,
+        true,
+    );
+    let (s, _) = sums_at(alpha).best();
+    Ok(Some(LobeRefit {
+        before: [specularity, roughness],
+        after: [s, alpha],
+        pixels: rows.len() as u32,
+        sse_before: sums_at(roughness).sse(specularity),
+        sse_after,
+    }))
 }
 
 fn render_once(
