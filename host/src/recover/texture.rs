@@ -175,11 +175,7 @@ pub fn recover_map(
     };
     let mut solved = solve.run(rec)?;
     let mut lobe_refit = None;
-    if let GroupModel::Textured {
-        lobe: stand_in @ MapLobe::Isotropic { .. },
-        ..
-    } = rec.models[g]
-    {
+    if let GroupModel::Textured { lobe: stand_in, .. } = rec.models[g] {
         let refit = lobe_with_map(rec, &solve, &solved.highlight, stand_in, cache_settings)?;
         if let Some(refit) = refit {
             let [specularity, roughness] = refit.after;
@@ -313,8 +309,8 @@ pub struct LobeRefit {
 /// part independently of the lobe, and the lobe is fitted to what is left: specularity in
 /// closed form for each roughness, the roughness by stage 2's 1-D search, on the group's
 /// transport cache. Elsewhere the map was solved to leave exactly the stand-in's lobe, and
-/// would only return it. `None` where the cache holds fewer than
-/// `MIN_PIXELS_FOR_MODEL_CHOICE` highlight pixels.
+/// would only return it. `None` for a lobe that is not isotropic, or where the cache holds
+/// fewer than `MIN_PIXELS_FOR_MODEL_CHOICE` highlight pixels.
 fn lobe_with_map(
     rec: &mut Recovery,
     solve: &MapSolve,
