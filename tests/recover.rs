@@ -71,6 +71,29 @@ fn living_room_small() -> &'static (std::path::PathBuf, Vec<relume::compare::Mat
     })
 }
 
+/// Asserts that group `name` is recovered in its true class with its specularity and
+/// roughness within the given relative errors of the truth.
+fn assert_lobe_near_truth(
+    rows: &[relume::compare::MaterialRow],
+    name: &str,
+    max_specularity_err: f64,
+    max_roughness_err: f64,
+) {
+    let row = rows
+        .iter()
+        .find(|r| r.group == name)
+        .unwrap_or_else(|| panic!("no group {name} in the comparison"));
+    assert!(row.class_ok, "{row:?}");
+    assert!(
+        row.specularity_rel_err.unwrap() <= max_specularity_err,
+        "{row:?}"
+    );
+    assert!(
+        row.roughness_rel_err.unwrap() <= max_roughness_err,
+        "{row:?}"
+    );
+}
+
 /// Group `name`'s entry in the report.json of the recovery in `out`.
 fn group_report(out: &std::path::Path, name: &str) -> serde_json::Value {
     let report: serde_json::Value =
@@ -322,10 +345,7 @@ fn glossy_small_finds_the_yellow_boxs_weak_broad_lobe() {
 #[test]
 fn living_room_small_gives_its_15_pixel_frames_their_lobe() {
     let (out, rows) = living_room_small();
-    let frames = rows.iter().find(|r| r.group == "frames").unwrap();
-    assert!(frames.class_ok, "{frames:?}");
-    assert!(frames.specularity_rel_err.unwrap() <= 0.25, "{frames:?}");
-    assert!(frames.roughness_rel_err.unwrap() <= 0.25, "{frames:?}");
+    assert_lobe_near_truth(rows, "frames", 0.25, 0.25);
     let frames_report = group_report(out, "frames");
     assert_eq!(frames_report["pure_pixels"], 15);
     let kept = comparison(&frames_report, |c| c["kept_complex"] == true);
@@ -337,15 +357,13 @@ fn living_room_small_gives_its_15_pixel_frames_their_lobe() {
 /// The living room's picture_2 (a picture under a lobe of s 0.05, roughness 0.08) has its
 /// lobe fitted on a uniform stand-in, where the picture passes for part of the lobe (s
 /// 0.063, roughness 0.12 at 64 px). Fitted again with the map on its highlights, where the
-/// map was filled from neighbours rather than solved, it comes within 5% and 30%; its
-/// own view then renders +0.7% where it rendered +2.3%.
+/// map was filled from neighbours rather than solved, it comes within 4.4% and 29% (the
+/// test allows 10% and 40%, which the stand-in's 27% and 56% fail); its own view then
+/// renders +0.7% where it rendered +2.3%.
 #[test]
 fn living_room_small_fits_picture_2s_lobe_again_with_its_map() {
     let (out, rows) = living_room_small();
-    let picture = rows.iter().find(|r| r.group == "picture_2").unwrap();
-    assert!(picture.class_ok, "{picture:?}");
-    assert!(picture.specularity_rel_err.unwrap() <= 0.1, "{picture:?}");
-    assert!(picture.roughness_rel_err.unwrap() <= 0.4, "{picture:?}");
+    assert_lobe_near_truth(rows, "picture_2", 0.1, 0.4);
     let report = group_report(out, "picture_2");
     let refit = report["decisions"].as_array().unwrap().iter().any(|d| {
         d.as_str()
