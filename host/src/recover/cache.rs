@@ -27,6 +27,10 @@ pub struct GroupCache {
     diffuse: Vec<Vec3>,
     lobe_points: Vec<LobePoint>,
     point_start: Vec<usize>,
+    /// The same from each half of a pixel's samples (for [`linear_sums_across_halves`]):
+    /// the diffuse parts, and where pixel `i`'s second half of points starts.
+    diffuse_halves: Vec<[Vec3; 2]>,
+    point_half: Vec<usize>,
 }
 
 impl GroupCache {
@@ -43,11 +47,25 @@ impl GroupCache {
         let diffuse = (0..pixels.len())
             .map(|i| transport::diffuse_part(of_pixel(i), samples))
             .collect();
+        let first_half = (samples / 2) as usize * INCIDENT_PER_SAMPLE;
+        let diffuse_halves = (0..pixels.len())
+            .map(|i| {
+                let (a, b) = of_pixel(i).split_at(first_half);
+                [
+                    transport::diffuse_part(a, samples / 2),
+                    transport::diffuse_part(b, samples - samples / 2),
+                ]
+            })
+            .collect();
         let mut lobe_points = Vec::new();
         let mut point_start = Vec::with_capacity(pixels.len() + 1);
+        let mut point_half = Vec::with_capacity(pixels.len());
         for i in 0..pixels.len() {
+            let (a, b) = of_pixel(i).split_at(first_half);
             point_start.push(lobe_points.len());
-            lobe_points.extend(of_pixel(i).iter().filter_map(transport::lobe_point));
+            lobe_points.extend(a.iter().filter_map(transport::lobe_point));
+            point_half.push(lobe_points.len());
+            lobe_points.extend(b.iter().filter_map(transport::lobe_point));
         }
         point_start.push(lobe_points.len());
         GroupCache {
@@ -57,6 +75,8 @@ impl GroupCache {
             diffuse,
             lobe_points,
             point_start,
+            diffuse_halves,
+            point_half,
         }
     }
 
@@ -67,6 +87,26 @@ impl GroupCache {
         (
             self.diffuse[i],
             transport::specular_part(points, self.samples, lobe),
+        )
+    }
+
+    /// [`GroupCache::linear_parts`] from each half of pixel `i`'s samples, two independent
+    /// estimates (`samples / 2` and the rest; the first is empty for a one-sample cache).
+    pub fn linear_parts_halves(&self, i: usize, lobe: &Material) -> ([Vec3; 2], [Vec3; 2]) {
+        let first = self.samples / 2;
+        let halves = [
+            (
+                &self.lobe_points[self.point_start[i]..self.point_half[i]],
+                first,
+            ),
+            (
+                &self.lobe_points[self.point_half[i]..self.point_start[i + 1]],
+                self.samples - first,
+            ),
+        ];
+        (
+            self.diffuse_halves[i],
+            halves.map(|(points, n)| transport::specular_part(points, n, lobe)),
         )
     }
 }
@@ -110,17 +150,52 @@ pub fn build(
 /// pixel's parts are evaluated in parallel, pixel by pixel; the sums run in one thread,
 /// in fixed chunks of [`CHUNK`] pixels merged in order: the same sums for any thread count.
 pub fn linear_sums(pool: &rayon::ThreadPool, cache: &GroupCache, lobe: &Material) -> LinearSums {
-    let parts: Vec<(Vec3, Vec3)> = pool.install(|| {
+    sums_in_order(
+        pool,
+        cache,
+        |i| cache.linear_parts(i, lobe),
+        |sums, (d, b), t| sums.add(d.to_array(), b.to_array(), t),
+    )
+}
+
+/// [`linear_sums`] with the squares and products taken across two independent halves of
+/// each pixel's samples ([`LinearSums::add_halves`]), free of the bias the parts' sampling
+/// noise puts into the plain sums (which is largest where a large group's cache holds few
+/// samples per pixel), at the price of more noise of their own.
+pub fn linear_sums_across_halves(
+    pool: &rayon::ThreadPool,
+    cache: &GroupCache,
+    lobe: &Material,
+) -> LinearSums {
+    sums_in_order(
+        pool,
+        cache,
+        |i| cache.linear_parts_halves(i, lobe),
+        |sums, (d, b), t| {
+            sums.add_halves(d.map(|v| v.to_array()), b.map(|v| v.to_array()), t);
+        },
+    )
+}
+
+/// Each pixel's parts evaluated in parallel, pixel by pixel; the sums in one thread, in
+/// fixed chunks of [`CHUNK`] pixels merged in order: the same sums for any thread count.
+fn sums_in_order<P: Send>(
+    pool: &rayon::ThreadPool,
+    cache: &GroupCache,
+    parts_of: impl Fn(usize) -> P + Sync,
+    add: impl Fn(&mut LinearSums, &P, [f32; 3]),
+) -> LinearSums {
+    let parts: Vec<P> = pool.install(|| {
         (0..cache.pixels.len())
             .into_par_iter()
-            .map(|i| cache.linear_parts(i, lobe))
+            .map(&parts_of)
             .collect()
     });
     let mut total = LinearSums::default();
     for (first, chunk) in (0..parts.len()).step_by(CHUNK).zip(parts.chunks(CHUNK)) {
         let mut sums = LinearSums::default();
-        for (i, (d, b)) in (first..).zip(chunk) {
-            sums.add(d.to_array(), b.to_array(), cache.real[i].to_array());
+        for (i, part) in (first..).zip(chunk) {
+            add(&mut sums, part, cache.real[i].to_array());
         }
         total.merge(&sums);
     }
@@ -135,10 +210,88 @@ pub fn isotropic_fit(
     kind: Kind,
     alpha: f64,
 ) -> WardFit {
-    let lobe = Material::Ward {
+    isotropic::solve(kind, &linear_sums(pool, cache, &unit_lobe(alpha)))
+}
+
+/// [`isotropic_fit`] from the sums across halves ([`linear_sums_across_halves`]): for a
+/// roughness chosen elsewhere (by render), where the fit's own noise picks nothing.
+pub fn isotropic_fit_across_halves(
+    pool: &rayon::ThreadPool,
+    cache: &GroupCache,
+    kind: Kind,
+    alpha: f64,
+) -> WardFit {
+    isotropic::solve(
+        kind,
+        &linear_sums_across_halves(pool, cache, &unit_lobe(alpha)),
+    )
+}
+
+/// The unit isotropic specular lobe of roughness `alpha`, whose parts the fits scale.
+fn unit_lobe(alpha: f64) -> Material {
+    Material::Ward {
         rho_d: Vec3::ZERO,
         rho_s: Vec3::ONE,
         alpha: alpha as f32,
-    };
-    isotropic::solve(kind, &linear_sums(pool, cache, &lobe))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recover::pixels::PurePixel;
+
+    /// Two pixels of `samples` samples each, their incident directions spread over the
+    /// upper hemisphere of +z and some below it (which the parts leave out).
+    fn cache(samples: u32) -> GroupCache {
+        let pixels: Vec<PurePixel> = (0..2)
+            .map(|x| PurePixel {
+                view: 0,
+                x,
+                y: 0,
+                group: 0,
+            })
+            .collect();
+        let n = Vec3::Z;
+        let wo = Vec3::new(0.3, 0.1, 1.0).normalize();
+        let entries = (0..2 * samples as usize * INCIDENT_PER_SAMPLE)
+            .map(|k| {
+                let t = k as f32 * 0.37;
+                // Every other sample near the mirror direction of `wo`, where a lobe is.
+                let spread = if k % 2 == 0 { 1.0 } else { 0.15 };
+                let mirror = Vec3::new(-wo.x, -wo.y, wo.z);
+                let offset = Vec3::new(libm::sinf(t), libm::cosf(1.3 * t), libm::cosf(t) - 0.1);
+                IncidentSample {
+                    wo,
+                    n,
+                    wi: (mirror * (1.0 - spread) + offset * spread).normalize(),
+                    weight: Vec3::new(1.0 + (k % 3) as f32, 0.5, 0.25 * (k % 5) as f32),
+                    uv: [0.0; 2],
+                }
+            })
+            .collect();
+        GroupCache::new(pixels, vec![Vec3::splat(0.2); 2], entries, samples)
+    }
+
+    /// The halves split each pixel's samples, each counted once: their mean is the whole
+    /// pixel's parts, for an even and an odd count (`samples / 2` and the rest).
+    #[test]
+    fn the_halves_of_a_pixel_are_its_samples_split_in_two() {
+        for (samples, weights) in [(6u32, [0.5f32, 0.5]), (7, [3.0 / 7.0, 4.0 / 7.0])] {
+            let cache = cache(samples);
+            for alpha in [0.02, 0.2] {
+                let lobe = unit_lobe(alpha);
+                for i in 0..2 {
+                    let (d, b) = cache.linear_parts(i, &lobe);
+                    let (dh, bh) = cache.linear_parts_halves(i, &lobe);
+                    let d_mean = dh[0] * weights[0] + dh[1] * weights[1];
+                    let b_mean = bh[0] * weights[0] + bh[1] * weights[1];
+                    assert!((d_mean - d).abs().max_element() < 1e-5, "{d_mean} {d}");
+                    assert!((b_mean - b).abs().max_element() < 1e-5, "{b_mean} {b}");
+                    assert!(dh[0] != dh[1], "the halves hold different samples");
+                    assert!(b.max_element() > 0.0, "the lobe reflects some samples");
+                }
+            }
+        }
+    }
 }
