@@ -40,7 +40,9 @@ pub struct IncidentSample {
 /// Samples per pixel sample: one light sample, one mixture sample.
 pub const INCIDENT_PER_SAMPLE: usize = 2;
 
-fn lobe(alpha: f32) -> Material {
+/// The unit isotropic specular lobe of roughness `alpha` (`rho_d = 0`, `rho_s = 1`): the
+/// lobe whose part of a pixel the linear fits scale by the specular reflectance.
+pub fn unit_isotropic_lobe(alpha: f32) -> Material {
     Material::Ward {
         rho_d: Vec3::ZERO,
         rho_s: Vec3::ONE,
@@ -57,7 +59,7 @@ fn mixture_pdf(n: Vec3, wo: Vec3, wi: Vec3) -> f32 {
     let p_lobe = (1.0 - MIXTURE_COSINE) / MIXTURE_ROUGHNESSES.len() as f32;
     let mut pdf = MIXTURE_COSINE * cos * INV_PI;
     for &a in &MIXTURE_ROUGHNESSES {
-        pdf += p_lobe * Bsdf::new(&lobe(a), None, n).pdf(wo, wi);
+        pdf += p_lobe * Bsdf::new(&unit_isotropic_lobe(a), None, n).pdf(wo, wi);
     }
     pdf
 }
@@ -164,7 +166,7 @@ pub fn trace_pixel_sample(
         let k = (((u_pick - MIXTURE_COSINE) / (1.0 - MIXTURE_COSINE))
             * MIXTURE_ROUGHNESSES.len() as f32) as usize;
         let a = MIXTURE_ROUGHNESSES[k.min(MIXTURE_ROUGHNESSES.len() - 1)];
-        Bsdf::new(&lobe(a), None, n)
+        Bsdf::new(&unit_isotropic_lobe(a), None, n)
             .sample(wo, 1.0, u_dir)
             .map(|s| s.wi)
     };

@@ -210,7 +210,10 @@ pub fn isotropic_fit(
     kind: Kind,
     alpha: f64,
 ) -> WardFit {
-    isotropic::solve(kind, &linear_sums(pool, cache, &unit_lobe(alpha)))
+    isotropic::solve(
+        kind,
+        &linear_sums(pool, cache, &transport::unit_isotropic_lobe(alpha as f32)),
+    )
 }
 
 /// [`isotropic_fit`] from the sums across halves ([`linear_sums_across_halves`]): for a
@@ -223,17 +226,8 @@ pub fn isotropic_fit_across_halves(
 ) -> WardFit {
     isotropic::solve(
         kind,
-        &linear_sums_across_halves(pool, cache, &unit_lobe(alpha)),
+        &linear_sums_across_halves(pool, cache, &transport::unit_isotropic_lobe(alpha as f32)),
     )
-}
-
-/// The unit isotropic specular lobe of roughness `alpha`, whose parts the fits scale.
-fn unit_lobe(alpha: f64) -> Material {
-    Material::Ward {
-        rho_d: Vec3::ZERO,
-        rho_s: Vec3::ONE,
-        alpha: alpha as f32,
-    }
 }
 
 #[cfg(test)]
@@ -241,8 +235,9 @@ mod tests {
     use super::*;
     use crate::recover::pixels::PurePixel;
 
-    /// Two pixels of `samples` samples each, their incident directions spread over the
-    /// upper hemisphere of +z and some below it (which the parts leave out).
+    /// Two pixels of `samples` samples each: every other incident direction spread widely
+    /// (some below the surface, which the parts leave out), the rest near the mirror
+    /// direction of `wo`, where a lobe reflects them.
     fn cache(samples: u32) -> GroupCache {
         let pixels: Vec<PurePixel> = (0..2)
             .map(|x| PurePixel {
@@ -279,8 +274,8 @@ mod tests {
     fn the_halves_of_a_pixel_are_its_samples_split_in_two() {
         for (samples, weights) in [(6u32, [0.5f32, 0.5]), (7, [3.0 / 7.0, 4.0 / 7.0])] {
             let cache = cache(samples);
-            for alpha in [0.02, 0.2] {
-                let lobe = unit_lobe(alpha);
+            for alpha in [0.02f32, 0.2] {
+                let lobe = transport::unit_isotropic_lobe(alpha);
                 for i in 0..2 {
                     let (d, b) = cache.linear_parts(i, &lobe);
                     let (dh, bh) = cache.linear_parts_halves(i, &lobe);

@@ -26,6 +26,7 @@ use rayon::prelude::*;
 use relume_core::material::{Kind, Material};
 use relume_core::stages::anisotropic;
 use relume_core::stages::isotropic::{self, LinearSums, WardFit};
+use relume_core::transport;
 
 use super::cache::GroupCache;
 use super::model::MapLobe;
@@ -136,10 +137,10 @@ impl Lobes {
         );
         let n = isotropic::ROUGHNESS_GRID;
         let mut materials: Vec<Material> = (0..n)
-            .map(|i| Material::Ward {
-                rho_d: Vec3::ZERO,
-                rho_s: Vec3::ONE,
-                alpha: libm::exp(lo + (hi - lo) * i as f64 / (n - 1) as f64) as f32,
+            .map(|i| {
+                transport::unit_isotropic_lobe(
+                    libm::exp(lo + (hi - lo) * i as f64 / (n - 1) as f64) as f32,
+                )
             })
             .collect();
         materials.extend(
@@ -253,11 +254,7 @@ pub fn lobe_spread(
             let (step, n) = SPREAD_ISOTROPIC;
             for k in -n..=n {
                 let alpha = clamp(roughness * libm::exp(step * k as f64));
-                materials.push(Material::Ward {
-                    rho_d: Vec3::ZERO,
-                    rho_s: Vec3::ONE,
-                    alpha: alpha as f32,
-                });
+                materials.push(transport::unit_isotropic_lobe(alpha as f32));
                 shapes.push(vec![("roughness", alpha)]);
             }
         }
