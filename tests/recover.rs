@@ -24,13 +24,27 @@ fn recover_small_reference(
     std::path::PathBuf,
     Vec<relume::compare::MaterialRow>,
 ) {
+    recover_reference(name, "scene-small.toml", "1")
+}
+
+/// Reference `name`'s `scene` (`scene.toml` at 256 px per face, or `scene-small.toml`)
+/// recovered at effort fast on `seed`, as [`recover_small_reference`].
+fn recover_reference(
+    name: &str,
+    scene: &str,
+    seed: &str,
+) -> (
+    tempfile::TempDir,
+    std::path::PathBuf,
+    Vec<relume::compare::MaterialRow>,
+) {
     let bench = shared().join("bench").join(name);
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("rec");
     recover(
-        &bench.join("scene-small.toml"),
+        &bench.join(scene),
         &out,
-        &["--effort", "fast", "--seed", "1"],
+        &["--effort", "fast", "--seed", seed],
     );
     let rows =
         relume::compare::materials_report(&bench.join("truth.toml"), &out.join("materials.toml"))
@@ -390,17 +404,7 @@ fn glossy_at_256_px_decides_its_steel_box_on_a_subset_and_keeps_its_lobe() {
 }
 
 fn steel_box_at_256_px_keeps_its_lobe(seed: &str) {
-    let bench = shared().join("bench").join("glossy");
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("rec");
-    recover(
-        &bench.join("scene.toml"),
-        &out,
-        &["--effort", "fast", "--seed", seed],
-    );
-    let rows =
-        relume::compare::materials_report(&bench.join("truth.toml"), &out.join("materials.toml"))
-            .unwrap();
+    let (_tmp, out, rows) = recover_reference("glossy", "scene.toml", seed);
     let steel = rows.iter().find(|r| r.group == "metal_steel").unwrap();
     assert!(steel.class_ok, "seed {seed}: {steel:?}");
     assert!(
@@ -440,20 +444,7 @@ fn steel_box_at_256_px_keeps_its_lobe(seed: &str) {
 /// diffuse in the truth stays diffuse.
 #[test]
 fn living_room_at_256_px_finds_its_weak_lobes_on_the_ladders_few_pixels() {
-    let bench = shared().join("bench").join("living-room");
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("rec");
-    recover(
-        &bench.join("scene.toml"),
-        &out,
-        &["--effort", "fast", "--seed", "1"],
-    );
-    let rows =
-        relume::compare::materials_report(&bench.join("truth.toml"), &out.join("materials.toml"))
-            .unwrap();
-    for r in &rows {
-        println!("{r:?}");
-    }
+    let (_tmp, out, rows) = recover_reference("living-room", "scene.toml", "1");
     assert_lobe_near_truth(&rows, "lamp_body", 0.5, 0.8);
     assert_lobe_near_truth(&rows, "desk", 0.5, 0.8);
     for name in ["lamp_body", "desk"] {
