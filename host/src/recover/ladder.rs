@@ -16,8 +16,7 @@
 //! 0.05 at every rung, each rendering worse than diffuse), every rung is
 //! rendered against the diffuse model on fresh samples, and the rung that removes the most
 //! error (at its lower confidence bound; then refined by half a rung) goes to the same
-//! keep-or-reject test as the proposal did, from the ladder's samples up. The rungs and
-//! that test render a large group's samples on at most [`LADDER_PIXELS`] of its pixels. One more test on
+//! keep-or-reject test as the proposal did, from the ladder's samples up. One more test on
 //! a group that already failed one adds a little to the false-positive rate; the test's z
 //! of `GAIN_SIGNIFICANCE` on fresh samples bounds it.
 
@@ -66,18 +65,6 @@ pub struct Rung {
 /// [`RACE_MIN_SAMPLES`]: super::refine::RACE_MIN_SAMPLES
 pub const LADDER_SAMPLES: u64 = 1 << 15;
 
-/// Pixels of a group the ladder and its test render at most, with the samples of all its
-/// pixels concentrated on them (every k-th of the decisions' pixels, so between half this
-/// and this many). A weak lobe's gain is a few parts in ten thousand of squared error, and
-/// a comparison's noise is mostly the product of two renders' noises per pixel, which
-/// falls with the square of the samples per pixel: at the same 2^15 samples, the true
-/// lobe of the living room's lamp_body (542 pixels at 256 px) against the diffuse model
-/// read z 2.2-3.9 on all its pixels at 61 spp and 3.8-4.9 on 109 at 303 spp (three seeds
-/// each; the desk, 936 pixels against 117: z 1.3-4.9 and 1.8-4.9), and on the ladder's
-/// own seed at 61 spp a firefly put every rung and the truth itself below the diffuse
-/// model (-0.0015 +- 0.0022), so the ladder found nothing.
-pub const LADDER_PIXELS: usize = 128;
-
 /// The rung of group `g`'s ladder whose gain over `diffuse` is largest at its lower bound
 /// (`gain - EXCEEDS_SIGMAS sigma`, in squared error: a sharp rung's gain is the noisiest,
 /// and the plain largest gain is most often a sharp rung the samples favour; and a weak
@@ -93,7 +80,7 @@ fn best_rung(
     diffuse: GroupModel,
     group_spp: u32,
 ) -> Result<(Option<Rung>, Vec<Rung>, u32), Error> {
-    let (pixels, spp) = rec.decision_pixels(g, group_spp, LADDER_PIXELS);
+    let (pixels, spp) = rec.decision_pixels(g, group_spp);
     let seed = rec.seed ^ 0x001A_DDE2 ^ g as u64;
     let before = rec.models[g];
     rec.models[g] = diffuse;
@@ -285,7 +272,7 @@ pub fn second_look(
         spread.specularity.0,
         spread.specularity.1,
     );
-    let test = rec.compare_models_at_most(g, diffuse, rung.model, group_spp, LADDER_PIXELS)?;
+    let test = rec.compare_models(g, diffuse, rung.model, group_spp)?;
     evaluations += 2;
     Ok(SecondLook {
         found: match test {
@@ -302,8 +289,8 @@ pub fn second_look(
 }
 
 /// Samples per pixel of the whole group `g` for its ladder's renders, from the loop's
-/// `spp`: at least [`LADDER_SAMPLES`] in all (rendered on at most [`LADDER_PIXELS`] of
-/// them, `Recovery::decision_pixels`).
+/// `spp`: at least [`LADDER_SAMPLES`] in all (rendered on the decisions' pixels,
+/// `Recovery::decision_pixels`).
 fn ladder_spp(rec: &Recovery, g: usize, spp: u32) -> u32 {
     let pixels = pixels::of_group(&rec.pure, g).len() as u32;
     min_samples_spp(spp, pixels, LADDER_SAMPLES)

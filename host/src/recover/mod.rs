@@ -319,17 +319,17 @@ impl Recovery {
 
     /// The pixels a decision about group `g` renders and their samples per pixel, for
     /// `spp` samples per pixel of the whole group: a large group's fixed search subset
-    /// (`refine::search_subset`, at most `MAX_SEARCH_PIXELS`), thinned to at most
-    /// `at_most` (every k-th), with as many pixel samples in all, concentrated on fewer
-    /// pixels. Much of a comparison's noise is a product of two renders' noises per pixel,
-    /// whose variance falls with the square of the samples per pixel, so at the same cost
-    /// a subset reads steadier: on glossy at 256 px the steel box (6472 pixels) read its
-    /// lobe against a perfect mirror as -0.064 +- 0.073 at 32 spp on all its pixels
-    /// (seed 1) and became a mirror by default; the same lobe against the diffuse model
-    /// read 0.193 +- 0.0056 on all of them and 0.187 +- 0.0032 at 224 spp on 925 (seed 3).
-    fn decision_pixels(&self, g: usize, spp: u32, at_most: usize) -> (Vec<PurePixel>, u32) {
+    /// (`refine::search_subset`, at most `MAX_SEARCH_PIXELS`) with as many pixel samples
+    /// in all, concentrated on fewer pixels. Much of a comparison's noise is a product of
+    /// two renders' noises per pixel, whose variance falls with the square of the samples
+    /// per pixel, so at the same cost a subset reads steadier: on glossy at 256 px the
+    /// steel box (6472 pixels) read its lobe against a perfect mirror as -0.064 +- 0.073
+    /// at 32 spp on all its pixels (seed 1) and became a mirror by default; the same lobe
+    /// against the diffuse model read 0.193 +- 0.0056 on all of them and 0.187 +- 0.0032
+    /// at 224 spp on 925 (seed 3).
+    fn decision_pixels(&self, g: usize, spp: u32) -> (Vec<PurePixel>, u32) {
         let all = pixels::of_group(&self.pure, g).len() as u64;
-        let subset = pixels::every_kth(refine::search_subset(&self.pure, g), at_most);
+        let subset = refine::search_subset(&self.pure, g);
         let samples = all * spp as u64;
         let spp = samples
             .div_ceil(subset.len().max(1) as u64)
@@ -338,8 +338,7 @@ impl Recovery {
     }
 
     /// What a stage decides on for group `g`: the `simple` model against the `complex` one
-    /// on the group's pure pixels ([`Recovery::decision_pixels`], at most
-    /// `MAX_SEARCH_PIXELS`, at `spp` samples per
+    /// on the group's pure pixels ([`Recovery::decision_pixels`], at `spp` samples per
     /// pixel of the whole group), both with bias-only errors (see
     /// [`pixels::evaluate_cross`]) on the decisions' own seed, paired pixel by pixel
     /// ([`fit::ModelComparison`]), from `spp` samples per pixel up while the comparison is
@@ -354,20 +353,7 @@ impl Recovery {
         complex: GroupModel,
         spp: u32,
     ) -> Result<Option<(fit::ModelComparison, u32)>, Error> {
-        self.compare_models_at_most(g, simple, complex, spp, refine::MAX_SEARCH_PIXELS)
-    }
-
-    /// [`Recovery::compare_models`] on at most `at_most` of the group's pixels
-    /// ([`Recovery::decision_pixels`]).
-    fn compare_models_at_most(
-        &mut self,
-        g: usize,
-        simple: GroupModel,
-        complex: GroupModel,
-        spp: u32,
-        at_most: usize,
-    ) -> Result<Option<(fit::ModelComparison, u32)>, Error> {
-        let (pixels, mut spp) = self.decision_pixels(g, spp, at_most);
+        let (pixels, mut spp) = self.decision_pixels(g, spp);
         let mut round = 0;
         loop {
             let seed = self.decision_seed() ^ ((round as u64) << 32);
