@@ -14,30 +14,24 @@ fn recover(scene: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> Ve
     std::fs::read(out.join("materials.toml")).unwrap()
 }
 
-/// A reference's small scene (`bench/<name>/scene-small.toml`, 64x64 per face) recovered
-/// at effort fast, seed 1, into a temporary folder: the folder (kept alive by the caller),
-/// the output folder, and its materials compared with the truth (printed, for failures).
-fn recover_small_reference(
-    name: &str,
-) -> (
+/// A recovered reference: the temporary folder (kept alive by the caller), the output
+/// folder, and its materials compared with the truth.
+type RecoveredReference = (
     tempfile::TempDir,
     std::path::PathBuf,
     Vec<relume::compare::MaterialRow>,
-) {
+);
+
+/// A reference's small scene (`bench/<name>/scene-small.toml`, 64x64 per face) recovered
+/// at effort fast, seed 1 (see [`recover_reference`]).
+fn recover_small_reference(name: &str) -> RecoveredReference {
     recover_reference(name, "scene-small.toml", "1")
 }
 
 /// Reference `name`'s `scene` (`scene.toml` at 256 px per face, or `scene-small.toml`)
-/// recovered at effort fast on `seed`, as [`recover_small_reference`].
-fn recover_reference(
-    name: &str,
-    scene: &str,
-    seed: &str,
-) -> (
-    tempfile::TempDir,
-    std::path::PathBuf,
-    Vec<relume::compare::MaterialRow>,
-) {
+/// recovered at effort fast on `seed` into a temporary folder, its materials compared with
+/// the truth (printed, for failures).
+fn recover_reference(name: &str, scene: &str, seed: &str) -> RecoveredReference {
     let bench = shared().join("bench").join(name);
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("rec");
