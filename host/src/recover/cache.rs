@@ -177,6 +177,26 @@ pub fn linear_sums_across_halves(
     )
 }
 
+/// [`linear_sums`] from one half of each pixel's samples (`half` 0 or 1, as
+/// [`GroupCache::linear_parts_halves`] splits them): a cache of half the size, for how its
+/// fit depends on its size.
+pub fn linear_sums_of_half(
+    pool: &rayon::ThreadPool,
+    cache: &GroupCache,
+    lobe: &Material,
+    half: usize,
+) -> LinearSums {
+    sums_in_order(
+        pool,
+        cache,
+        |i| {
+            let (d, b) = cache.linear_parts_halves(i, lobe);
+            (d[half], b[half])
+        },
+        |sums, (d, b), t| sums.add(d.to_array(), b.to_array(), t),
+    )
+}
+
 /// Each pixel's parts evaluated in parallel, pixel by pixel; the sums in one thread, in
 /// fixed chunks of [`CHUNK`] pixels merged in order: the same sums for any thread count.
 fn sums_in_order<P: Send>(
@@ -216,6 +236,25 @@ pub fn isotropic_fit(
     )
 }
 
+/// [`isotropic_fit`] on one half of each pixel's samples ([`linear_sums_of_half`]).
+pub fn isotropic_fit_of_half(
+    pool: &rayon::ThreadPool,
+    cache: &GroupCache,
+    kind: Kind,
+    alpha: f64,
+    half: usize,
+) -> WardFit {
+    isotropic::solve(
+        kind,
+        &linear_sums_of_half(
+            pool,
+            cache,
+            &transport::unit_isotropic_lobe(alpha as f32),
+            half,
+        ),
+    )
+}
+
 /// [`isotropic_fit`] from the sums across halves ([`linear_sums_across_halves`]): for a
 /// roughness chosen elsewhere (by render), where the fit's own noise picks nothing.
 pub fn isotropic_fit_across_halves(
@@ -231,7 +270,7 @@ pub fn isotropic_fit_across_halves(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::recover::pixels::PurePixel;
 
@@ -239,17 +278,14 @@ mod tests {
     /// (some below the surface, which the parts leave out), the rest near the mirror
     /// direction of `wo`, where a lobe reflects them.
     fn cache(samples: u32) -> GroupCache {
-        let pixels: Vec<PurePixel> = (0..2)
-            .map(|x| PurePixel {
-                view: 0,
-                x,
-                y: 0,
-                group: 0,
-            })
-            .collect();
+        cache_of(entries(samples), samples)
+    }
+
+    /// The incident samples of [`cache`], pixel after pixel.
+    pub(crate) fn entries(samples: u32) -> Vec<IncidentSample> {
         let n = Vec3::Z;
         let wo = Vec3::new(0.3, 0.1, 1.0).normalize();
-        let entries = (0..2 * samples as usize * INCIDENT_PER_SAMPLE)
+        (0..2 * samples as usize * INCIDENT_PER_SAMPLE)
             .map(|k| {
                 let t = k as f32 * 0.37;
                 // Every other sample near the mirror direction of `wo`, where a lobe is.
@@ -264,8 +300,55 @@ mod tests {
                     uv: [0.0; 2],
                 }
             })
+            .collect()
+    }
+
+    /// The cache of two pixels whose incident samples are `entries` (`samples` per pixel).
+    pub(crate) fn cache_of(entries: Vec<IncidentSample>, samples: u32) -> GroupCache {
+        let pixels: Vec<PurePixel> = (0..2)
+            .map(|x| PurePixel {
+                view: 0,
+                x,
+                y: 0,
+                group: 0,
+            })
             .collect();
         GroupCache::new(pixels, vec![Vec3::splat(0.2); 2], entries, samples)
+    }
+
+    /// `entries` of `samples` per pixel with each pixel's samples repeated once: a cache
+    /// whose second half of every pixel is its first.
+    pub(crate) fn repeated(entries: &[IncidentSample], samples: u32) -> Vec<IncidentSample> {
+        entries
+            .chunks(samples as usize * INCIDENT_PER_SAMPLE)
+            .flat_map(|pixel| pixel.iter().chain(pixel).copied())
+            .collect()
+    }
+
+    /// A cache whose second half repeats its first: each half's sums are the whole's.
+    #[test]
+    fn a_half_of_a_cache_that_repeats_itself_sums_as_the_whole() {
+        let twice = cache_of(repeated(&entries(4), 4), 8);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let lobe = transport::unit_isotropic_lobe(0.05);
+        let whole = linear_sums(&pool, &twice, &lobe);
+        assert!(whole.bb[0] > 0.0, "the lobe reflects some samples");
+        for half in [0, 1] {
+            let part = linear_sums_of_half(&pool, &twice, &lobe, half);
+            for c in 0..3 {
+                for (a, b) in [
+                    (part.dd[c], whole.dd[c]),
+                    (part.db[c], whole.db[c]),
+                    (part.bb[c], whole.bb[c]),
+                    (part.dt[c], whole.dt[c]),
+                ] {
+                    assert!((a - b).abs() <= 1e-6 * b.abs().max(1e-9), "{a} {b}");
+                }
+            }
+        }
     }
 
     /// The halves split each pixel's samples, each counted once: their mean is the whole

@@ -477,11 +477,16 @@ fn fit_ward(
     cache: &cache::GroupCache,
     kind: Kind,
 ) -> (WardFit, f64, u32) {
+    fit_ward_by(|alpha| cache::isotropic_fit(pool, cache, kind, alpha))
+}
+
+/// [`fit_ward`] with the reflectances at each roughness from `fit_at`.
+fn fit_ward_by(mut fit_at: impl FnMut(f64) -> WardFit) -> (WardFit, f64, u32) {
     let mut evaluations = 0;
     let mut best: Option<(WardFit, f64)> = None;
     let mut solve = |alpha: f64| {
         evaluations += 1;
-        let fit = cache::isotropic_fit(pool, cache, kind, alpha);
+        let fit = fit_at(alpha);
         let sse = fit.sse;
         if best.as_ref().is_none_or(|(b, _)| sse < b.sse) {
             best = Some((fit, alpha));

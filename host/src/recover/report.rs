@@ -52,10 +52,12 @@ pub struct GroupReport {
     /// Whether stage 2 kept a lobe from its ladder of roughnesses (see `ladder`), whose
     /// shape is coarse.
     pub lobe_from_ladder: bool,
-    /// The standard errors of such a lobe's roughness and specularity implied by the
-    /// rungs the ladder could not tell from its choice (`ladder::Spread::sigmas`).
+    /// The standard errors of stage 2's lobe's roughness and specularity beyond the
+    /// sandwich's (`uncertainty`): the rungs a ladder could not tell from its choice
+    /// (`ladder::Spread::sigmas`), or how the cache's proposal moves with the cache's size
+    /// (`uncertainty::proposal_size_dependence`).
     #[serde(skip)]
-    pub ladder_sigmas: Vec<(&'static str, f64)>,
+    pub lobe_sigmas: Vec<(&'static str, f64)>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
 }
@@ -83,7 +85,7 @@ impl GroupReport {
             error_measurements: Vec::new(),
             comparisons: Vec::new(),
             lobe_from_ladder: false,
-            ladder_sigmas: Vec::new(),
+            lobe_sigmas: Vec::new(),
             uncertainty: Vec::new(),
         }
     }

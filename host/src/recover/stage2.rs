@@ -17,7 +17,7 @@ use relume_core::stages::isotropic::{self, WardFit};
 use super::model::GroupModel;
 use super::{
     cache, fit_ward, keep_rule, ladder, lobe_kinds, min_samples_spp, mirror_test, progress_bar,
-    refine, Budget, ComparisonReport, GroupReport, Recovery, StageReport,
+    refine, uncertainty, Budget, ComparisonReport, GroupReport, Recovery, StageReport,
 };
 use crate::error::Error;
 use crate::scene_file::GroupKind;
@@ -86,6 +86,7 @@ pub(super) fn run(
         let Some((ward, alpha, kind)) = best else {
             continue;
         };
+        let proposal_roughness = alpha;
         let r = &mut reports[g];
         r.cache_error_diffuse = Some(diffuse_fit.relative_error);
         r.cache_error_specular = Some(ward.relative_error);
@@ -258,7 +259,19 @@ pub(super) fn run(
             rec.models[g] = candidate.0;
             r.set_decided(c.complex_estimate());
             r.lobe_from_ladder = ladder_sigmas.is_some();
-            r.ladder_sigmas = ladder_sigmas.map_or(Vec::new(), Vec::from);
+            r.lobe_sigmas = match ladder_sigmas {
+                Some(sigmas) => Vec::from(sigmas),
+                None if matches!(candidate.0, GroupModel::Isotropic { .. }) => {
+                    Vec::from(uncertainty::proposal_size_dependence(
+                        &rec.pool,
+                        &cache,
+                        kind,
+                        ward.specularity,
+                        proposal_roughness,
+                    ))
+                }
+                None => Vec::new(),
+            };
         } else {
             r.decisions.push(format!(
                 "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: needs {}",
