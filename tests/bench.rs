@@ -98,8 +98,15 @@ fn quick_tradeoff_writes_a_row_per_point_and_a_chart() {
             "legend lacks {knob}"
         );
     }
+    // The same chart as PNG, of the SVG's size.
+    let png = image::open(out.join("tradeoff.png")).unwrap();
+    let size = |attribute: &str| -> u32 {
+        let at = svg.find(&format!(" {attribute}=\"")).unwrap() + attribute.len() + 3;
+        svg[at..].split('"').next().unwrap().parse().unwrap()
+    };
+    assert_eq!((png.width(), png.height()), (size("width"), size("height")));
     let stdout = String::from_utf8_lossy(&output.stdout);
-    assert!(stdout.contains("nelder-mead") && stdout.contains("tradeoff.svg"));
+    assert!(stdout.contains("nelder-mead") && stdout.contains("tradeoff.png"));
 }
 
 #[test]

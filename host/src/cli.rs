@@ -184,7 +184,7 @@ enum BenchCommand {
     },
     /// Recovery's accuracy against wall time, one knob at a time (effort, annealing
     /// length, samples per evaluation, view resolution, Nelder-Mead against annealing):
-    /// tradeoff.csv, tradeoff.svg and a table.
+    /// tradeoff.csv, tradeoff.svg (and the same chart as tradeoff.png) and a table.
     Tradeoff {
         scene: PathBuf,
         /// The true materials (truth.toml) the recoveries are judged against.
@@ -205,8 +205,8 @@ enum BenchCommand {
         quick: bool,
     },
     /// Recovery under perturbations (seeds, image noise, exposure, light radiance, view
-    /// size, pixels of one group): stability.csv, seed-spread.csv, stability.svg and a
-    /// verdict on the targets.
+    /// size, pixels of one group): stability.csv, seed-spread.csv, stability.svg (and .png)
+    /// and a verdict on the targets.
     Stability {
         scene: PathBuf,
         /// The true materials (truth.toml) the recoveries are judged against.
@@ -407,9 +407,10 @@ fn run(command: Command) -> Result<(), Error> {
             };
             bench::tradeoff::run(&args)?;
             println!(
-                "wrote {} and {}",
+                "wrote {}, {} and {}",
                 args.out.join("tradeoff.csv").display(),
-                args.out.join("tradeoff.svg").display()
+                args.out.join("tradeoff.svg").display(),
+                args.out.join("tradeoff.png").display()
             );
             Ok(())
         }
@@ -435,10 +436,11 @@ fn run(command: Command) -> Result<(), Error> {
             };
             bench::stability::run(&args)?;
             println!(
-                "wrote {}, {} and {}",
+                "wrote {}, {}, {} and {}",
                 args.out.join("stability.csv").display(),
                 args.out.join("seed-spread.csv").display(),
-                args.out.join("stability.svg").display()
+                args.out.join("stability.svg").display(),
+                args.out.join("stability.png").display()
             );
             Ok(())
         }

@@ -1,9 +1,23 @@
 //! A small SVG line-chart writer for the benches: a grid of panels, each with its own axes
 //! (linear or logarithmic), one polyline per series and a label beside every point.
 //! Hand-written so that the benches need no plotting dependency; the output is plain SVG
-//! 1.1, readable in a browser and diffable in git.
+//! 1.1, readable in a browser and diffable in git. The same chart is also drawn as PNG
+//! (by resvg, with fonts of our own) for viewers that do not show SVG.
 
 use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::error::Error;
+use crate::fsutil;
+
+/// The PNG's fonts, built in: system fonts differ between machines (or are missing, and
+/// resvg then leaves text out without a word). DejaVu Sans, subset to Latin-1 and some
+/// punctuation (host/assets/fonts/LICENSE).
+const FONTS: [&[u8]; 2] = [
+    include_bytes!("../../assets/fonts/DejaVuSans.ttf"),
+    include_bytes!("../../assets/fonts/DejaVuSans-Bold.ttf"),
+];
+const FONT_FAMILY: &str = "DejaVu Sans";
 
 /// One axis of a panel.
 #[derive(Clone, Debug, Default)]
@@ -226,6 +240,40 @@ impl Chart {
     }
 }
 
+impl Chart {
+    /// The chart drawn as a PNG image of the SVG's size.
+    pub fn to_png(&self) -> Result<Vec<u8>, String> {
+        use resvg::{tiny_skia, usvg};
+        let mut options = usvg::Options {
+            font_family: FONT_FAMILY.into(),
+            ..usvg::Options::default()
+        };
+        let fonts = options.fontdb_mut();
+        for font in FONTS {
+            fonts.load_font_data(font.to_vec());
+        }
+        fonts.set_sans_serif_family(FONT_FAMILY);
+        let tree = usvg::Tree::from_str(&self.to_svg(), &options).map_err(|e| e.to_string())?;
+        let size = tree.size().to_int_size();
+        let mut pixmap = tiny_skia::Pixmap::new(size.width(), size.height())
+            .ok_or_else(|| format!("a chart of {}x{} pixels", size.width(), size.height()))?;
+        resvg::render(&tree, tiny_skia::Transform::default(), &mut pixmap.as_mut());
+        pixmap.encode_png().map_err(|e| e.to_string())
+    }
+
+    /// Writes the chart as SVG to `svg` and as PNG beside it (the same name, `.png`), each
+    /// atomically.
+    pub fn write(&self, svg: &Path) -> Result<(), Error> {
+        fsutil::write_atomic(svg, self.to_svg().as_bytes())?;
+        let png = svg.with_extension("png");
+        let bytes = self.to_png().map_err(|e| Error::Io {
+            file: png.clone(),
+            source: std::io::Error::other(format!("drawing the chart: {e}")),
+        })?;
+        fsutil::write_atomic(&png, &bytes)
+    }
+}
+
 fn panel_svg(s: &mut String, panel: &Panel, ox: f64, oy: f64) {
     let points = || panel.series.iter().flat_map(|se| se.points.iter());
     let sx = Scale::new(&panel.x, points().map(|p| p.x));
@@ -359,6 +407,39 @@ mod tests {
                 })
                 .collect(),
         }
+    }
+
+    /// The dark pixels of a decoded PNG in rows `rows`.
+    fn dark_pixels(png: &[u8], rows: std::ops::Range<u32>) -> usize {
+        let image = image::load_from_memory(png).unwrap().to_rgb8();
+        rows.flat_map(|y| (0..image.width()).map(move |x| (x, y)))
+            .filter(|&(x, y)| image.get_pixel(x, y).0.iter().all(|&c| c < 128))
+            .count()
+    }
+
+    #[test]
+    fn the_png_is_the_svgs_size_and_draws_its_text_with_our_fonts() {
+        let chart = |title: &str| Chart {
+            title: title.into(),
+            columns: 2,
+            panels: vec![Panel {
+                title: String::new(),
+                x: axis(true),
+                y: axis(false),
+                series: vec![series("a", &[(1.0, 2.0), (10.0, 3.0)])],
+            }],
+        };
+        let titled = chart("relume bench tradeoff: glossy").to_png().unwrap();
+        let image = image::load_from_memory(&titled).unwrap();
+        assert_eq!(
+            (image.width(), image.height()),
+            ((2.0 * PANEL_W) as u32, (HEADER + PANEL_H) as u32)
+        );
+        // The title's band: text in the titled chart, nothing in the untitled one.
+        let band = 6..HEADER as u32;
+        let untitled = chart("").to_png().unwrap();
+        assert_eq!(dark_pixels(&untitled, band.clone()), 0);
+        assert!(dark_pixels(&titled, band) > 200, "the title is drawn");
     }
 
     #[test]

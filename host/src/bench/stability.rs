@@ -125,7 +125,7 @@ fn same_class(run: &Judged, baseline: &Judged) -> Vec<bool> {
         .collect()
 }
 
-/// Runs the study, writes stability.csv, seed-spread.csv and stability.svg under
+/// Runs the study, writes stability.csv, seed-spread.csv and stability.svg (and .png) under
 /// `args.out`, prints the runs and the verdict on the targets.
 pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
     let desc = scene_file::load_scene(&args.scene)?;
@@ -256,12 +256,7 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
         group: &group,
         group_pixels,
     };
-    fsutil::write_atomic(
-        &args.out.join("stability.svg"),
-        chart(&runs, &baseline, &context, &title)
-            .to_svg()
-            .as_bytes(),
-    )?;
+    chart(&runs, &baseline, &context, &title).write(&args.out.join("stability.svg"))?;
     print_runs(&runs, &baseline, &group);
     print_verdict(&runs, &baseline, &spread);
     Ok(runs)

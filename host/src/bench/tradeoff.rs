@@ -147,7 +147,7 @@ pub struct TradeoffRow {
     pub summary: Summary,
 }
 
-/// Runs the sweep, writes `tradeoff.csv` and `tradeoff.svg` under `args.out`, prints the
+/// Runs the sweep, writes `tradeoff.csv` and `tradeoff.svg` (and `.png`) under `args.out`, prints the
 /// table and returns the rows.
 pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
     let desc = scene_file::load_scene(&args.scene)?;
@@ -222,10 +222,7 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
         effort_name(args.effort),
         args.seed
     );
-    fsutil::write_atomic(
-        &args.out.join("tradeoff.svg"),
-        chart(&rows, &title).to_svg().as_bytes(),
-    )?;
+    chart(&rows, &title).write(&args.out.join("tradeoff.svg"))?;
     print_table(&rows);
     Ok(rows)
 }
