@@ -156,3 +156,29 @@ fn downsample_makes_a_loadable_half_resolution_scene() {
         "{err}"
     );
 }
+
+/// A reader that closes the pipe before relume prints (`relume ... | head`) ends it as it
+/// ends any Unix filter, by SIGPIPE, not by a panic on the broken pipe.
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_ends_relume_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::{Command, Stdio};
+    let truth = workspace().join("scenes/cornell/materials.toml");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_relume"))
+        .args(["compare", "materials", path_str(&truth), path_str(&truth)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Closed before the process has started to print.
+    drop(child.stdout.take());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        output.status.success() || output.status.signal() == Some(libc::SIGPIPE),
+        "{:?}",
+        output.status
+    );
+}
