@@ -142,10 +142,13 @@ enum CompareCommand {
         json: Option<PathBuf>,
     },
     /// Whether a recovery's reported standard errors (report.json) cover the truth as
-    /// often as they claim, over the groups recovered in their true class.
+    /// often as they claim, over the groups recovered in their true class (several
+    /// reports, e.g. of several seeds, are pooled).
     Uncertainty {
         truth: PathBuf,
-        report: PathBuf,
+        /// One or more report.json (several seeds of the scene are pooled).
+        #[arg(required = true, num_args = 1..)]
+        report: Vec<PathBuf>,
         #[arg(long)]
         json: Option<PathBuf>,
     },

@@ -2,7 +2,7 @@
 //! parameters as often as they claim (68% within one sigma, 95% within two)?
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
@@ -34,6 +34,8 @@ struct Parameter {
 /// One recovered parameter against the truth.
 #[derive(Serialize, Debug)]
 pub struct CoverageRow {
+    /// The report.json it is from.
+    pub report: String,
     pub group: String,
     pub parameter: String,
     pub recovered: f64,
@@ -79,6 +81,7 @@ pub fn coverage_rows(truth: &Path, report: &Path) -> Result<Vec<CoverageRow>, Er
                 continue;
             };
             rows.push(CoverageRow {
+                report: report.display().to_string(),
                 group: g.group.clone(),
                 parameter: p.parameter.clone(),
                 recovered: p.value,
@@ -96,34 +99,114 @@ pub fn coverage_rows(truth: &Path, report: &Path) -> Result<Vec<CoverageRow>, Er
 }
 
 /// The fractions of rows within one and two sigma.
-pub fn fractions(rows: &[CoverageRow]) -> (f64, f64) {
-    let n = rows.len().max(1) as f64;
-    let within = |k: f64| rows.iter().filter(|r| r.z <= k).count() as f64 / n;
+pub fn fractions<'a>(rows: impl IntoIterator<Item = &'a CoverageRow>) -> (f64, f64) {
+    let zs: Vec<f64> = rows.into_iter().map(|r| r.z).collect();
+    let n = zs.len().max(1) as f64;
+    let within = |k: f64| zs.iter().filter(|&&z| z <= k).count() as f64 / n;
     (within(1.0), within(2.0))
 }
 
-pub fn compare_uncertainty(truth: &Path, report: &Path, json: Option<&Path>) -> Result<(), Error> {
-    let rows = coverage_rows(truth, report)?;
-    println!(
-        "{:<16} {:<12} {:>10} {:>10} {:>10} {:>7}",
-        "group", "parameter", "recovered", "sigma", "truth", "z"
-    );
+/// Whether a parameter is a lobe's (specularity, roughnesses), not a colour: the two are
+/// estimated differently and covered differently, so the pooled figures are given apart.
+fn is_lobe(parameter: &str) -> bool {
+    parameter == "specularity" || parameter.starts_with("roughness")
+}
+
+/// The fractions within one and two sigma of every row, of the colours and of the lobes'
+/// parameters, with their counts (the last two only when there are any).
+pub fn pooled(rows: &[CoverageRow]) -> Vec<(&'static str, usize, (f64, f64))> {
+    let (lobes, colours): (Vec<&CoverageRow>, Vec<&CoverageRow>) =
+        rows.iter().partition(|r| is_lobe(&r.parameter));
+    let mut out = vec![("parameters", rows.len(), fractions(rows))];
+    for (what, part) in [("colours", colours), ("lobe parameters", lobes)] {
+        if !part.is_empty() {
+            out.push((what, part.len(), fractions(part)));
+        }
+    }
+    out
+}
+
+/// Prints every parameter of each report against the truth, then the fractions within
+/// one and two sigma, pooled over the reports (several seeds of one scene), for every
+/// parameter, the colours and the lobes; `json` gets every row.
+pub fn compare_uncertainty(
+    truth: &Path,
+    reports: &[PathBuf],
+    json: Option<&Path>,
+) -> Result<(), Error> {
+    let mut rows = Vec::new();
+    for report in reports {
+        rows.extend(coverage_rows(truth, report)?);
+    }
+    let several = reports.len() > 1;
+    let mut last_report = None;
     for r in &rows {
+        if last_report != Some(&r.report) {
+            if several {
+                println!("{}", r.report);
+            }
+            println!(
+                "{:<16} {:<12} {:>10} {:>10} {:>10} {:>7}",
+                "group", "parameter", "recovered", "sigma", "truth", "z"
+            );
+            last_report = Some(&r.report);
+        }
         println!(
             "{:<16} {:<12} {:>10.5} {:>10.5} {:>10.5} {:>7.2}",
             r.group, r.parameter, r.recovered, r.sigma, r.truth, r.z
         );
     }
-    let (one, two) = fractions(&rows);
-    println!(
-        "{} parameters of groups in their true class: {:.0}% within 1 sigma (68% claimed), {:.0}% within 2 sigma (95% claimed)",
-        rows.len(),
-        100.0 * one,
-        100.0 * two
-    );
+    let of_reports = if several {
+        format!(" over {} reports", reports.len())
+    } else {
+        String::new()
+    };
+    for (what, n, (one, two)) in pooled(&rows) {
+        println!(
+            "{n} {what} of groups in their true class{of_reports}: {:.0}% within 1 sigma (68% claimed), {:.0}% within 2 sigma (95% claimed)",
+            100.0 * one,
+            100.0 * two
+        );
+    }
     if let Some(path) = json {
         let text = serde_json::to_string_pretty(&rows).map_err(|e| Error::Usage(e.to_string()))?;
         fsutil::write_atomic(path, text.as_bytes())?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(parameter: &str, z: f64) -> CoverageRow {
+        CoverageRow {
+            report: "r.json".into(),
+            group: "g".into(),
+            parameter: parameter.into(),
+            recovered: 0.0,
+            sigma: 1.0,
+            truth: z,
+            z,
+        }
+    }
+
+    #[test]
+    fn colours_and_lobes_are_pooled_apart() {
+        let rows = [
+            row("color_r", 0.5),
+            row("color_g", 1.5),
+            row("color_b", 2.5),
+            row("specularity", 0.2),
+            row("roughness_u", 3.0),
+        ];
+        let all = pooled(&rows);
+        assert_eq!(all[0], ("parameters", 5, (0.4, 0.6)));
+        assert_eq!(all[1].0, "colours");
+        assert_eq!(all[1].1, 3);
+        assert!((all[1].2 .0 - 1.0 / 3.0).abs() < 1e-12 && (all[1].2 .1 - 2.0 / 3.0).abs() < 1e-12);
+        assert_eq!(all[2], ("lobe parameters", 2, (0.5, 0.5)));
+        // A diffuse scene has no lobe line.
+        assert_eq!(pooled(&rows[..3]).len(), 2);
+    }
 }
