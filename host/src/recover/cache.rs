@@ -222,6 +222,19 @@ fn sums_in_order<P: Send>(
     total
 }
 
+/// The best reflectances of a `kind` lobe of isotropic roughness `alpha`, in closed form
+/// from the normal-equation sums `sums_for` gives for its unit lobe.
+fn isotropic_fit_from(
+    kind: Kind,
+    alpha: f64,
+    sums_for: impl FnOnce(&Material) -> LinearSums,
+) -> WardFit {
+    isotropic::solve(
+        kind,
+        &sums_for(&transport::unit_isotropic_lobe(alpha as f32)),
+    )
+}
+
 /// The best reflectances of a `kind` lobe of isotropic roughness `alpha` on the group's
 /// cache, in closed form.
 pub fn isotropic_fit(
@@ -230,10 +243,7 @@ pub fn isotropic_fit(
     kind: Kind,
     alpha: f64,
 ) -> WardFit {
-    isotropic::solve(
-        kind,
-        &linear_sums(pool, cache, &transport::unit_isotropic_lobe(alpha as f32)),
-    )
+    isotropic_fit_from(kind, alpha, |lobe| linear_sums(pool, cache, lobe))
 }
 
 /// [`isotropic_fit`] on one half of each pixel's samples ([`linear_sums_of_half`]).
@@ -244,15 +254,9 @@ pub fn isotropic_fit_of_half(
     alpha: f64,
     half: usize,
 ) -> WardFit {
-    isotropic::solve(
-        kind,
-        &linear_sums_of_half(
-            pool,
-            cache,
-            &transport::unit_isotropic_lobe(alpha as f32),
-            half,
-        ),
-    )
+    isotropic_fit_from(kind, alpha, |lobe| {
+        linear_sums_of_half(pool, cache, lobe, half)
+    })
 }
 
 /// [`isotropic_fit`] from the sums across halves ([`linear_sums_across_halves`]): for a
@@ -263,10 +267,9 @@ pub fn isotropic_fit_across_halves(
     kind: Kind,
     alpha: f64,
 ) -> WardFit {
-    isotropic::solve(
-        kind,
-        &linear_sums_across_halves(pool, cache, &transport::unit_isotropic_lobe(alpha as f32)),
-    )
+    isotropic_fit_from(kind, alpha, |lobe| {
+        linear_sums_across_halves(pool, cache, lobe)
+    })
 }
 
 #[cfg(test)]

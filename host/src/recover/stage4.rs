@@ -186,6 +186,7 @@ pub(super) fn run(
         };
         let mut rival = stage2;
         let mut kept = stage2;
+        let mut replaced = false;
         for (what, alternative) in [
             ("the isotropic fit on this cache", Some(on_cache)),
             (
@@ -219,36 +220,38 @@ pub(super) fn run(
                 c.gain_sigma,
                 c.z()
             );
-            let (specularity, roughness) = match alternative {
-                GroupModel::Isotropic {
-                    specularity,
-                    roughness,
-                    ..
-                } => (specularity, roughness),
-                _ => (0.0, 0.0),
-            };
-            let r = &mut reports[g];
             rival = alternative;
-            if verdict == Alternative::Replaces {
-                kept = alternative;
-                r.decisions.push(format!(
-                    "stage 4: {measured}, and replaces it (s {specularity:.4}, roughness {roughness:.4})"
-                ));
-                // Its lobe is this cache's fit (or the anisotropic fit's, on the same
-                // cache): its spread is this cache's proposal's, not stage 2's.
-                r.lobe_from_ladder = false;
-                r.lobe_sigmas = Vec::from(uncertainty::proposal_size_dependence(
-                    &rec.pool,
-                    &cache,
-                    kind,
-                    iso.specularity,
-                    alpha,
-                ));
-            } else {
-                r.decisions.push(format!(
+            let decision = match (verdict, alternative) {
+                (
+                    Alternative::Replaces,
+                    GroupModel::Isotropic {
+                        specularity,
+                        roughness,
+                        ..
+                    },
+                ) => {
+                    kept = alternative;
+                    replaced = true;
+                    format!("stage 4: {measured}, and replaces it (s {specularity:.4}, roughness {roughness:.4})")
+                }
+                _ => format!(
                     "stage 4: {measured}: the anisotropic fit is weighed against it, but short of RACE_SIGNIFICANCE {RACE_SIGNIFICANCE} it does not replace the model kept"
-                ));
-            }
+                ),
+            };
+            reports[g].decisions.push(decision);
+        }
+        if replaced {
+            // The lobe kept is this cache's fit (or the anisotropic fit's, on the same
+            // cache): its spread is this cache's proposal's, not stage 2's.
+            let r = &mut reports[g];
+            r.lobe_from_ladder = false;
+            r.lobe_sigmas = Vec::from(uncertainty::proposal_size_dependence(
+                &rec.pool,
+                &cache,
+                kind,
+                iso.specularity,
+                alpha,
+            ));
         }
         bar.inc(1);
         let comparison = rec.compare_models(g, rival, refined.model, 4 * verify_spp)?;

@@ -15,11 +15,10 @@
 use std::time::Instant;
 
 use glam::Vec3;
-use relume_core::render::RenderSettings;
-use serde::Serialize;
-
 use relume_core::material::Kind;
+use relume_core::render::RenderSettings;
 use relume_core::stages::isotropic::WardFit;
+use serde::Serialize;
 
 use super::cache::{self, GroupCache};
 use super::model::{GroupModel, MapLobe};
@@ -472,8 +471,7 @@ mod tests {
             cache
         };
         let dependence = |cache: &GroupCache| {
-            let (fit, alpha, _) =
-                fit_ward_by(|a| cache::isotropic_fit(&pool, cache, Kind::Plastic, a));
+            let (fit, alpha, _) = super::super::fit_ward(&pool, cache, Kind::Plastic);
             assert!(fit.specularity > 0.0, "a lobe is fitted");
             proposal_size_dependence(&pool, cache, Kind::Plastic, fit.specularity, alpha)
         };
