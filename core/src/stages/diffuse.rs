@@ -72,6 +72,38 @@ pub fn update_with_slope(
     (out, change)
 }
 
+/// The paper's update for a plastic with a lobe, whose specular part does not scale with
+/// its colour (`rho_d = c (1 - s)`, `rho_s = s`): `c <- c * (mean(real) - mean(S)) /
+/// (mean(R) - mean(S))` per channel, from a render `full` of the model and a render
+/// `specular` of the same pixels with the colour at zero (`S`, the lobe alone). `None`
+/// when a channel has no diffuse part to scale: the lobe alone renders at least as bright
+/// as the whole model, or as the panorama (the colour is then left to the caller).
+/// Otherwise the new colour and its largest relative change, as [`update`].
+pub fn update_beside_lobe(
+    color: [f64; 3],
+    full: &GroupFit,
+    specular: &GroupFit,
+) -> Option<([f64; 3], f64)> {
+    if full.pixels == 0 || full.pixels != specular.pixels {
+        return None;
+    }
+    let mut out = color;
+    let mut change = 0.0f64;
+    for c in 0..3 {
+        let diffuse_rendered = full.sum_rendered[c] - specular.sum_rendered[c];
+        let diffuse_real = full.sum_real[c] - specular.sum_rendered[c];
+        if !(diffuse_rendered > 0.0 && diffuse_real > 0.0) {
+            return None;
+        }
+        let next = (color[c] * diffuse_real / diffuse_rendered).clamp(0.0, MAX_DIFFUSE_REFLECTANCE);
+        if color[c] > 0.0 {
+            change = change.max(((next - color[c]) / color[c]).abs());
+        }
+        out[c] = next;
+    }
+    Some((out, change))
+}
+
 /// Steps the iteration always takes before it may stop at its noise floor.
 pub const MIN_STEPS: u32 = 4;
 
@@ -131,6 +163,38 @@ mod tests {
         let (rho, change) = update([0.5, 0.4, 0.2], &fit_of(0.3, 0.6, 10));
         assert_eq!(rho, [0.25, 0.2, 0.1]);
         assert!((change - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn update_beside_lobe_scales_only_the_diffuse_part() {
+        // Lobe alone 0.1; diffuse part 0.2 at colour 0.4; the panorama 0.4: the diffuse
+        // part must double (0.3 / 0.2 would be wrong by the lobe's share).
+        let full = fit_of(0.4, 0.3, 10);
+        let specular = fit_of(0.4, 0.1, 10);
+        let (color, change) = update_beside_lobe([0.4; 3], &full, &specular).unwrap();
+        for c in color {
+            assert!((c - 0.6).abs() < 1e-6, "{c}");
+        }
+        assert!((change - 0.5).abs() < 1e-6);
+        // The plain ratio would have taken only 0.4 * 0.4 / 0.3.
+        assert!((update([0.4; 3], &full).0[0] - 0.4 * 0.4 / 0.3).abs() < 1e-6);
+    }
+
+    #[test]
+    fn update_beside_lobe_declines_when_the_lobe_explains_everything() {
+        let specular = fit_of(0.4, 0.5, 10);
+        assert_eq!(
+            update_beside_lobe([0.4; 3], &fit_of(0.4, 0.6, 10), &specular),
+            None
+        );
+        assert_eq!(
+            update_beside_lobe([0.4; 3], &fit_of(0.4, 0.5, 10), &specular),
+            None
+        );
+        assert_eq!(
+            update_beside_lobe([0.4; 3], &GroupFit::default(), &GroupFit::default()),
+            None
+        );
     }
 
     #[test]

@@ -15,7 +15,8 @@
 //!    measurably more error than the diffuse model; the mirror test; `ladder` for weak lobes.
 //! 3. `stage3`: is what the uniform model leaves a picture?
 //! 4. `stage4`: an anisotropic lobe for the groups still poorly explained and for textured
-//!    groups' stand-ins (`anisotropic`, `pattern`); then `polish`, the metals' colours.
+//!    groups' stand-ins (`anisotropic`, `pattern`); then `polish`, the colours of the
+//!    groups with a lobe.
 //! 5. `texture`: the textured groups' diffuse maps. Diffuse groups are then refined again
 //!    under everything found, the scene rendered once more and `output` writes the results
 //!    with `report` and `uncertainty`.
@@ -695,7 +696,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &args.budget,
         &cache_settings,
     )?);
-    stages.push(polish::polish_metal_colours(&mut rec, &mut reports, spp)?);
+    stages.push(polish::polish_colours(
+        &mut rec,
+        &mut reports,
+        &textured,
+        spp,
+    )?);
 
     stages.push(stage5::run(
         &mut rec,
