@@ -271,6 +271,21 @@ fn scene_duplicate_group() {
         .fails(INPUT, &["scene.toml:25", "duplicate group name 'floor'"]);
 }
 
+/// View and group names name output files and RADIANCE primitives: a path or a space in
+/// one would write outside `--out` or break materials.rad.
+#[test]
+fn scene_names_that_are_not_identifiers() {
+    Case::new()
+        .scene("name = \"front\"", "name = \"../escaped\"")
+        .fails(
+            INPUT,
+            &["scene.toml:7", "view name \"../escaped\"", "output files"],
+        );
+    Case::new()
+        .scene("name = \"floor\"", "name = \"my floor\"")
+        .fails(INPUT, &["scene.toml:20", "group name \"my floor\""]);
+}
+
 #[test]
 fn scene_object_in_a_group_and_a_light() {
     Case::new()
@@ -421,7 +436,23 @@ fn texture_with_a_nan_pixel() {
         "model = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]",
         "model = \"textured-diffuse\"\ndiffuse_map = \"tex.exr\"",
     );
-    let pixels = vec![[0.5, 0.5, 0.5], [0.5, f32::NAN, 0.5], [0.5; 3], [0.5; 3]];
+    // Written by the exr crate itself: relume writes no image with a NaN.
+    exr::prelude::write_rgb_file(case.path("tex.exr"), 2, 2, |x, y| {
+        let g = if (x, y) == (1, 0) { f32::NAN } else { 0.5 };
+        (0.5f32, g, 0.5f32)
+    })
+    .unwrap();
+    case.fails(INPUT, &["tex.exr", "pixel (x 1, y 0)", "channel G", "NaN"]);
+}
+
+/// A diffuse map holds reflectances: above 1 is as wrong as a `color` above 1.
+#[test]
+fn texture_above_one() {
+    let case = Case::new().materials(
+        "model = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]",
+        "model = \"textured-diffuse\"\ndiffuse_map = \"tex.exr\"",
+    );
+    let pixels = vec![[0.5; 3], [0.5; 3], [0.5, 0.5, 5.0], [0.5; 3]];
     relume::images::write_exr(
         &case.path("tex.exr"),
         &relume::images::Image {
@@ -431,7 +462,37 @@ fn texture_with_a_nan_pixel() {
         },
     )
     .unwrap();
-    case.fails(INPUT, &["tex.exr", "pixel (x 1, y 0)", "channel G", "NaN"]);
+    case.fails(
+        INPUT,
+        &["tex.exr", "pixel (x 0, y 1)", "channel B", "above 1"],
+    );
+}
+
+/// A map is read at the OBJ texture coordinates: a textured group needs them.
+#[test]
+fn texture_on_an_object_without_texture_coordinates() {
+    let case = Case::new()
+        .materials(
+            "model = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]",
+            "model = \"textured-diffuse\"\ndiffuse_map = \"tex.exr\"",
+        )
+        .obj("f 1/1 2/2 3/3 4/4", "f 1 2 3 4");
+    relume::images::write_exr(
+        &case.path("tex.exr"),
+        &relume::images::Image {
+            width: 2,
+            height: 2,
+            pixels: vec![[0.5; 3]; 4],
+        },
+    )
+    .unwrap();
+    case.fails(
+        INPUT,
+        &[
+            "geo.obj:1",
+            "object 'quad' of group 'floor' has no texture coordinates",
+        ],
+    );
 }
 
 #[test]

@@ -176,6 +176,8 @@ pub fn assemble(
         }
     };
 
+    check_texture_coordinates(&desc, objects, &materials)?;
+
     let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
     let n_light_tris = triangles
         .iter()
@@ -196,6 +198,35 @@ pub fn assemble(
         light_table: vec![LightTriangle::default(); n_light_tris],
         built: None,
     })
+}
+
+/// A group whose material has a diffuse map is mapped by its OBJ texture coordinates: each
+/// of its objects must have them on every face (without, every point would read the map
+/// at (0, 0), one texel for the whole object).
+fn check_texture_coordinates(
+    desc: &SceneDesc,
+    objects: &[ObjObject],
+    materials: &[SurfaceMaterial],
+) -> Result<(), Error> {
+    for (g, material) in desc.groups.iter().zip(materials) {
+        if material.diffuse_map.is_none() {
+            continue;
+        }
+        let unmapped = objects.iter().find(|o| {
+            o.uvs.is_none() && !desc.hide.contains(&o.name) && g.objects.contains(&o.name)
+        });
+        if let Some(o) = unmapped {
+            let what = format!(
+                "object '{}' of group '{}' has no texture coordinates (vt on every face), but the group's material has a diffuse_map",
+                o.name, g.name
+            );
+            return Err(match crate::obj::object_line(&o.file, &o.name) {
+                Some(line) => Error::at_line(&o.file, line, what),
+                None => Error::input(&o.file, what),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// One material per group, from one or more files: an error names the group and the
@@ -274,6 +305,25 @@ fn resolve_materials(
                     ));
                 }
                 let image = images::read_image(map, 1.0)?;
+                // A map holds diffuse reflectances, which `color` bounds by 1 as well.
+                let w = image.width.max(1) as usize;
+                if let Some((i, c)) = image
+                    .pixels
+                    .iter()
+                    .enumerate()
+                    .find_map(|(i, p)| p.iter().position(|&v| v > 1.0).map(|c| (i, c)))
+                {
+                    return Err(Error::at_pixel(
+                        map,
+                        (i % w) as u32,
+                        (i / w) as u32,
+                        format!(
+                            "channel {} value {} is above 1: a diffuse map holds reflectances in [0, 1]",
+                            ["R", "G", "B"][c],
+                            image.pixels[i][c]
+                        ),
+                    ));
+                }
                 if texture_infos.len() >= relume_core::config::MAX_TEXTURES {
                     return Err(Error::core(
                         format!("{}: {}", file.path.display(), map.display()),

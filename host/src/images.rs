@@ -176,11 +176,38 @@ fn check_buffer(path: &Path, image: &Image) -> Result<(), Error> {
     Ok(())
 }
 
+/// A data image (EXR, HDR) is written only when every value is finite: relume reads no
+/// image with an infinite or NaN value, and would not read its own output back (a light's
+/// radiance near f32's largest overflows in a render).
+fn check_finite(path: &Path, image: &Image) -> Result<(), Error> {
+    let w = image.width.max(1) as usize;
+    for (i, p) in image.pixels.iter().enumerate() {
+        if let Some(c) = p.iter().position(|v| !v.is_finite()) {
+            return Err(Error::at_pixel(
+                path,
+                (i % w) as u32,
+                (i / w) as u32,
+                format!(
+                    "not written: channel {} value {} is not finite (the scene's radiances overflow 32-bit floats)",
+                    CHANNELS[c], p[c]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Writes linear float32 RGB (ZIP compressed), atomically; [`read_image`] gives back the
 /// same floats.
 pub fn write_exr(path: &Path, image: &Image) -> Result<(), Error> {
-    use exr::prelude::{Encoding, SpecificChannels, Vec2, WritableImage};
     check_buffer(path, image)?;
+    check_finite(path, image)?;
+    encode_exr(path, image)
+}
+
+/// [`write_exr`] without the finite check (tests write bad files as another program might).
+fn encode_exr(path: &Path, image: &Image) -> Result<(), Error> {
+    use exr::prelude::{Encoding, SpecificChannels, Vec2, WritableImage};
     let w = image.width as usize;
     let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
         let p = image.pixels[pos.y() * w + pos.x()];
@@ -204,6 +231,7 @@ pub fn write_exr(path: &Path, image: &Image) -> Result<(), Error> {
 /// a recovered diffuse map.
 pub fn write_hdr(path: &Path, image: &Image) -> Result<(), Error> {
     check_buffer(path, image)?;
+    check_finite(path, image)?;
     let pixels: Vec<image::Rgb<f32>> = image.pixels.iter().map(|p| image::Rgb(*p)).collect();
     let mut bytes = Vec::new();
     image::codecs::hdr::HdrEncoder::new(&mut bytes)
@@ -308,7 +336,7 @@ mod tests {
 
     /// Writes `pixels` as an EXR without any checks, as another program might.
     fn raw_exr(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> [f32; 3]) {
-        write_exr(path, &image(w, h, f)).unwrap();
+        encode_exr(path, &image(w, h, f)).unwrap();
     }
 
     fn err(path: &Path) -> String {
@@ -387,6 +415,32 @@ mod tests {
         let back = read_image(&p, 1.0).unwrap();
         assert_eq!((back.width, back.height), (3, 2));
         assert_eq!(back.pixels[5], [0.5, 2.0, 0.25]);
+    }
+
+    #[test]
+    fn a_data_image_with_a_non_finite_value_is_not_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let image = Image {
+            width: 2,
+            height: 1,
+            pixels: vec![[0.5; 3], [0.5, f32::INFINITY, 0.5]],
+        };
+        for name in ["a.exr", "a.hdr"] {
+            let path = dir.path().join(name);
+            let result = if name.ends_with("exr") {
+                write_exr(&path, &image)
+            } else {
+                write_hdr(&path, &image)
+            };
+            let err = result
+                .expect_err("an infinite value must not be written")
+                .to_string();
+            assert!(
+                err.contains("pixel (x 1, y 0)") && err.contains("channel G"),
+                "{err}"
+            );
+            assert!(!path.exists(), "{name} written");
+        }
     }
 
     #[test]

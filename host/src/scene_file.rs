@@ -10,8 +10,12 @@
 //!   required, as is a non-empty `geometry` list.
 //! - A hidden object may also be in a group or be a light (hiding removes it from the scene
 //!   without editing the groups); listing it twice in `hide` is an error.
-//! - A view's `size` is at most [`MAX_VIEW_SIDE`] pixels per side; `direction` must not be
-//!   zero and `up` must not be parallel to it.
+//! - A view's `size` is at most [`MAX_VIEW_SIDE`] pixels per side (the core's limit);
+//!   `direction` must not be zero and `up` must not be parallel to it.
+//! - View and group names are identifiers (ASCII letters, digits, `_`, `-` and `.`, not
+//!   starting with `.` or `-`): they name output files (`views/<view>.exr`,
+//!   `textures/<group>.exr`) and RADIANCE primitives in materials.rad, so a name like
+//!   `../x` or one with a space would write outside `--out` or break the .rad file.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -24,8 +28,8 @@ use crate::obj::ObjObject;
 
 pub use toml_src::TomlFile;
 
-/// Largest width or height of a view, in pixels.
-pub const MAX_VIEW_SIDE: i64 = 65536;
+/// Largest width or height of a view, in pixels: the core's.
+pub const MAX_VIEW_SIDE: i64 = relume_core::config::MAX_VIEW_SIDE as i64;
 
 /// The material type of a group, assigned in preprocessing (`kind`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -138,20 +142,25 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
         return Err(file.at(raw.geometry.span(), "`geometry` lists no OBJ file"));
     }
     let mut geometry: Vec<PathBuf> = Vec::new();
+    // The files as the file system knows them, so that `a.obj` and `./a.obj` are one file
+    // from whichever folder relume runs.
+    let mut canonical: Vec<PathBuf> = Vec::new();
     for g in raw.geometry.get_ref() {
         let p = file.resolve(&file.name(g, "geometry file")?);
-        if geometry.contains(&p) {
-            return Err(file.at(
-                g.span(),
-                format!("geometry file '{}' is listed twice", g.get_ref()),
-            ));
-        }
         if !p.is_file() {
             return Err(file.at(
                 g.span(),
                 format!("geometry file {} does not exist", p.display()),
             ));
         }
+        let c = std::fs::canonicalize(&p).unwrap_or_else(|_| p.clone());
+        if canonical.contains(&c) {
+            return Err(file.at(
+                g.span(),
+                format!("geometry file '{}' is listed twice", g.get_ref()),
+            ));
+        }
+        canonical.push(c);
         geometry.push(p);
     }
 
@@ -218,7 +227,7 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
     let mut group_lines: HashMap<String, usize> = HashMap::new();
     for g in &raw.groups {
         let g = g.get_ref();
-        let name = file.name(&g.name, "group name")?;
+        let name = file.identifier(&g.name, "group name")?;
         if let Some(first) = group_lines.get(&name) {
             return Err(file.at(
                 g.name.span(),
@@ -279,7 +288,7 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
 }
 
 fn check_view(file: &TomlFile, v: &RawView) -> Result<ViewDesc, Error> {
-    let name = file.name(&v.name, "view name")?;
+    let name = file.identifier(&v.name, "view name")?;
     let image = match &v.image {
         Some(i) => Some(file.resolve(&file.name(i, "image")?)),
         None => None,
@@ -567,6 +576,22 @@ pub mod toml_src {
                 return Err(self.at(s.span(), format!("{what} is empty")));
             }
             Ok(s.get_ref().clone())
+        }
+
+        /// A name that is also a file name and a RADIANCE identifier: ASCII letters,
+        /// digits, `_`, `-` and `.`, not starting with `.` or `-`.
+        pub fn identifier(&self, s: &Spanned<String>, what: &str) -> Result<String, Error> {
+            let name = self.name(s, what)?;
+            let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
+            if !name.chars().all(allowed) || name.starts_with(['.', '-']) {
+                return Err(self.at(
+                    s.span(),
+                    format!(
+                        "{what} {name:?} may hold only ASCII letters, digits, '_', '-' and '.', and must not start with '.' or '-': it names output files and RADIANCE primitives"
+                    ),
+                ));
+            }
+            Ok(name)
         }
 
         /// A path relative to this file's folder (absolute paths stay as they are).
@@ -968,9 +993,9 @@ objects = ["quad"]
         );
         bad(
             "size = [8, 8]",
-            "size = [8, 100000]",
+            "size = [8, 16385]",
             13,
-            &["size must be between 1 and 65536"],
+            &["size must be between 1 and 16384"],
         );
     }
 

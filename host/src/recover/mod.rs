@@ -614,6 +614,17 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         real.push(images::read_view_image(path, v.exposure, v.size)?);
     }
     let kinds: Vec<GroupKind> = desc.groups.iter().map(|g| g.kind).collect();
+    // Whether every object of a group has texture coordinates, as a diffuse map needs.
+    let mapped: Vec<bool> = desc
+        .groups
+        .iter()
+        .map(|g| {
+            objects
+                .iter()
+                .filter(|o| g.objects.contains(&o.name) && !desc.hide.contains(&o.name))
+                .all(|o| o.uvs.is_some())
+        })
+        .collect();
     let mut owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
     let pool = parallel::thread_pool(args.threads)?;
     let views = owned.views.clone();
@@ -684,8 +695,14 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
 
     // Stage 3's textured groups get their maps in stage 5, after stage 4, which may give
     // the untextured stand-in an anisotropic lobe.
-    let (stage3_report, textured, noise_bound) =
-        stage3::run(&mut rec, &mut reports, &kinds, verify_spp, args.seed)?;
+    let (stage3_report, textured, noise_bound) = stage3::run(
+        &mut rec,
+        &mut reports,
+        &kinds,
+        &mapped,
+        verify_spp,
+        args.seed,
+    )?;
     stages.push(stage3_report);
 
     stages.push(stage4::run(

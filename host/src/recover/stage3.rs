@@ -20,6 +20,7 @@ pub(super) fn run(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
     kinds: &[GroupKind],
+    mapped: &[bool],
     verify_spp: u32,
     seed: u64,
 ) -> Result<(StageReport, Vec<bool>, f64), Error> {
@@ -44,6 +45,13 @@ pub(super) fn run(
                 }
         })
         .collect();
+    // A map lies over the OBJ texture coordinates: a group without them cannot have one.
+    let (tested, unmapped): (Vec<usize>, Vec<usize>) = tested.into_iter().partition(|&g| mapped[g]);
+    for g in unmapped {
+        reports[g].decisions.push(
+            "stage 3: not tested for texture: some of its objects have no texture coordinates (vt on every face), which a diffuse map needs".into(),
+        );
+    }
     let noise_bound = texture_stage::panorama_noise_bound(
         reports
             .iter()
