@@ -306,24 +306,12 @@ fn resolve_materials(
                 }
                 let image = images::read_image(map, 1.0)?;
                 // A map holds diffuse reflectances, which `color` bounds by 1 as well.
-                let w = image.width.max(1) as usize;
-                if let Some((i, c)) = image
-                    .pixels
-                    .iter()
-                    .enumerate()
-                    .find_map(|(i, p)| p.iter().position(|&v| v > 1.0).map(|c| (i, c)))
-                {
-                    return Err(Error::at_pixel(
-                        map,
-                        (i % w) as u32,
-                        (i / w) as u32,
-                        format!(
-                            "channel {} value {} is above 1: a diffuse map holds reflectances in [0, 1]",
-                            ["R", "G", "B"][c],
-                            image.pixels[i][c]
-                        ),
-                    ));
-                }
+                images::reject_value(
+                    map,
+                    &image,
+                    |v| v > 1.0,
+                    "is above 1: a diffuse map holds reflectances in [0, 1]",
+                )?;
                 if texture_infos.len() >= relume_core::config::MAX_TEXTURES {
                     return Err(Error::core(
                         format!("{}: {}", file.path.display(), map.display()),

@@ -176,25 +176,38 @@ fn check_buffer(path: &Path, image: &Image) -> Result<(), Error> {
     Ok(())
 }
 
-/// A data image (EXR, HDR) is written only when every value is finite: relume reads no
-/// image with an infinite or NaN value, and would not read its own output back (a light's
-/// radiance near f32's largest overflows in a render).
-fn check_finite(path: &Path, image: &Image) -> Result<(), Error> {
+/// The first value of `image` for which `bad` holds, as an error at its pixel naming its
+/// channel and value after `why` (the caller's rule).
+pub fn reject_value(
+    path: &Path,
+    image: &Image,
+    bad: impl Fn(f32) -> bool,
+    why: &str,
+) -> Result<(), Error> {
     let w = image.width.max(1) as usize;
     for (i, p) in image.pixels.iter().enumerate() {
-        if let Some(c) = p.iter().position(|v| !v.is_finite()) {
+        if let Some(c) = p.iter().position(|&v| bad(v)) {
             return Err(Error::at_pixel(
                 path,
                 (i % w) as u32,
                 (i / w) as u32,
-                format!(
-                    "not written: channel {} value {} is not finite (the scene's radiances overflow 32-bit floats)",
-                    CHANNELS[c], p[c]
-                ),
+                format!("channel {} value {} {why}", CHANNELS[c], p[c]),
             ));
         }
     }
     Ok(())
+}
+
+/// A data image (EXR, HDR) is written only when every value is finite: relume reads no
+/// image with an infinite or NaN value, and would not read its own output back (a light's
+/// radiance near f32's largest overflows in a render).
+fn check_finite(path: &Path, image: &Image) -> Result<(), Error> {
+    reject_value(
+        path,
+        image,
+        |v| !v.is_finite(),
+        "is not finite: not written (the scene's radiances overflow 32-bit floats)",
+    )
 }
 
 /// Writes linear float32 RGB (ZIP compressed), atomically; [`read_image`] gives back the
