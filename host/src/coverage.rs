@@ -63,7 +63,7 @@ fn true_value(m: &MaterialDesc, parameter: &str) -> Option<f64> {
 /// Every parameter of every group recovered in the true class, with its z.
 pub fn coverage_rows(truth: &Path, report: &Path) -> Result<Vec<CoverageRow>, Error> {
     let t = materials_file::load_materials(truth)?;
-    let text = std::fs::read_to_string(report).map_err(|e| Error::io(report, e))?;
+    let text = crate::fsutil::read_text(report)?;
     let r: Report = serde_json::from_str(&text)
         .map_err(|e| Error::input(report, format!("not a recover report.json: {e}")))?;
     let by_group: BTreeMap<&str, &MaterialDesc> =

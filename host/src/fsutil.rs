@@ -1,5 +1,6 @@
 //! Writing results atomically: a temp file in the same folder, then a rename, so a reader
-//! never sees a partial or corrupted output file.
+//! never sees a partial or corrupted output file; and reading text inputs with errors that
+//! say where they are not text.
 
 use std::io::Write;
 use std::path::Path;
@@ -27,6 +28,29 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
     Ok(())
 }
 
+/// Reads a text input (OBJ, TOML, JSON): UTF-8, with a leading byte order mark dropped (an
+/// editor's, invisible in an error message). Bytes that are not UTF-8 are an error at
+/// their line and byte.
+pub fn read_text(path: &Path) -> Result<String, Error> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    match String::from_utf8(bytes) {
+        Ok(text) => Ok(match text.strip_prefix('\u{feff}') {
+            Some(rest) => rest.to_string(),
+            None => text,
+        }),
+        Err(e) => {
+            let bytes = e.as_bytes();
+            let at = e.utf8_error().valid_up_to();
+            let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+            Err(Error::at_line(
+                path,
+                line,
+                format!("byte 0x{:02x} is not UTF-8 text", bytes[at]),
+            ))
+        }
+    }
+}
+
 /// Creates `dir` and its parents.
 pub fn create_dir(dir: &Path) -> Result<(), Error> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
@@ -34,6 +58,17 @@ pub fn create_dir(dir: &Path) -> Result<(), Error> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn text_inputs_drop_a_byte_order_mark_and_name_the_line_of_a_non_utf8_byte() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.obj");
+        std::fs::write(&path, "\u{feff}o quad\nv 0 0 0\n").unwrap();
+        assert_eq!(read_text(&path).unwrap(), "o quad\nv 0 0 0\n");
+        std::fs::write(&path, b"o quad\nv 0 0 0\nv 1 \xff 0\n").unwrap();
+        let err = read_text(&path).unwrap_err().to_string();
+        assert!(err.contains("a.obj:3") && err.contains("0xff"), "{err}");
+    }
+
     use super::*;
 
     #[test]

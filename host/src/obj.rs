@@ -55,7 +55,7 @@ struct Checked {
 
 /// Reads one OBJ file into its objects.
 pub fn load_obj(path: &Path) -> Result<Vec<ObjObject>, Error> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::fsutil::read_text(path)?;
     let checked = check_text(path, &text)?;
     let with_faces: Vec<&ObjectInfo> = checked
         .objects
@@ -165,7 +165,7 @@ pub fn load_obj(path: &Path) -> Result<Vec<ObjObject>, Error> {
 
 /// The line (1-based) where object `name` starts in an OBJ file, for error messages.
 pub fn object_line(path: &Path, name: &str) -> Option<usize> {
-    let text = std::fs::read_to_string(path).ok()?;
+    let text = crate::fsutil::read_text(path).ok()?;
     let has_o = text.lines().any(|l| keyword(l) == Some("o"));
     let naming = if has_o { "o" } else { "g" };
     text.lines()

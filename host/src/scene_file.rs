@@ -499,7 +499,7 @@ pub mod toml_src {
     impl TomlFile {
         /// Reads the file (an I/O error names it).
         pub fn read(path: &Path) -> Result<TomlFile, Error> {
-            let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+            let text = crate::fsutil::read_text(path)?;
             Ok(TomlFile {
                 path: path.to_path_buf(),
                 text,
