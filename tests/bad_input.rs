@@ -553,3 +553,73 @@ fn uncertainty_of_a_file_that_is_not_a_report() {
         "{stderr}"
     );
 }
+
+/// A report whose groups, parameters or sigmas a recovery never writes would be judged
+/// wrongly (a sigma of -1 gave a z of its own sign; an unknown group was dropped).
+#[test]
+fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
+    let case = Case::new();
+    case.write();
+    let report = case.path("report.json");
+    let group = |name: &str, parameter: &str, sigma: &str| {
+        format!(
+            "{{\"group\": \"{name}\", \"model\": \"diffuse\", \"uncertainty\": [{{\"parameter\": \"{parameter}\", \"value\": 0.5, \"sigma\": {sigma}}}]}}"
+        )
+    };
+    for (groups, expected) in [
+        (group("floor", "color_r", "-1.0"), "sigma -1"),
+        (
+            group("floor", "colour_r", "0.01"),
+            "unknown parameter 'colour_r'",
+        ),
+        (
+            group("sofa", "color_r", "0.01"),
+            "group 'sofa' is not in the truth",
+        ),
+        (
+            format!(
+                "{}, {}",
+                group("floor", "color_r", "0.01"),
+                group("floor", "color_g", "0.01")
+            ),
+            "group 'floor' appears twice",
+        ),
+    ] {
+        std::fs::write(&report, format!("{{\"groups\": [{groups}]}}")).unwrap();
+        let out = relume(
+            case.dir.path(),
+            &[
+                "compare",
+                "uncertainty",
+                path_str(&case.path("m.toml")),
+                path_str(&report),
+            ],
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(INPUT), "{stderr}");
+        assert!(
+            stderr.contains("report.json") && stderr.contains(expected),
+            "{expected}: {stderr}"
+        );
+    }
+    // The well-formed report is read.
+    std::fs::write(
+        &report,
+        format!("{{\"groups\": [{}]}}", group("floor", "color_r", "0.01")),
+    )
+    .unwrap();
+    let out = relume(
+        case.dir.path(),
+        &[
+            "compare",
+            "uncertainty",
+            path_str(&case.path("m.toml")),
+            path_str(&report),
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

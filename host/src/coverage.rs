@@ -45,6 +45,17 @@ pub struct CoverageRow {
     pub z: f64,
 }
 
+/// The parameters report.json gives uncertainties for.
+const PARAMETERS: [&str; 7] = [
+    "color_r",
+    "color_g",
+    "color_b",
+    "specularity",
+    "roughness",
+    "roughness_u",
+    "roughness_v",
+];
+
 /// The truth's value of a parameter named as in report.json.
 fn true_value(m: &MaterialDesc, parameter: &str) -> Option<f64> {
     let channel = |c: usize| m.color.map(|v| v[c] as f64);
@@ -69,10 +80,47 @@ pub fn coverage_rows(truth: &Path, report: &Path) -> Result<Vec<CoverageRow>, Er
     let by_group: BTreeMap<&str, &MaterialDesc> =
         t.materials.iter().map(|d| (d.group.as_str(), d)).collect();
     let mut rows = Vec::new();
+    let mut seen = std::collections::BTreeSet::new();
     for g in &r.groups {
+        // A report of another scene, or one edited by hand, would be judged wrongly.
+        if !seen.insert(g.group.as_str()) {
+            return Err(Error::input(
+                report,
+                format!("group '{}' appears twice", g.group),
+            ));
+        }
         let Some(tm) = by_group.get(g.group.as_str()) else {
-            continue;
+            return Err(Error::input(
+                report,
+                format!(
+                    "group '{}' is not in the truth {}: a report of another scene?",
+                    g.group,
+                    truth.display()
+                ),
+            ));
         };
+        for p in &g.uncertainty {
+            if !p.sigma.is_finite() || p.sigma < 0.0 || !p.value.is_finite() {
+                return Err(Error::input(
+                    report,
+                    format!(
+                        "group '{}': parameter '{}' has value {} and sigma {}: a value and a sigma >= 0, both finite, are expected",
+                        g.group, p.parameter, p.value, p.sigma
+                    ),
+                ));
+            }
+            if !PARAMETERS.contains(&p.parameter.as_str()) {
+                return Err(Error::input(
+                    report,
+                    format!(
+                        "group '{}': unknown parameter '{}' (expected one of {})",
+                        g.group,
+                        p.parameter,
+                        PARAMETERS.join(", ")
+                    ),
+                ));
+            }
+        }
         if tm.model.name() != g.model {
             continue;
         }
