@@ -529,23 +529,31 @@ fn scene_file_missing() {
     );
 }
 
-#[test]
-fn uncertainty_of_a_file_that_is_not_a_report() {
-    let case = Case::new();
-    case.write();
-    let not_a_report = case.path("report.json");
-    std::fs::write(&not_a_report, "{\"groups\": 3}").unwrap();
+/// `relume compare uncertainty m.toml <report>` in the case's folder: exit code, stderr.
+fn compare_uncertainty(case: &Case, report: &Path) -> (Option<i32>, String) {
     let out = relume(
         case.dir.path(),
         &[
             "compare",
             "uncertainty",
             path_str(&case.path("m.toml")),
-            path_str(&not_a_report),
+            path_str(report),
         ],
     );
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(INPUT), "{stderr}");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+#[test]
+fn uncertainty_of_a_file_that_is_not_a_report() {
+    let case = Case::new();
+    case.write();
+    let not_a_report = case.path("report.json");
+    std::fs::write(&not_a_report, "{\"groups\": 3}").unwrap();
+    let (code, stderr) = compare_uncertainty(&case, &not_a_report);
+    assert_eq!(code, Some(INPUT), "{stderr}");
     assert!(
         stderr.contains("report.json")
             && stderr.contains("not a recover report.json")
@@ -586,17 +594,8 @@ fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
         ),
     ] {
         std::fs::write(&report, format!("{{\"groups\": [{groups}]}}")).unwrap();
-        let out = relume(
-            case.dir.path(),
-            &[
-                "compare",
-                "uncertainty",
-                path_str(&case.path("m.toml")),
-                path_str(&report),
-            ],
-        );
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(INPUT), "{stderr}");
+        let (code, stderr) = compare_uncertainty(&case, &report);
+        assert_eq!(code, Some(INPUT), "{stderr}");
         assert!(
             stderr.contains("report.json") && stderr.contains(expected),
             "{expected}: {stderr}"
@@ -608,18 +607,6 @@ fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
         format!("{{\"groups\": [{}]}}", group("floor", "color_r", "0.01")),
     )
     .unwrap();
-    let out = relume(
-        case.dir.path(),
-        &[
-            "compare",
-            "uncertainty",
-            path_str(&case.path("m.toml")),
-            path_str(&report),
-        ],
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let (code, stderr) = compare_uncertainty(&case, &report);
+    assert_eq!(code, Some(0), "{stderr}");
 }
