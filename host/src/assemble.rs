@@ -17,7 +17,7 @@ use crate::error::Error;
 use crate::images;
 use crate::materials_file::{MaterialsDesc, Model};
 use crate::obj::{self, ObjObject};
-use crate::scene_file::{self, GroupKind, SceneDesc};
+use crate::scene_file::{self, GroupDesc, GroupKind, SceneDesc};
 
 /// Where the materials of the groups come from.
 pub enum MaterialSource<'a> {
@@ -200,9 +200,21 @@ pub fn assemble(
     })
 }
 
+/// The first object of `group` in the scene (not hidden) without texture coordinates on
+/// every face, which a diffuse map needs: without them every point would read the map at
+/// (0, 0), one texel for the whole object.
+pub fn unmapped_object<'a>(
+    desc: &SceneDesc,
+    objects: &'a [ObjObject],
+    group: &GroupDesc,
+) -> Option<&'a ObjObject> {
+    objects.iter().find(|o| {
+        o.uvs.is_none() && !desc.hide.contains(&o.name) && group.objects.contains(&o.name)
+    })
+}
+
 /// A group whose material has a diffuse map is mapped by its OBJ texture coordinates: each
-/// of its objects must have them on every face (without, every point would read the map
-/// at (0, 0), one texel for the whole object).
+/// of its objects must have them ([`unmapped_object`]).
 fn check_texture_coordinates(
     desc: &SceneDesc,
     objects: &[ObjObject],
@@ -212,10 +224,7 @@ fn check_texture_coordinates(
         if material.diffuse_map.is_none() {
             continue;
         }
-        let unmapped = objects.iter().find(|o| {
-            o.uvs.is_none() && !desc.hide.contains(&o.name) && g.objects.contains(&o.name)
-        });
-        if let Some(o) = unmapped {
+        if let Some(o) = unmapped_object(desc, objects, g) {
             let what = format!(
                 "object '{}' of group '{}' has no texture coordinates (vt on every face), but the group's material has a diffuse_map",
                 o.name, g.name

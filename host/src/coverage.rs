@@ -1,7 +1,7 @@
 //! `relume compare uncertainty`: do the standard errors a recovery reports cover the true
 //! parameters as often as they claim (68% within one sigma, 95% within two)?
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -80,7 +80,7 @@ pub fn coverage_rows(truth: &Path, report: &Path) -> Result<Vec<CoverageRow>, Er
     let by_group: BTreeMap<&str, &MaterialDesc> =
         t.materials.iter().map(|d| (d.group.as_str(), d)).collect();
     let mut rows = Vec::new();
-    let mut seen = std::collections::BTreeSet::new();
+    let mut seen = BTreeSet::new();
     for g in &r.groups {
         // A report of another scene, or one edited by hand, would be judged wrongly.
         if !seen.insert(g.group.as_str()) {

@@ -58,6 +58,8 @@ pub fn create_dir(dir: &Path) -> Result<(), Error> {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
     #[test]
     fn text_inputs_drop_a_byte_order_mark_and_name_the_line_of_a_non_utf8_byte() {
         let dir = tempfile::tempdir().unwrap();
@@ -68,8 +70,6 @@ mod tests {
         let err = read_text(&path).unwrap_err().to_string();
         assert!(err.contains("a.obj:3") && err.contains("0xff"), "{err}");
     }
-
-    use super::*;
 
     #[test]
     fn writes_and_replaces_without_leaving_temp_files() {

@@ -618,12 +618,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let mapped: Vec<bool> = desc
         .groups
         .iter()
-        .map(|g| {
-            objects
-                .iter()
-                .filter(|o| g.objects.contains(&o.name) && !desc.hide.contains(&o.name))
-                .all(|o| o.uvs.is_some())
-        })
+        .map(|g| assemble::unmapped_object(&desc, &objects, g).is_none())
         .collect();
     let mut owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
     let pool = parallel::thread_pool(args.threads)?;

@@ -45,46 +45,50 @@ pub(super) fn polish_colours(
             report.pure_pixels,
             POLISH_MIN_SAMPLES,
         );
-        if kind == Kind::Plastic {
+        match kind {
             // A plastic lobe's colour came from stage 2 (the search's colour step on its
             // subset and samples, or a closed form), under the other groups as they were:
             // on glossy at 256 px sphere_red rendered 1.0% dark and box_yellow 0.9%
             // bright against the panorama (the truth materials: 0.0% and +0.1%), where
             // the diffuse groups are within 0.2%.
-            let step = plastic_colour_step(rec, g, color, group_spp, 0x3E7A_1C03)?;
-            evaluations += 2;
-            report.decisions.push(match step {
-                Some((polished, change)) => {
-                    set_color(&mut rec.models[g], polished);
-                    format!(
-                        "colour polish: the diffuse part scaled by the mean ratio of renders at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples), of the model and of its lobe alone: largest change {:.2}%",
-                        100.0 * change
-                    )
+            Kind::Plastic => {
+                let step = plastic_colour_step(rec, g, color, group_spp, 0x3E7A_1C03)?;
+                evaluations += 2;
+                report.decisions.push(match step {
+                    Some((polished, change)) => {
+                        set_color(&mut rec.models[g], polished);
+                        format!(
+                            "colour polish: the diffuse part scaled by the mean ratio of renders at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples), of the model and of its lobe alone: largest change {:.2}%",
+                            100.0 * change
+                        )
+                    }
+                    None => format!(
+                        "colour polish: colour kept: at {group_spp} spp the lobe alone renders as bright as the group or the panorama in some channel, leaving no diffuse part to scale"
+                    ),
+                });
+            }
+            Kind::Metal => {
+                let (polished, change) = colour_step(rec, g, color, group_spp, 0x3E7A_1C01)?;
+                evaluations += 1;
+                set_color(&mut rec.models[g], polished);
+                report.decisions.push(format!(
+                    "colour polish: colour scaled by the mean ratio of a render at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
+                    100.0 * change
+                ));
+                // The paper's mirror test once more, on the polished colour: stage 2 tested
+                // a colour whose channels carried the search's noise, and a sharp, strong
+                // lobe failed the tint limit by that noise alone (the living room's mirror,
+                // seed 8: tint above 0.1 before the polish, 0.07 after). The mirror's
+                // colour is then polished too.
+                if let Some(why) = mirror_test(&rec.models[g]) {
+                    let (_, rho_s) = rec.models[g].reflectances();
+                    rec.models[g] = GroupModel::Mirror { color: rho_s };
+                    let (polished, _) = colour_step(rec, g, rho_s, group_spp, 0x3E7A_1C02)?;
+                    evaluations += 1;
+                    rec.models[g] = GroupModel::Mirror { color: polished };
+                    report.decisions.push(format!("colour polish: {why}"));
                 }
-                None => format!(
-                    "colour polish: colour kept: at {group_spp} spp the lobe alone renders as bright as the group or the panorama in some channel, leaving no diffuse part to scale"
-                ),
-            });
-            continue;
-        }
-        let (polished, change) = colour_step(rec, g, color, group_spp, 0x3E7A_1C01)?;
-        evaluations += 1;
-        set_color(&mut rec.models[g], polished);
-        report.decisions.push(format!(
-            "colour polish: colour scaled by the mean ratio of a render at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
-            100.0 * change
-        ));
-        // The paper's mirror test once more, on the polished colour: stage 2 tested a
-        // colour whose channels carried the search's noise, and a sharp, strong lobe failed
-        // the tint limit by that noise alone (the living room's mirror, seed 8: tint above
-        // 0.1 before the polish, 0.07 after). The mirror's colour is then polished too.
-        if let Some(why) = mirror_test(&rec.models[g]) {
-            let (_, rho_s) = rec.models[g].reflectances();
-            rec.models[g] = GroupModel::Mirror { color: rho_s };
-            let (polished, _) = colour_step(rec, g, rho_s, group_spp, 0x3E7A_1C02)?;
-            evaluations += 1;
-            rec.models[g] = GroupModel::Mirror { color: polished };
-            report.decisions.push(format!("colour polish: {why}"));
+            }
         }
     }
     Ok(StageReport {
