@@ -101,6 +101,8 @@ impl View {
                 what: "view position, direction and up must be finite",
             });
         }
+        let direction = math::representable_direction(direction);
+        let up = math::representable_direction(up);
         if !(direction.length_squared() > 0.0) {
             return Err(Error::InvalidValue {
                 what: "view direction must not be zero",
@@ -181,5 +183,23 @@ mod tests {
         assert!(View::new(Vec3::ZERO, Vec3::ZERO, Vec3::Z, [90.0, 90.0], [4, 4]).is_err());
         assert!(View::new(Vec3::ZERO, Vec3::X, Vec3::Z, [180.0, 90.0], [4, 4]).is_err());
         assert!(View::new(Vec3::ZERO, Vec3::X, Vec3::Z, [90.0, 90.0], [0, 4]).is_err());
+    }
+
+    /// Only the directions of `direction` and `up` count, at any length f32 holds (the
+    /// squares of 1e-30 and 1e30 underflow and overflow).
+    #[test]
+    fn a_view_is_the_same_at_any_length_of_direction_and_up() {
+        let view = |d: Vec3, u: Vec3| View::new(Vec3::ZERO, d, u, [60.0, 45.0], [8, 6]).unwrap();
+        let unit = view(Vec3::new(1.0, 2.0, -0.5), Vec3::Z);
+        for scale in [1e-30, 1e-3, 7.0, 1e30] {
+            let v = view(Vec3::new(1.0, 2.0, -0.5) * scale, Vec3::Z * (1.0 / scale));
+            for (x, y) in [(0.0, 0.0), (3.5, 2.0), (8.0, 6.0)] {
+                let (a, b) = (v.ray(x, y).direction, unit.ray(x, y).direction);
+                assert!(
+                    (a - b).length() < 1e-6,
+                    "scale {scale}: {a:?} against {b:?}"
+                );
+            }
+        }
     }
 }

@@ -73,6 +73,19 @@ pub fn is_finite(v: Vec3) -> bool {
     v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
 }
 
+/// A user's direction (a view's, a material's `direction_u`) whose squared length f32
+/// cannot hold (it underflows or overflows, as at lengths 1e-30 or 1e30), scaled to a
+/// largest component of 1; any other vector unchanged, so that ordinary inputs keep their
+/// exact bits. Only the direction of such vectors counts.
+pub fn representable_direction(v: Vec3) -> Vec3 {
+    let m = v.abs().max_element();
+    if v.length_squared().is_normal() || !(m > 0.0) || !m.is_finite() {
+        v
+    } else {
+        v / m
+    }
+}
+
 /// An orthonormal basis whose `z` is the given unit normal (Duff et al. 2017, branchless).
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {

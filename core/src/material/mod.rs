@@ -164,6 +164,7 @@ impl Material {
                         what: "material: direction_u must be finite",
                     });
                 }
+                let direction = math::representable_direction(direction);
                 if !(direction.length_squared() > 0.0) {
                     return Err(Error::InvalidValue {
                         what: "material: direction_u must not be the zero vector",
@@ -1144,6 +1145,19 @@ mod tests {
                 direction: d
             }
         );
+        // A direction whose squared length f32 cannot hold keeps its direction.
+        for scale in [1e-30, 1e30] {
+            let an = Params::Anisotropic {
+                specularity: 0.5,
+                roughness_u: 0.05,
+                roughness_v: 0.2,
+                direction: d * scale,
+            };
+            match Material::from_params(Kind::Metal, c, an).unwrap() {
+                Material::WardAnisotropic { direction, .. } => assert_eq!(direction, Vec3::Y),
+                other => panic!("{other:?}"),
+            }
+        }
         assert_eq!(
             Material::from_params(Kind::Plastic, c, Params::Diffuse).unwrap(),
             Material::Diffuse { rho_d: c }
