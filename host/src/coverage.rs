@@ -135,15 +135,22 @@ pub fn coverage_rows(truth: &Path, report: &Path) -> Result<Vec<CoverageRow>, Er
                 recovered: p.value,
                 sigma: p.sigma,
                 truth,
-                z: if p.sigma > 0.0 {
-                    (p.value - truth).abs() / p.sigma
-                } else {
-                    f64::INFINITY
-                },
+                z: z_score(p.value, p.sigma, truth),
             });
         }
     }
     Ok(rows)
+}
+
+/// `|value - truth| / sigma`; a sigma of 0 claims an exact value, covered only when it is.
+fn z_score(value: f64, sigma: f64, truth: f64) -> f64 {
+    if sigma > 0.0 {
+        (value - truth).abs() / sigma
+    } else if value == truth {
+        0.0
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// The fractions of rows within one and two sigma.
@@ -237,6 +244,13 @@ mod tests {
             truth: z,
             z,
         }
+    }
+
+    #[test]
+    fn a_sigma_of_zero_covers_only_the_exact_value() {
+        assert!((z_score(0.3, 0.1, 0.5) - 2.0).abs() < 1e-12);
+        assert_eq!(z_score(0.5, 0.0, 0.5), 0.0);
+        assert_eq!(z_score(0.5, 0.0, 0.50001), f64::INFINITY);
     }
 
     #[test]
