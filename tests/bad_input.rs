@@ -529,6 +529,58 @@ fn scene_file_missing() {
     );
 }
 
+/// A folder where one output file should go (here the last one written): the command fails
+/// naming it, and writes none of its other outputs, so the folder never mixes two runs.
+#[test]
+fn a_folder_in_the_way_of_one_output_leaves_none_of_the_others() {
+    let case = Case::new();
+    std::fs::create_dir_all(case.path("out/render.json")).unwrap();
+    let stderr = case.fails(IO, &["render.json", "folder"]);
+    assert!(!case.path("out/front.exr").exists(), "{stderr}");
+
+    // recover, with the tiny scene's own render as its panorama.
+    let case = Case::new().scene(
+        "name = \"front\"\n",
+        "name = \"front\"\nimage = \"panorama/front.exr\"\n",
+    );
+    case.write();
+    let render = |out: &str| {
+        relume(
+            case.dir.path(),
+            &[
+                "render",
+                path_str(&case.path("scene.toml")),
+                "--materials",
+                path_str(&case.path("m.toml")),
+                "--out",
+                path_str(&case.path(out)),
+                "--spp",
+                "4",
+            ],
+        )
+    };
+    assert!(render("panorama").status.success());
+    std::fs::create_dir_all(case.path("recovered/report.json")).unwrap();
+    let out = relume(
+        case.dir.path(),
+        &[
+            "recover",
+            path_str(&case.path("scene.toml")),
+            "--out",
+            path_str(&case.path("recovered")),
+            "--effort",
+            "fast",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(IO), "{stderr}");
+    assert!(
+        stderr.contains("report.json") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    assert_eq!(files_in(&case.path("recovered")), Vec::<PathBuf>::new());
+}
+
 /// `relume compare uncertainty m.toml <report>` in the case's folder: exit code, stderr.
 fn compare_uncertainty(case: &Case, report: &Path) -> (Option<i32>, String) {
     let out = relume(

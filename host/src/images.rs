@@ -14,7 +14,7 @@ use image::{DynamicImage, ImageError, ImageFormat, ImageReader};
 use relume_core::math;
 
 use crate::error::Error;
-use crate::fsutil;
+use crate::fsutil::{self, OutputSet};
 
 /// A linear RGB image, row-major, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
@@ -213,13 +213,18 @@ fn check_finite(path: &Path, image: &Image) -> Result<(), Error> {
 /// Writes linear float32 RGB (ZIP compressed), atomically; [`read_image`] gives back the
 /// same floats.
 pub fn write_exr(path: &Path, image: &Image) -> Result<(), Error> {
+    fsutil::write_atomic(path, &exr_bytes(path, image)?)
+}
+
+/// The bytes [`write_exr`] writes to `path` (named in errors), for an [`fsutil::OutputSet`].
+pub fn exr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
     check_buffer(path, image)?;
     check_finite(path, image)?;
     encode_exr(path, image)
 }
 
-/// [`write_exr`] without the finite check (tests write bad files as another program might).
-fn encode_exr(path: &Path, image: &Image) -> Result<(), Error> {
+/// [`exr_bytes`] without the finite check (tests write bad files as another program might).
+fn encode_exr(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
     use exr::prelude::{Encoding, SpecificChannels, Vec2, WritableImage};
     let w = image.width as usize;
     let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
@@ -237,12 +242,31 @@ fn encode_exr(path: &Path, image: &Image) -> Result<(), Error> {
         .non_parallel()
         .to_buffered(Cursor::new(&mut bytes))
         .map_err(|e| Error::input(path, format!("cannot encode EXR: {e}")))?;
-    fsutil::write_atomic(path, &bytes)
+    Ok(bytes)
+}
+
+/// Adds `<dir>/<name>.exr` and its PNG preview (`<dir>/<name>.png`) to `set`: how a view
+/// is written.
+pub fn add_exr_and_preview(
+    set: &mut OutputSet,
+    dir: &Path,
+    name: &str,
+    image: &Image,
+) -> Result<(), Error> {
+    let exr = dir.join(format!("{name}.exr"));
+    set.add(&exr, &exr_bytes(&exr, image)?)?;
+    let png = dir.join(format!("{name}.png"));
+    set.add(&png, &png_preview_bytes(&png, image, None)?)
 }
 
 /// Writes a Radiance RGBE picture (.hdr), atomically: how a RADIANCE `colorpict` reads
 /// a recovered diffuse map.
 pub fn write_hdr(path: &Path, image: &Image) -> Result<(), Error> {
+    fsutil::write_atomic(path, &hdr_bytes(path, image)?)
+}
+
+/// The bytes [`write_hdr`] writes to `path` (named in errors), for an [`fsutil::OutputSet`].
+pub fn hdr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
     check_buffer(path, image)?;
     check_finite(path, image)?;
     let pixels: Vec<image::Rgb<f32>> = image.pixels.iter().map(|p| image::Rgb(*p)).collect();
@@ -250,13 +274,23 @@ pub fn write_hdr(path: &Path, image: &Image) -> Result<(), Error> {
     image::codecs::hdr::HdrEncoder::new(&mut bytes)
         .encode(&pixels, image.width as usize, image.height as usize)
         .map_err(|e| Error::input(path, format!("cannot encode HDR: {e}")))?;
-    fsutil::write_atomic(path, &bytes)
+    Ok(bytes)
 }
 
 /// Writes an 8-bit sRGB preview for people, atomically: radiance times `exposure`, or by
 /// default scaled so that the [`PREVIEW_PERCENTILE`] of luminance shows as
 /// [`PREVIEW_TARGET`]; clamped to [0, 1] (NaN and negative values show black).
 pub fn write_png_preview(path: &Path, image: &Image, exposure: Option<f32>) -> Result<(), Error> {
+    fsutil::write_atomic(path, &png_preview_bytes(path, image, exposure)?)
+}
+
+/// The bytes [`write_png_preview`] writes to `path` (named in errors), for an
+/// [`fsutil::OutputSet`].
+pub fn png_preview_bytes(
+    path: &Path,
+    image: &Image,
+    exposure: Option<f32>,
+) -> Result<Vec<u8>, Error> {
     check_buffer(path, image)?;
     let scale = match exposure {
         Some(e) if e.is_finite() && e > 0.0 => e,
@@ -277,7 +311,7 @@ pub fn write_png_preview(path: &Path, image: &Image, exposure: Option<f32>) -> R
     let mut png = Vec::new();
     rgb.write_to(&mut Cursor::new(&mut png), ImageFormat::Png)
         .map_err(|e| Error::input(path, format!("cannot encode PNG: {e}")))?;
-    fsutil::write_atomic(path, &png)
+    Ok(png)
 }
 
 /// The scale that maps the [`PREVIEW_PERCENTILE`] of luminance to [`PREVIEW_TARGET`] (the
@@ -349,7 +383,8 @@ mod tests {
 
     /// Writes `pixels` as an EXR without any checks, as another program might.
     fn raw_exr(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> [f32; 3]) {
-        encode_exr(path, &image(w, h, f)).unwrap();
+        let bytes = encode_exr(path, &image(w, h, f)).unwrap();
+        fsutil::write_atomic(path, &bytes).unwrap();
     }
 
     fn err(path: &Path) -> String {

@@ -391,11 +391,16 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
     })
 }
 
-/// Writes `m` to `path` in the same schema, atomically: keys in a fixed order, floats in the
+/// Writes `m` to `path` in the same schema, atomically: see [`materials_text`].
+pub fn write_materials(path: &Path, m: &MaterialsDesc) -> Result<(), Error> {
+    fsutil::write_atomic(path, materials_text(path, m)?.as_bytes())
+}
+
+/// `m` as the text of a materials file at `path`: keys in a fixed order, floats in the
 /// shortest form that reads back to the same f32, `diffuse_map` relative to the file's
 /// folder. Refuses materials that [`load_materials`] would refuse (except that a diffuse map
 /// need not exist yet).
-pub fn write_materials(path: &Path, m: &MaterialsDesc) -> Result<(), Error> {
+pub fn materials_text(path: &Path, m: &MaterialsDesc) -> Result<String, Error> {
     let mut seen: HashMap<&str, ()> = HashMap::new();
     let mut out = String::from("format = 1\n");
     for d in &m.materials {
@@ -448,7 +453,7 @@ pub fn write_materials(path: &Path, m: &MaterialsDesc) -> Result<(), Error> {
             let _ = writeln!(out, "diffuse_map = {}", toml_string(s));
         }
     }
-    fsutil::write_atomic(path, out.as_bytes())
+    Ok(out)
 }
 
 fn toml_string(s: &str) -> String {

@@ -10,9 +10,10 @@ use relume_core::render::RenderSettings;
 
 use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
+use crate::fsutil::{self, OutputSet};
 use crate::images::{self, Image};
 use crate::materials_file;
-use crate::{fsutil, parallel};
+use crate::parallel;
 
 pub struct RenderArgs {
     pub scene: PathBuf,
@@ -80,6 +81,8 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     progress.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
 
+    // One set: a failure on any file leaves none of this render's outputs.
+    let mut set = OutputSet::default();
     fsutil::create_dir(&args.out)?;
     for (i, pixels) in rendered {
         let v = &views[i];
@@ -88,9 +91,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
             height: v.height,
             pixels: pixels.iter().map(|p| p.to_array()).collect(),
         };
-        let name = &view_descs[i].name;
-        images::write_exr(&args.out.join(format!("{name}.exr")), &image)?;
-        images::write_png_preview(&args.out.join(format!("{name}.png")), &image, None)?;
+        images::add_exr_and_preview(&mut set, &args.out, &view_descs[i].name, &image)?;
     }
     let info = serde_json::json!({
         "scene": args.scene.display().to_string(),
@@ -103,6 +104,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         "samples_per_second": samples as f64 / seconds.max(1e-9),
     });
     let text = serde_json::to_string_pretty(&info).map_err(|e| Error::Usage(e.to_string()))?;
-    fsutil::write_atomic(&args.out.join("render.json"), text.as_bytes())?;
+    set.add(&args.out.join("render.json"), text.as_bytes())?;
+    set.commit()?;
     Ok(RenderSummary { samples, seconds })
 }

@@ -8,7 +8,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::error::Error;
-use crate::fsutil;
+use crate::fsutil::OutputSet;
 
 /// The PNG's fonts, built in: system fonts differ between machines (or are missing, and
 /// resvg then leaves text out without a word). DejaVu Sans, subset to Latin-1 and some
@@ -261,16 +261,15 @@ impl Chart {
         pixmap.encode_png().map_err(|e| e.to_string())
     }
 
-    /// Writes the chart as SVG to `svg` and as PNG beside it (the same name, `.png`), each
-    /// atomically.
-    pub fn write(&self, svg: &Path) -> Result<(), Error> {
-        fsutil::write_atomic(svg, self.to_svg().as_bytes())?;
+    /// Adds the chart to `set` as SVG at `svg` and as PNG beside it (the same name, `.png`).
+    pub fn add_to(&self, set: &mut OutputSet, svg: &Path) -> Result<(), Error> {
+        set.add(svg, self.to_svg().as_bytes())?;
         let png = svg.with_extension("png");
         let bytes = self.to_png().map_err(|e| Error::Io {
             file: png.clone(),
             source: std::io::Error::other(format!("drawing the chart: {e}")),
         })?;
-        fsutil::write_atomic(&png, &bytes)
+        set.add(&png, &bytes)
     }
 }
 

@@ -18,7 +18,7 @@ use serde::Serialize;
 use crate::bench::{field, Csv};
 use crate::compare::{self, ViewImages, ViewsReport};
 use crate::error::Error;
-use crate::fsutil;
+use crate::fsutil::{self, OutputSet};
 use crate::render_cmd::{self, RenderArgs};
 
 /// The goal: an edit rendered from the recovered model is within 1.2x the error of
@@ -200,9 +200,11 @@ fn write_outputs(out: &Path, outcomes: &[EditOutcome]) -> Result<(), Error> {
             o.within_goal.to_string(),
         ]);
     }
-    fsutil::write_atomic(&out.join("edits.csv"), csv.to_text().as_bytes())?;
+    let mut set = OutputSet::default();
+    set.add(&out.join("edits.csv"), csv.to_text().as_bytes())?;
     let json = serde_json::to_string_pretty(outcomes).map_err(|e| Error::Usage(e.to_string()))?;
-    fsutil::write_atomic(&out.join("edits.json"), json.as_bytes())
+    set.add(&out.join("edits.json"), json.as_bytes())?;
+    set.commit()
 }
 
 /// The table a person reads: one line per edit, then the groups where the recovered model

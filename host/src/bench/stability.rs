@@ -13,7 +13,7 @@ use super::chart::{Axis, Chart, ChartPoint, Panel, Series};
 use super::perturb::{self, Perturbation};
 use super::{field, pct, recover_and_judge, Csv, GroupOutcome, Judged};
 use crate::error::Error;
-use crate::fsutil;
+use crate::fsutil::{self, OutputSet};
 use crate::materials_file::{self, MaterialDesc, Model};
 use crate::recover::{Effort, RecoverArgs};
 use crate::scene_file;
@@ -238,11 +238,12 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
     }
 
     let spread = seed_spread(&runs, &truth.materials);
-    fsutil::write_atomic(
+    let mut set = OutputSet::default();
+    set.add(
         &args.out.join("stability.csv"),
         runs_csv(&runs, &baseline).to_text().as_bytes(),
     )?;
-    fsutil::write_atomic(
+    set.add(
         &args.out.join("seed-spread.csv"),
         spread_csv(&spread).to_text().as_bytes(),
     )?;
@@ -256,7 +257,8 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
         group: &group,
         group_pixels,
     };
-    chart(&runs, &baseline, &context, &title).write(&args.out.join("stability.svg"))?;
+    chart(&runs, &baseline, &context, &title).add_to(&mut set, &args.out.join("stability.svg"))?;
+    set.commit()?;
     print_runs(&runs, &baseline, &group);
     print_verdict(&runs, &baseline, &spread);
     Ok(runs)

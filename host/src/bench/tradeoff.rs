@@ -14,7 +14,7 @@ use super::chart::{Axis, Chart, ChartPoint, Panel, Series};
 use super::perturb::{self, Perturbation};
 use super::{field, pct, recover_and_judge, Csv, Summary};
 use crate::error::Error;
-use crate::fsutil;
+use crate::fsutil::{self, OutputSet};
 use crate::materials_file;
 use crate::recover::{Budget, Effort, Optimiser, RecoverArgs};
 use crate::scene_file;
@@ -212,7 +212,8 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
             summary,
         });
     }
-    fsutil::write_atomic(
+    let mut set = OutputSet::default();
+    set.add(
         &args.out.join("tradeoff.csv"),
         csv(&rows).to_text().as_bytes(),
     )?;
@@ -222,7 +223,8 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
         effort_name(args.effort),
         args.seed
     );
-    chart(&rows, &title).write(&args.out.join("tradeoff.svg"))?;
+    chart(&rows, &title).add_to(&mut set, &args.out.join("tradeoff.svg"))?;
+    set.commit()?;
     print_table(&rows);
     Ok(rows)
 }

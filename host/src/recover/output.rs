@@ -1,5 +1,6 @@
-//! Everything `recover` writes, each file atomically: materials.toml, materials.rad,
-//! report.json, the re-rendered views and per-view error images.
+//! Everything `recover` writes, as one [`OutputSet`]: materials.toml, materials.rad,
+//! report.json, the diffuse maps, the re-rendered views and per-view error images. A
+//! failure on any file leaves none of them, so a folder never mixes two runs' outputs.
 
 use std::path::Path;
 
@@ -8,9 +9,10 @@ use glam::Vec3;
 use super::model::GroupModel;
 use super::{texture, RecoverReport, Recovery};
 use crate::error::Error;
+use crate::fsutil::{self, OutputSet};
 use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialsDesc};
-use crate::{fsutil, parallel};
+use crate::parallel;
 
 /// Renders every view with the current models.
 pub(super) fn render_views(
@@ -45,6 +47,7 @@ pub(super) fn write_all(
     renders: &[Vec<Vec3>],
     report: &RecoverReport,
 ) -> Result<(), Error> {
+    let mut set = OutputSet::default();
     fsutil::create_dir(&out.join("views"))?;
     fsutil::create_dir(&out.join("errors"))?;
     for (vi, pixels) in renders.iter().enumerate() {
@@ -55,8 +58,7 @@ pub(super) fn write_all(
             height: view.height,
             pixels: pixels.iter().map(|p| p.to_array()).collect(),
         };
-        images::write_exr(&out.join("views").join(format!("{name}.exr")), &image)?;
-        images::write_png_preview(&out.join("views").join(format!("{name}.png")), &image, None)?;
+        images::add_exr_and_preview(&mut set, &out.join("views"), name, &image)?;
         // |render - real| per channel: where the fit is poor.
         let diff = Image {
             width: view.width,
@@ -74,8 +76,7 @@ pub(super) fn write_all(
                 })
                 .collect(),
         };
-        images::write_exr(&out.join("errors").join(format!("{name}.exr")), &diff)?;
-        images::write_png_preview(&out.join("errors").join(format!("{name}.png")), &diff, None)?;
+        images::add_exr_and_preview(&mut set, &out.join("errors"), name, &diff)?;
     }
     let names = &rec.owned.group_names;
     let map_path = |g: usize| out.join("textures").join(format!("{}.exr", names[g]));
@@ -94,10 +95,10 @@ pub(super) fn write_all(
                 height: map.side,
                 pixels: map.texels.iter().map(|t| t.to_array()).collect(),
             };
-            images::write_exr(&map_path(g), &image)?;
+            set.add(&map_path(g), &images::exr_bytes(&map_path(g), &image)?)?;
             match texture::uv_affine(rec, g) {
                 Some(affine) => {
-                    write_radiance_picture(out, name, &image, specularity, &affine)?;
+                    add_radiance_picture(&mut set, out, name, &image, specularity, &affine)?;
                     primitive.1 = format!("pict_{name}");
                     rad.push_str(&format!(
                         "\nvoid colorpict {}\n7 red green blue textures/{name}.hdr textures/{name}.cal pic_u pic_v\n0\n0\n",
@@ -136,11 +137,12 @@ pub(super) fn write_all(
             })
             .collect(),
     };
-    materials_file::write_materials(&materials_path, &materials)?;
-    fsutil::write_atomic(&out.join("materials.rad"), rad.as_bytes())?;
+    let toml = materials_file::materials_text(&materials_path, &materials)?;
+    set.add(&materials_path, toml.as_bytes())?;
+    set.add(&out.join("materials.rad"), rad.as_bytes())?;
     let text = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(e.to_string()))?;
-    fsutil::write_atomic(&out.join("report.json"), text.as_bytes())?;
-    Ok(())
+    set.add(&out.join("report.json"), text.as_bytes())?;
+    set.commit()
 }
 
 /// The RADIANCE picture and mapping of a textured group: `textures/<group>.hdr` holds the
@@ -148,7 +150,8 @@ pub(super) fn write_all(
 /// `textures/<group>.cal` turns the hit point into the OBJ (u, v) and remaps it so that
 /// RADIANCE, which interpolates between the first and last texel over [0, 1], samples the
 /// texel centres where the OBJ convention puts them (as in the references' tex_*.cal).
-fn write_radiance_picture(
+fn add_radiance_picture(
+    set: &mut OutputSet,
     out: &Path,
     name: &str,
     map: &Image,
@@ -161,7 +164,8 @@ fn write_radiance_picture(
         height: map.height,
         pixels: map.pixels.iter().map(|p| p.map(|c| c * scale)).collect(),
     };
-    images::write_hdr(&out.join("textures").join(format!("{name}.hdr")), &picture)?;
+    let hdr = out.join("textures").join(format!("{name}.hdr"));
+    set.add(&hdr, &images::hdr_bytes(&hdr, &picture)?)?;
     let (o, gu, gv) = (affine.origin, affine.grad_u, affine.grad_v);
     let cal = format!(
         "{{ relume: OBJ (u, v) of group {name} as an affine function of the hit point }}\n\
@@ -183,7 +187,7 @@ fn write_radiance_picture(
         gvy = gv.y,
         gvz = gv.z,
     );
-    fsutil::write_atomic(
+    set.add(
         &out.join("textures").join(format!("{name}.cal")),
         cal.as_bytes(),
     )
