@@ -529,6 +529,44 @@ fn scene_file_missing() {
     );
 }
 
+/// A light that adds nothing is not an error, but the all-black result is said.
+#[test]
+fn a_scene_whose_light_adds_nothing_renders_black_with_a_warning() {
+    let render = |case: &Case| {
+        case.write();
+        relume(
+            case.dir.path(),
+            &[
+                "render",
+                path_str(&case.path("scene.toml")),
+                "--materials",
+                path_str(&case.path("m.toml")),
+                "--out",
+                path_str(&case.path("out")),
+                "--spp",
+                "64",
+            ],
+        )
+    };
+    let case = Case::new().scene(
+        "radiance = [10.0, 10.0, 10.0]",
+        "radiance = [0.0, 0.0, 0.0]",
+    );
+    let out = render(&case);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("warning: every pixel is black"), "{stderr}");
+    let json = std::fs::read_to_string(case.path("out/render.json")).unwrap();
+    assert!(json.contains("every pixel is black"), "{json}");
+    // The same scene lit: no warning (at 64 spp, its 16 pixels find the small quad and lamp).
+    let out = render(&Case::new());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && !stderr.contains("warning"),
+        "{stderr}"
+    );
+}
+
 /// A folder where one output file should go (here the last one written): the command fails
 /// naming it, and writes none of its other outputs, so the folder never mixes two runs.
 #[test]

@@ -300,6 +300,9 @@ fn run(command: Command) -> Result<(), Error> {
                 views,
             };
             let summary = render_cmd::run(&args)?;
+            for w in &summary.warnings {
+                eprintln!("relume: warning: {w}");
+            }
             println!(
                 "rendered {} samples in {:.2} s: {:.3} Msamples/s; wrote {}",
                 summary.samples,

@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use relume_core::render::RenderSettings;
 
@@ -30,6 +31,8 @@ pub struct RenderArgs {
 pub struct RenderSummary {
     pub samples: u64,
     pub seconds: f64,
+    /// What a user should look at although the render succeeded.
+    pub warnings: Vec<String>,
 }
 
 pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
@@ -80,6 +83,16 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     }
     progress.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
+    let mut warnings = Vec::new();
+    if rendered
+        .iter()
+        .all(|(_, pixels)| pixels.iter().all(|p| *p == Vec3::ZERO))
+    {
+        warnings.push(format!(
+            "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away?)",
+            args.scene.display()
+        ));
+    }
 
     // One set: a failure on any file leaves none of this render's outputs.
     let mut set = OutputSet::default();
@@ -102,9 +115,14 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         "samples": samples,
         "seconds": seconds,
         "samples_per_second": samples as f64 / seconds.max(1e-9),
+        "warnings": warnings,
     });
     let text = serde_json::to_string_pretty(&info).map_err(|e| Error::Usage(e.to_string()))?;
     set.add(&args.out.join("render.json"), text.as_bytes())?;
     set.commit()?;
-    Ok(RenderSummary { samples, seconds })
+    Ok(RenderSummary {
+        samples,
+        seconds,
+        warnings,
+    })
 }
