@@ -108,6 +108,26 @@ impl Case {
         self.dir.path().join(name)
     }
 
+    /// Runs `relume render scene.toml --materials m.toml --out <out> [--spp <spp>]` on the
+    /// files as they are (see [`Case::write`]).
+    fn render(&self, out: &str, spp: Option<u32>) -> std::process::Output {
+        let (scene, materials, out) =
+            (self.path("scene.toml"), self.path("m.toml"), self.path(out));
+        let spp = spp.map(|n| n.to_string());
+        let mut args = vec![
+            "render",
+            path_str(&scene),
+            "--materials",
+            path_str(&materials),
+            "--out",
+            path_str(&out),
+        ];
+        if let Some(n) = &spp {
+            args.extend(["--spp", n.as_str()]);
+        }
+        relume(self.dir.path(), &args)
+    }
+
     fn write(&self) {
         std::fs::write(self.path("scene.toml"), &self.scene).unwrap();
         std::fs::write(self.path("geo.obj"), &self.obj).unwrap();
@@ -119,19 +139,7 @@ impl Case {
     fn fails(&self, code: i32, stderr_has: &[&str]) -> String {
         self.write();
         let before = files_in(self.dir.path());
-        let out = relume(
-            self.dir.path(),
-            &[
-                "render",
-                path_str(&self.path("scene.toml")),
-                "--materials",
-                path_str(&self.path("m.toml")),
-                "--out",
-                path_str(&self.path("out")),
-                "--spp",
-                "1",
-            ],
-        );
+        let out = self.render("out", Some(1));
         let stderr = String::from_utf8_lossy(&out.stderr).to_string();
         let show = format!(
             "status {:?}\n--- stdout\n{}\n--- stderr\n{stderr}",
@@ -182,19 +190,7 @@ const IO: i32 = 4;
 fn the_tiny_scene_itself_renders() {
     let case = Case::new();
     case.write();
-    let out = relume(
-        case.dir.path(),
-        &[
-            "render",
-            path_str(&case.path("scene.toml")),
-            "--materials",
-            path_str(&case.path("m.toml")),
-            "--out",
-            path_str(&case.path("out")),
-            "--spp",
-            "1",
-        ],
-    );
+    let out = case.render("out", Some(1));
     assert!(
         out.status.success(),
         "stderr:\n{}",
@@ -410,17 +406,7 @@ fn materials_missing_file() {
     let case = Case::new();
     case.write();
     std::fs::remove_file(case.path("m.toml")).unwrap();
-    let out = relume(
-        case.dir.path(),
-        &[
-            "render",
-            path_str(&case.path("scene.toml")),
-            "--materials",
-            path_str(&case.path("m.toml")),
-            "--out",
-            path_str(&case.path("out")),
-        ],
-    );
+    let out = case.render("out", None);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(IO), "{stderr}");
     assert!(
@@ -510,17 +496,7 @@ fn scene_file_missing() {
     let case = Case::new();
     case.write();
     std::fs::remove_file(case.path("scene.toml")).unwrap();
-    let out = relume(
-        case.dir.path(),
-        &[
-            "render",
-            path_str(&case.path("scene.toml")),
-            "--materials",
-            path_str(&case.path("m.toml")),
-            "--out",
-            path_str(&case.path("out")),
-        ],
-    );
+    let out = case.render("out", None);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(IO), "{stderr}");
     assert!(
@@ -534,19 +510,7 @@ fn scene_file_missing() {
 fn a_scene_whose_light_adds_nothing_renders_black_with_a_warning() {
     let render = |case: &Case| {
         case.write();
-        relume(
-            case.dir.path(),
-            &[
-                "render",
-                path_str(&case.path("scene.toml")),
-                "--materials",
-                path_str(&case.path("m.toml")),
-                "--out",
-                path_str(&case.path("out")),
-                "--spp",
-                "64",
-            ],
-        )
+        case.render("out", Some(64))
     };
     let case = Case::new().scene(
         "radiance = [10.0, 10.0, 10.0]",
@@ -582,22 +546,7 @@ fn a_folder_in_the_way_of_one_output_leaves_none_of_the_others() {
         "name = \"front\"\nimage = \"panorama/front.exr\"\n",
     );
     case.write();
-    let render = |out: &str| {
-        relume(
-            case.dir.path(),
-            &[
-                "render",
-                path_str(&case.path("scene.toml")),
-                "--materials",
-                path_str(&case.path("m.toml")),
-                "--out",
-                path_str(&case.path(out)),
-                "--spp",
-                "4",
-            ],
-        )
-    };
-    assert!(render("panorama").status.success());
+    assert!(case.render("panorama", Some(4)).status.success());
     std::fs::create_dir_all(case.path("recovered/report.json")).unwrap();
     let out = relume(
         case.dir.path(),
