@@ -24,7 +24,7 @@ pub struct Image {
     pub pixels: Vec<[f32; 3]>,
 }
 
-/// The luminance percentile that [`write_png_preview`]'s auto-exposure maps to
+/// The luminance percentile that [`png_preview_bytes`]'s auto-exposure maps to
 /// [`PREVIEW_TARGET`].
 pub const PREVIEW_PERCENTILE: f64 = 0.99;
 /// Display value (before sRGB encoding) of the auto-exposure percentile.
@@ -259,13 +259,8 @@ pub fn add_exr_and_preview(
     set.add(&png, &png_preview_bytes(&png, image, None)?)
 }
 
-/// Writes a Radiance RGBE picture (.hdr), atomically: how a RADIANCE `colorpict` reads
-/// a recovered diffuse map.
-pub fn write_hdr(path: &Path, image: &Image) -> Result<(), Error> {
-    fsutil::write_atomic(path, &hdr_bytes(path, image)?)
-}
-
-/// The bytes [`write_hdr`] writes to `path` (named in errors), for an [`fsutil::OutputSet`].
+/// A Radiance RGBE picture (.hdr) to be written at `path` (named in errors): how a
+/// RADIANCE `colorpict` reads a recovered diffuse map.
 pub fn hdr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
     check_buffer(path, image)?;
     check_finite(path, image)?;
@@ -277,15 +272,9 @@ pub fn hdr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
     Ok(bytes)
 }
 
-/// Writes an 8-bit sRGB preview for people, atomically: radiance times `exposure`, or by
-/// default scaled so that the [`PREVIEW_PERCENTILE`] of luminance shows as
-/// [`PREVIEW_TARGET`]; clamped to [0, 1] (NaN and negative values show black).
-pub fn write_png_preview(path: &Path, image: &Image, exposure: Option<f32>) -> Result<(), Error> {
-    fsutil::write_atomic(path, &png_preview_bytes(path, image, exposure)?)
-}
-
-/// The bytes [`write_png_preview`] writes to `path` (named in errors), for an
-/// [`fsutil::OutputSet`].
+/// An 8-bit sRGB preview for people, to be written at `path` (named in errors): radiance
+/// times `exposure`, or by default scaled so that the [`PREVIEW_PERCENTILE`] of luminance
+/// shows as [`PREVIEW_TARGET`]; clamped to [0, 1] (NaN and negative values show black).
 pub fn png_preview_bytes(
     path: &Path,
     image: &Image,
@@ -478,7 +467,7 @@ mod tests {
             let result = if name.ends_with("exr") {
                 write_exr(&path, &image)
             } else {
-                write_hdr(&path, &image)
+                hdr_bytes(&path, &image).map(|_| ())
             };
             let err = result
                 .expect_err("an infinite value must not be written")
@@ -654,15 +643,8 @@ mod tests {
     }
 
     fn preview(img: &Image, exposure: Option<f32>) -> image::RgbImage {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("p.png");
-        write_png_preview(&p, img, exposure).unwrap();
-        assert_eq!(
-            std::fs::read_dir(dir.path()).unwrap().count(),
-            1,
-            "no temp files left"
-        );
-        image::open(&p).unwrap().into_rgb8()
+        let png = png_preview_bytes(Path::new("p.png"), img, exposure).unwrap();
+        image::load_from_memory(&png).unwrap().into_rgb8()
     }
 
     #[test]
@@ -722,9 +704,9 @@ mod tests {
             pixels: vec![],
         };
         assert!(write_exr(&p, &empty).is_err());
-        assert!(write_png_preview(&dir.path().join("x.png"), &bad, None).is_err());
+        assert!(png_preview_bytes(&dir.path().join("x.png"), &bad, None).is_err());
         let ok = image(1, 1, |_, _| [1.0; 3]);
-        assert!(write_png_preview(&dir.path().join("x.png"), &ok, Some(-1.0)).is_err());
+        assert!(png_preview_bytes(&dir.path().join("x.png"), &ok, Some(-1.0)).is_err());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 
