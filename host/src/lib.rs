@@ -8,7 +8,7 @@
 //!   formats of scene-format.md, validated into plain descriptions.
 //! - [`assemble`]: descriptions to the core's buffers (an owned scene the core borrows).
 //! - [`parallel`]: fixed tiles, results combined in a fixed order.
-//! - [`render_cmd`], [`compare`], [`bench`]: the subcommands; [`cli`] parses arguments.
+//! - [`render_cmd`], [`compare`], [`bench`](mod@bench): the subcommands; [`cli`] parses arguments.
 
 pub mod assemble;
 pub mod bench;
