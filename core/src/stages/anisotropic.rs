@@ -3,7 +3,7 @@
 //! A lobe's shape is `x = (ln roughness_u, ln roughness_v, angle)`, the angle turning its
 //! `u` direction in the plane of two surface tangents `(t, b)`. For one shape a pixel is
 //! linear in the reflectances, as under stage 2's isotropic lobe (`I = rho_d D + S B(x)`),
-//! so [`isotropic::solve`] gives the best colour and specularity in closed form and only
+//! so [`isotropic::solve`](super::isotropic::solve) gives the best colour and specularity in closed form and only
 //! the shape is searched: a grid, then Nelder-Mead from its best point ([`propose`]).
 //! The host measures each shape's sums on a group's transport cache (in parallel); what
 //! is decided from them is here.
