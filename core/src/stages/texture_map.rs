@@ -12,8 +12,9 @@
 //! its observations' residuals over their summed weights), which converges monotonically
 //! without a step size to tune. Texels no pixel sees are filled from their neighbours.
 //!
-//! Highlights and shadows are removed by the weights the host gives: a pixel whose light
-//! is mostly specular, or which receives little light, says little about `T`.
+//! Pixels are removed by the weights the host gives: one that receives little light says
+//! little about `T`, and the host leaves out highlights where the map must not depend on
+//! the lobe.
 
 use crate::error::{check_capacity, Error};
 use crate::material::texture::bilinear_taps;
@@ -49,7 +50,7 @@ pub struct MapObservation {
     pub gain: Vec3,
     /// The diffuse radiance to explain: `I_real - I_specular`.
     pub target: Vec3,
-    /// Confidence in `[0, 1]` (0 removes the pixel: a highlight, a shadow).
+    /// Confidence in `[0, 1]` (0 removes the pixel: a shadow, a highlight).
     pub weight: f32,
 }
 

@@ -36,13 +36,13 @@ pub(super) fn run(
             None => format!("the {} stand-in's lobe", standin.name()),
         };
         reports[g].decisions.push(format!(
-            "stage 5: {} map {}x{} from {} pixels (T = (I_real - I_specular) / E under {lobe}); {} highlight and {} shadow pixels removed, {} texels unseen and filled from neighbours",
+            "stage 5: {} map {}x{} from {} pixels (T = (I_real - I_specular) / E under {lobe}); {} shadow pixels left out, {} highlight pixels kept, {} texels unseen and filled from neighbours",
             rec.models[g].name(),
             summary.side,
             summary.side,
             summary.pixels,
-            summary.highlights,
             summary.shadows,
+            summary.highlights,
             summary.unseen_texels
         ));
     }

@@ -31,6 +31,8 @@ pub struct RecoveredMap {
 pub struct MapSummary {
     pub side: u32,
     pub pixels: usize,
+    /// Pixels whose light is mostly the lobe's: kept in the final map, left out of the
+    /// first one that a lobe refit reads.
     pub highlights: usize,
     pub shadows: usize,
     pub unseen_texels: usize,
@@ -131,9 +133,10 @@ pub fn texture_contrast(
 /// Stage 5: the diffuse map of group `g` under its untextured stand-in's lobe (the group's
 /// current model: a diffuse, isotropic or anisotropic plastic, whose diffuse colour starts
 /// the map), `T = (I_real - I_specular) / E`, with E from full global-illumination renders
-/// of the recovered scene. An isotropic lobe is then fitted again with the map
-/// ([`lobe_with_map`]) and the map solved once more under it. Sets the group's model to
-/// the textured one and returns what was done.
+/// of the recovered scene. Under an isotropic lobe a first map is solved without the
+/// highlights, the lobe fitted again with it there ([`lobe_with_map`]), and the map solved
+/// once more under the lobe it ends with, from every pixel. Sets the group's model to the
+/// textured one and returns what was done.
 pub fn recover_map(
     rec: &mut Recovery,
     g: usize,
@@ -173,10 +176,14 @@ pub fn recover_map(
         spp,
         seed,
     };
-    let mut solved = solve.run(rec)?;
     let mut lobe_refit = None;
-    if let GroupModel::Textured { lobe: stand_in, .. } = rec.models[g] {
-        let refit = lobe_with_map(rec, &solve, &solved.highlight, stand_in, cache_settings)?;
+    if let GroupModel::Textured {
+        lobe: stand_in @ MapLobe::Isotropic { .. },
+        ..
+    } = rec.models[g]
+    {
+        let first = solve.run(rec, Highlights::LeftOut)?;
+        let refit = lobe_with_map(rec, &solve, &first.highlight, stand_in, cache_settings)?;
         if let Some(refit) = refit {
             let [specularity, roughness] = refit.after;
             rec.models[g] = GroupModel::Textured {
@@ -186,10 +193,10 @@ pub fn recover_map(
                     roughness,
                 },
             };
-            solved = solve.run(rec)?;
             lobe_refit = Some(refit);
         }
     }
+    let solved = solve.run(rec, Highlights::Kept)?;
     Ok(MapSummary {
         side: solved.side,
         pixels: pixels.len(),
@@ -213,6 +220,19 @@ struct MapSolve<'a> {
     seed: u64,
 }
 
+/// Whether a solve reads the pixels whose light is mostly the lobe's.
+///
+/// The final map keeps them: `(I_real - I_specular) / E` is the map there as anywhere,
+/// and where a picture's dark parts reflect the room (the textured scene's checker, whose
+/// dark squares are mostly lobe) leaving them out left a quarter of its pixels unsolved and
+/// filled from the light squares beside them. The first map of a lobe refit leaves them
+/// out, so that the map there does not depend on the lobe being refitted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Highlights {
+    LeftOut,
+    Kept,
+}
+
 /// What a solve found besides the map.
 struct Solved {
     side: u32,
@@ -224,8 +244,9 @@ struct Solved {
 
 impl MapSolve<'_> {
     /// Renders E against the constant map and the lobe alone, then solves the map (stored
-    /// in `rec.maps`) from the pixels that are neither highlights nor in shadow.
-    fn run(&self, rec: &mut Recovery) -> Result<Solved, Error> {
+    /// in `rec.maps`) from the pixels that are not in shadow (and not highlights, when
+    /// `highlights` says so).
+    fn run(&self, rec: &mut Recovery, highlights: Highlights) -> Result<Solved, Error> {
         let (map, pixels) = (self.map, self.pixels);
         rec.maps[map] = RecoveredMap {
             side: 1,
@@ -255,12 +276,13 @@ impl MapSolve<'_> {
                 highlight[i] = luminance(specular[i]) as f64
                     > fit::HIGHLIGHT_FRACTION * luminance(real) as f64;
                 let shadow = (luminance(gains[i]) as f64) <= gain_floor;
-                shadows += (shadow && !highlight[i]) as usize;
+                let left_out = shadow || (highlight[i] && highlights == Highlights::LeftOut);
+                shadows += shadow as usize;
                 Some(MapObservation {
                     uv,
                     gain: gains[i],
                     target: real - specular[i],
-                    weight: if highlight[i] || shadow { 0.0 } else { 1.0 },
+                    weight: if left_out { 0.0 } else { 1.0 },
                 })
             })
             .collect();
