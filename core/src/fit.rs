@@ -99,6 +99,13 @@ impl GroupFit {
 /// render noise of `G` pixel by pixel, `var = sum_i (d_i,1 - d_i,2)^2 / 4`, with as many
 /// degrees of freedom as pixels. It is the noise alone: how unevenly a real gain falls
 /// over the pixels (a highlight) is signal, not uncertainty.
+///
+/// The effect a threshold is held against is [`ModelComparison::effect`], `sqrt(G)`: the
+/// relative error the complex model's extra part accounts for. A least-squares fit's
+/// misfits add in quadrature, so a lobe missing from the simple model leaves
+/// `e_s^2 = e_c^2 + g^2`, while `e_s - e_c` shrinks as the misfit both models share grows:
+/// textured's stripes, on a uniform stand-in whose error is the picture (0.447), read a lobe
+/// accounting for 0.087 as `e_s - e_c` = 0.0075.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ModelComparison {
     pub pixels: u32,
@@ -275,25 +282,33 @@ impl ModelComparison {
         }
     }
 
+    /// The relative error the complex model's extra part accounts for, `sqrt(G)` (0 where
+    /// it measures no better): what [`SPECULAR_GAIN_THRESHOLD`] is held against.
+    pub fn effect(&self) -> f64 {
+        libm::sqrt(self.squared_gain.max(0.0))
+    }
+
     /// Whether the complex model is not yet shown better but its gain is at least one
-    /// standard error and within one of the effect threshold or above it: worth measuring
-    /// again with more samples. (Above the threshold only, as it was, a gain read just
-    /// under it was final however noisy: glossy's yellow box at 64 px, 0.0096 +- 0.0076 at
-    /// 67 spp, where 268 spp read 0.0195.)
+    /// standard error and its effect within one standard error of the threshold or above
+    /// it: worth measuring again with more samples. (Above the threshold only, as it was, a
+    /// gain read just under it was final however noisy: glossy's yellow box at 64 px,
+    /// 0.0096 +- 0.0076 at 67 spp, where 268 spp read 0.0195.)
     pub fn is_promising(&self) -> bool {
         !self.favours_complex()
-            && self.gain + self.gain_sigma > SPECULAR_GAIN_THRESHOLD
+            && libm::sqrt((self.squared_gain + self.squared_gain_sigma).max(0.0))
+                > SPECULAR_GAIN_THRESHOLD
             && self.z() >= 1.0
     }
 
-    /// Whether the measurement was too noisy to have shown a gain of the threshold's size,
-    /// and is not already against the complex model (the living room's 20-pixel statue
-    /// measured 0.11 +- 0.26 at 32 spp): worth measuring again while that is cheap
+    /// Whether the measurement was too noisy to have shown an effect of the threshold's
+    /// size (the squared gain's standard error above the threshold's square), and is not
+    /// already against the complex model (the living room's 20-pixel statue measured 0.11
+    /// +- 0.26 at 32 spp): worth measuring again while that is cheap
     /// ([`UNRESOLVED_MAX_SAMPLES`]).
     pub fn is_unresolved(&self) -> bool {
         !self.favours_complex()
             && !self.is_promising()
-            && self.gain_sigma > SPECULAR_GAIN_THRESHOLD
+            && self.squared_gain_sigma > SPECULAR_GAIN_THRESHOLD * SPECULAR_GAIN_THRESHOLD
             && self.z() > -1.0
     }
 
@@ -302,11 +317,11 @@ impl ModelComparison {
         gain_significance(self.pixels)
     }
 
-    /// Whether the complex model is worth its parameters: it removes more than
-    /// [`SPECULAR_GAIN_THRESHOLD`] of relative error, and that gain is at least
-    /// [`gain_significance`] standard errors.
+    /// Whether the complex model is worth its parameters: it accounts for more than
+    /// [`SPECULAR_GAIN_THRESHOLD`] of relative error ([`ModelComparison::effect`]), and its
+    /// gain is at least [`gain_significance`] standard errors.
     pub fn favours_complex(&self) -> bool {
-        self.gain > SPECULAR_GAIN_THRESHOLD && self.z() >= self.significance()
+        self.effect() > SPECULAR_GAIN_THRESHOLD && self.z() >= self.significance()
     }
 }
 
@@ -323,9 +338,10 @@ pub const DIFFUSE_THRESHOLD: f64 = 0.05;
 pub const DIFFUSE_CONVERGED: f64 = 2e-4;
 /// The diffuse iteration stops after this many steps at the most.
 pub const DIFFUSE_MAX_STEPS: u32 = 30;
-/// A specular model is kept only when a render of the group shows it removes more than this
-/// much relative error compared with the diffuse model (host `recover`, stage 2); a group
-/// whose diffuse error is already below it is not tried.
+/// A specular model is kept only when a render of the group shows it accounts for more than
+/// this much of the relative error the diffuse model leaves ([`ModelComparison::effect`];
+/// host `recover`, stage 2); a group whose diffuse error is already below it is not tried,
+/// since no model could account for more.
 pub const SPECULAR_GAIN_THRESHOLD: f64 = 0.01;
 /// A more complex model is kept only when its gain is significant at the level a normal z
 /// of this many standard errors has ([`ModelComparison`]): one-sided, about one chance in
@@ -416,38 +432,60 @@ pub const SHADOW_FRACTION: f64 = 0.1;
 mod tests {
     use super::*;
 
-    fn comparison(gain: f64, gain_sigma: f64) -> ModelComparison {
+    /// A comparison of 1000 pixels whose simple model's error is 5% and whose squared gain
+    /// is `squared_gain +- squared_gain_sigma`.
+    fn comparison(squared_gain: f64, squared_gain_sigma: f64) -> ModelComparison {
+        let error_simple = 0.05;
+        let error_complex = libm::sqrt(error_simple * error_simple - squared_gain);
+        let sum = error_simple + error_complex;
         ModelComparison {
             pixels: 1000,
-            error_simple: 0.05,
-            error_complex: 0.05 - gain,
-            squared_sigma_simple: 0.1 * gain_sigma,
-            squared_sigma_complex: 0.1 * gain_sigma,
-            gain,
-            gain_sigma,
-            squared_gain: 0.1 * gain,
-            squared_gain_sigma: 0.1 * gain_sigma,
+            error_simple,
+            error_complex,
+            squared_sigma_simple: squared_gain_sigma,
+            squared_sigma_complex: squared_gain_sigma,
+            gain: error_simple - error_complex,
+            gain_sigma: squared_gain_sigma / sum,
+            squared_gain,
+            squared_gain_sigma,
         }
     }
 
     #[test]
     fn a_comparison_is_decided_promising_or_unresolved_by_its_gain_and_noise() {
-        // Shown: 2% at z 4.
-        let shown = comparison(0.02, 0.005);
+        // Shown: an effect of 2% (squared 4e-4) at z 4.
+        let shown = comparison(4e-4, 1e-4);
+        assert!((shown.effect() - 0.02).abs() < 1e-12);
         assert!(shown.favours_complex() && !shown.is_promising() && !shown.is_unresolved());
-        // A 2% gain at z 2: promising.
-        let promising = comparison(0.02, 0.01);
+        // 2% at z 2: promising.
+        let promising = comparison(4e-4, 2e-4);
         assert!(promising.is_promising() && !promising.is_unresolved());
-        // Just under the threshold at z 1.3: it may be above it, so promising too.
-        assert!(comparison(0.0096, 0.0076).is_promising());
-        // Under it by more than its standard error: final.
-        assert!(!comparison(0.006, 0.003).is_promising());
-        // Nothing seen, but the noise could hide a 1% gain: unresolved.
-        let unresolved = comparison(0.0, 0.02);
+        // Just under the threshold (0.0096) at z 1.3: it may be above it, so promising too.
+        assert!(comparison(0.0096 * 0.0096, 0.0096 * 0.0096 / 1.3).is_promising());
+        // Under it by more than its standard error (0.006 at z 2): final.
+        assert!(!comparison(3.6e-5, 1.8e-5).is_promising());
+        // Nothing seen, but the noise could hide a 1% effect: unresolved.
+        let unresolved = comparison(0.0, 2e-4);
         assert!(!unresolved.is_promising() && unresolved.is_unresolved());
-        // Precise enough to rule out a 1% gain, or already against the complex model.
-        assert!(!comparison(0.0, 0.005).is_unresolved());
-        assert!(!comparison(-0.05, 0.02).is_unresolved());
+        // Precise enough to rule out a 1% effect, or already against the complex model.
+        assert!(!comparison(0.0, 2.5e-5).is_unresolved());
+        assert!(!comparison(-2.5e-3, 4e-4).is_unresolved());
+    }
+
+    /// A lobe beside a large misfit both models share (a picture on a uniform stand-in):
+    /// the errors' difference is under the threshold, the error the lobe accounts for is
+    /// far above it, and it is that which decides.
+    #[test]
+    fn a_lobe_beside_a_large_shared_misfit_is_judged_by_its_own_share() {
+        let mut rng = crate::rng::Sampler::from_key(9);
+        let terms: std::vec::Vec<PairedTerms> = (0..2000)
+            .map(|_| paired(&mut rng, 0.447, 0.4397, 0.05))
+            .collect();
+        let c = ModelComparison::from_cross_terms(terms.into_iter(), 2000.0).unwrap();
+        assert!(c.gain < SPECULAR_GAIN_THRESHOLD, "{c:?}");
+        let own_share = libm::sqrt(0.447 * 0.447 - 0.4397 * 0.4397);
+        assert!((c.effect() - own_share).abs() < 0.01, "{c:?}");
+        assert!(c.favours_complex(), "{c:?}");
     }
 
     #[test]

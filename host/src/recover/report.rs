@@ -121,9 +121,13 @@ pub struct ComparisonReport {
     pub complex: String,
     pub error_simple: f64,
     pub error_complex: f64,
+    /// `error_simple - error_complex`.
     pub gain: f64,
     /// The gain's standard error.
     pub gain_sigma: f64,
+    /// The relative error the complex model accounts for, `sqrt(error_simple^2 -
+    /// error_complex^2)` as measured: what the threshold is held against.
+    pub effect: f64,
     pub z: f64,
     /// The z the gain needed: `fit::gain_significance` of the pixels compared.
     pub z_needed: f64,
@@ -136,7 +140,7 @@ pub struct ComparisonReport {
 /// threshold and the z its pixels need (`fit::gain_significance`).
 pub(super) fn keep_rule(c: &fit::ModelComparison) -> String {
     format!(
-        "> SPECULAR_GAIN_THRESHOLD {} and z >= {:.2} (GAIN_SIGNIFICANCE {}'s level over {} pixels)",
+        "to account for > SPECULAR_GAIN_THRESHOLD {} of relative error and z >= {:.2} (GAIN_SIGNIFICANCE {}'s level over {} pixels)",
         fit::SPECULAR_GAIN_THRESHOLD,
         c.significance(),
         fit::GAIN_SIGNIFICANCE,
@@ -160,6 +164,7 @@ impl ComparisonReport {
             error_complex: c.error_complex,
             gain: c.gain,
             gain_sigma: c.gain_sigma,
+            effect: c.effect(),
             z: c.z(),
             z_needed: c.significance(),
             kept_complex: c.favours_complex(),

@@ -238,7 +238,8 @@ pub(super) fn run(
             &c,
         );
         let measured = format!(
-            "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; diffuse {:.4}, specular {:.4})",
+            "accounts for {:.4} of relative error (removes {:.4} +- {:.4}) in a render at {decision_spp} spp (z {:.1}; diffuse {:.4}, specular {:.4})",
+            c.effect(),
             c.gain,
             c.gain_sigma,
             c.z(),

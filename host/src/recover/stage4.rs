@@ -276,7 +276,8 @@ pub(super) fn run(
         report.kept_complex &= pattern.is_none_or(|t| t.passes());
         r.add_comparison(report, &c);
         let measured = format!(
-            "removes {:.4} +- {:.4} of relative error in a render at {decision_spp} spp (z {:.1}; {} {:.4}, anisotropic {:.4})",
+            "accounts for {:.4} of relative error (removes {:.4} +- {:.4}) in a render at {decision_spp} spp (z {:.1}; {} {:.4}, anisotropic {:.4})",
+            c.effect(),
             c.gain,
             c.gain_sigma,
             c.z(),
@@ -338,17 +339,19 @@ pub(super) fn run(
 mod tests {
     use super::*;
 
+    /// A comparison of errors 0.1 and `0.1 - gain`, its squared gain and sigma consistent.
     fn comparison(gain: f64, gain_sigma: f64) -> fit::ModelComparison {
+        let (simple, complex) = (0.1, 0.1 - gain);
         fit::ModelComparison {
             pixels: 400,
-            error_simple: 0.1,
-            error_complex: 0.1 - gain,
+            error_simple: simple,
+            error_complex: complex,
             squared_sigma_simple: 0.0,
             squared_sigma_complex: 0.0,
             gain,
             gain_sigma,
-            squared_gain: 0.0,
-            squared_gain_sigma: 0.0,
+            squared_gain: simple * simple - complex * complex,
+            squared_gain_sigma: gain_sigma * (simple + complex),
         }
     }
 

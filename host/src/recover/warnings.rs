@@ -93,13 +93,14 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
         }
         for c in &report.comparisons {
             let near_significance = (c.z - c.z_needed).abs() < BORDERLINE_Z;
-            let small_gain = c.kept_complex && c.gain < 2.0 * fit::SPECULAR_GAIN_THRESHOLD;
-            if c.gain > fit::SPECULAR_GAIN_THRESHOLD && (near_significance || small_gain) {
+            let small_gain = c.kept_complex && c.effect < 2.0 * fit::SPECULAR_GAIN_THRESHOLD;
+            if c.effect > fit::SPECULAR_GAIN_THRESHOLD && (near_significance || small_gain) {
                 warnings.push(format!(
-                    "group '{name}': stage {} {} the {} model on a borderline measurement (gain {:.4} +- {:.4}, z {:.1}): another seed or a higher effort may decide otherwise",
+                    "group '{name}': stage {} {} the {} model on a borderline measurement (accounting for {:.4}, gain {:.4} +- {:.4}, z {:.1}): another seed or a higher effort may decide otherwise",
                     c.stage,
                     if c.kept_complex { "kept" } else { "rejected" },
                     c.complex,
+                    c.effect,
                     c.gain,
                     c.gain_sigma,
                     c.z
@@ -134,19 +135,22 @@ mod tests {
         }
     }
 
-    fn comparison(gain: f64, sigma: f64) -> ComparisonReport {
+    /// A comparison whose complex model accounts for `effect` (taken as its gain too) at
+    /// `effect / sigma` standard errors.
+    fn comparison(effect: f64, sigma: f64) -> ComparisonReport {
         ComparisonReport {
             stage: "2 isotropic".into(),
             simple: "diffuse".into(),
             complex: "isotropic".into(),
             error_simple: 0.1,
-            error_complex: 0.1 - gain,
-            gain,
+            error_complex: 0.1 - effect,
+            gain: effect,
             gain_sigma: sigma,
-            z: gain / sigma,
+            effect,
+            z: effect / sigma,
             z_needed: fit::GAIN_SIGNIFICANCE,
-            kept_complex: gain > fit::SPECULAR_GAIN_THRESHOLD
-                && gain / sigma >= fit::GAIN_SIGNIFICANCE,
+            kept_complex: effect > fit::SPECULAR_GAIN_THRESHOLD
+                && effect / sigma >= fit::GAIN_SIGNIFICANCE,
             samples_per_pixel: 32,
         }
     }
