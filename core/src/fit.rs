@@ -105,7 +105,7 @@ impl GroupFit {
 /// misfits add in quadrature, so a lobe missing from the simple model leaves
 /// `e_s^2 = e_c^2 + g^2`, while `e_s - e_c` shrinks as the misfit both models share grows:
 /// textured's stripes, on a uniform stand-in whose error is the picture (0.447), read a lobe
-/// accounting for 0.087 as `e_s - e_c` = 0.0075.
+/// accounting for 0.08 as `e_s - e_c` = 0.0075.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ModelComparison {
     pub pixels: u32,

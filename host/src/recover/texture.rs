@@ -176,13 +176,14 @@ pub fn recover_map(
         spp,
         seed,
     };
+    let mut observed = solve.observe(rec)?;
     let mut lobe_refit = None;
     if let GroupModel::Textured {
         lobe: stand_in @ MapLobe::Isotropic { .. },
         ..
     } = rec.models[g]
     {
-        let first = solve.run(rec, Highlights::LeftOut)?;
+        let first = solve.solve(rec, &observed, Highlights::LeftOut)?;
         let refit = lobe_with_map(rec, &solve, &first.highlight, stand_in, cache_settings)?;
         if let Some(refit) = refit {
             let [specularity, roughness] = refit.after;
@@ -193,10 +194,12 @@ pub fn recover_map(
                     roughness,
                 },
             };
+            // E and the lobe's part under the new lobe.
+            observed = solve.observe(rec)?;
             lobe_refit = Some(refit);
         }
     }
-    let solved = solve.run(rec, Highlights::Kept)?;
+    let solved = solve.solve(rec, &observed, Highlights::Kept)?;
     Ok(MapSummary {
         side: solved.side,
         pixels: pixels.len(),
@@ -233,6 +236,14 @@ enum Highlights {
     Kept,
 }
 
+/// The renders a map is solved from, per pixel of `MapSolve::pixels`: the group under a
+/// constant map (`MapSolve::start`) and under a black one (its lobe alone), on the same
+/// paths.
+struct Observed {
+    full: Vec<Vec3>,
+    specular: Vec<Vec3>,
+}
+
 /// What a solve found besides the map.
 struct Solved {
     side: u32,
@@ -243,10 +254,9 @@ struct Solved {
 }
 
 impl MapSolve<'_> {
-    /// Renders E against the constant map and the lobe alone, then solves the map (stored
-    /// in `rec.maps`) from the pixels that are not in shadow (and not highlights, when
-    /// `highlights` says so).
-    fn run(&self, rec: &mut Recovery, highlights: Highlights) -> Result<Solved, Error> {
+    /// Renders the group under the constant map and under the lobe alone: what E and
+    /// the specular part come from, for the lobe the group has now.
+    fn observe(&self, rec: &mut Recovery) -> Result<Observed, Error> {
         let (map, pixels) = (self.map, self.pixels);
         rec.maps[map] = RecoveredMap {
             side: 1,
@@ -257,10 +267,22 @@ impl MapSolve<'_> {
         // The specular part alone: the same paths (same seed) with a black map.
         rec.maps[map].texels[0] = Vec3::ZERO;
         let specular = render_once(rec, pixels, self.spp, settings_seed)?;
+        Ok(Observed { full, specular })
+    }
 
+    /// Solves the map (stored in `rec.maps`) from `observed`, over the pixels that are not
+    /// in shadow (and not highlights, when `highlights` says so).
+    fn solve(
+        &self,
+        rec: &mut Recovery,
+        observed: &Observed,
+        highlights: Highlights,
+    ) -> Result<Solved, Error> {
+        let (map, pixels) = (self.map, self.pixels);
+        let (full, specular) = (&observed.full, &observed.specular);
         let gains: Vec<Vec3> = full
             .iter()
-            .zip(&specular)
+            .zip(specular)
             .map(|(f, s)| ((*f - *s) / self.start).max(Vec3::ZERO))
             .collect();
         let gain_floor =
