@@ -649,3 +649,67 @@ fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
     let (code, stderr) = compare_uncertainty(&case, &report);
     assert_eq!(code, Some(0), "{stderr}");
 }
+
+/// Ctrl-C during a long render: relume says it was interrupted, exits with 130 rather than
+/// dying on the signal, and leaves no output (nor a hidden temp file).
+#[cfg(target_os = "linux")]
+#[test]
+fn an_interrupted_render_exits_130_and_writes_nothing() {
+    let case = Case::new().scene("size = [4, 4]", "size = [64, 64]");
+    case.write();
+    let out = case.path("out");
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_relume"))
+        .args([
+            "render",
+            "scene.toml",
+            "--materials",
+            "m.toml",
+            "--out",
+            "out",
+        ])
+        .args(["--spp", "1000000", "--threads", "1"])
+        .current_dir(case.dir.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until relume catches SIGINT (bit 1 of SigCgt), so the signal meets the handler
+    // and not the default action.
+    let catches_sigint = || {
+        let status =
+            std::fs::read_to_string(format!("/proc/{}/status", child.id())).unwrap_or_default();
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix("SigCgt:"))
+            .and_then(|mask| u64::from_str_radix(mask.trim(), 16).ok())
+            .is_some_and(|mask| mask & (1 << (libc::SIGINT - 1)) != 0)
+    };
+    let start = std::time::Instant::now();
+    while !catches_sigint() {
+        assert!(
+            start.elapsed().as_secs() < 60,
+            "relume never installed its handler"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    // SAFETY: a plain kill(2) of our own child process.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
+    let result = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(130), "{stderr}");
+    assert!(
+        stderr.contains("interrupted") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    assert!(
+        !out.exists(),
+        "an interrupted render wrote {}",
+        out.display()
+    );
+    let left: Vec<_> = std::fs::read_dir(case.dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| n.to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(left.is_empty(), "temp files left: {left:?}");
+}

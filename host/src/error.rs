@@ -74,7 +74,8 @@ impl Error {
         }
     }
 
-    /// The process exit code: 2 usage, 3 bad input, 4 I/O, 5 refused by the core.
+    /// The process exit code: 2 usage, 3 bad input, 4 I/O, 5 refused by the core (130, an
+    /// interrupt, is `fsutil::INTERRUPTED_EXIT_CODE`).
     pub fn exit_code(&self) -> i32 {
         match self {
             Error::Usage(_) => 2,

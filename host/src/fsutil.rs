@@ -4,8 +4,61 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
 
 use crate::error::Error;
+
+/// The temp files of every [`OutputSet`] not yet committed or dropped, so that an
+/// interrupted run can remove them ([`remove_staged_files_on_interrupt`]). Sets hold the
+/// lock while they create a temp file and while they commit, so an interrupt waits for
+/// either to finish: it never sees a file half registered nor a set half renamed.
+static STAGED_FILES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn staged_files() -> MutexGuard<'static, Vec<PathBuf>> {
+    // A panic while the lock was held leaves the list as it was: still the files to remove.
+    STAGED_FILES.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Exit status of a run ended by Ctrl-C or a termination signal (128 + SIGINT).
+pub const INTERRUPTED_EXIT_CODE: i32 = 130;
+
+/// Installs a handler for Ctrl-C (and SIGTERM, SIGHUP) that removes the temp files of
+/// every output set not yet committed, says so, and exits with
+/// [`INTERRUPTED_EXIT_CODE`]. Without it an interrupted run leaves hidden
+/// `.<name>.tmp-<pid>` files beside its outputs. Called once, at the start of `main`.
+pub fn remove_staged_files_on_interrupt() -> Result<(), String> {
+    ctrlc::set_handler(|| {
+        let removed = remove_staged_files(|_| true);
+        eprintln!(
+            "\nrelume: interrupted; no output of this run was written{}",
+            if removed > 0 {
+                format!(" ({removed} unfinished file(s) removed)")
+            } else {
+                String::new()
+            }
+        );
+        // Exits holding the lock: no set can stage another file meanwhile.
+        let _held = staged_files();
+        std::process::exit(INTERRUPTED_EXIT_CODE);
+    })
+    .map_err(|e| e.to_string())
+}
+
+/// Removes the temp files of live output sets that `matching` selects (all of them on an
+/// interrupt); returns how many. The sets' own `Drop` then finds nothing to remove.
+fn remove_staged_files(matching: impl Fn(&Path) -> bool) -> usize {
+    let mut staged = staged_files();
+    let before = staged.len();
+    staged.retain(|tmp| {
+        if matching(tmp) {
+            let _ = std::fs::remove_file(tmp);
+            false
+        } else {
+            true
+        }
+    });
+    before - staged.len()
+}
 
 /// Writes `bytes` to `path` atomically (temp file beside it, fsync, rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
@@ -35,6 +88,10 @@ impl OutputSet {
         };
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
         let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+        let mut registry = staged_files();
+        if !registry.contains(&tmp) {
+            registry.push(tmp.clone());
+        }
         let written = (|| {
             let mut f = std::fs::File::create(&tmp)?;
             f.write_all(bytes)?;
@@ -42,6 +99,7 @@ impl OutputSet {
         })();
         if let Err(e) = written {
             let _ = std::fs::remove_file(&tmp);
+            registry.retain(|t| *t != tmp);
             return Err(Error::io(path, e));
         }
         if !self.staged.iter().any(|(t, _)| *t == tmp) {
@@ -61,11 +119,18 @@ impl OutputSet {
                 ));
             }
         }
-        for (tmp, target) in std::mem::take(&mut self.staged) {
-            std::fs::rename(&tmp, &target).map_err(|e| {
-                let _ = std::fs::remove_file(&tmp);
-                Error::io(&target, e)
-            })?;
+        let mut registry = staged_files();
+        let staged = std::mem::take(&mut self.staged);
+        for (i, (tmp, target)) in staged.iter().enumerate() {
+            if let Err(e) = std::fs::rename(tmp, target) {
+                // This file and the ones not yet renamed are not outputs.
+                for (rest, _) in &staged[i..] {
+                    let _ = std::fs::remove_file(rest);
+                    registry.retain(|t| t != rest);
+                }
+                return Err(Error::io(target, e));
+            }
+            registry.retain(|t| t != tmp);
         }
         Ok(())
     }
@@ -73,8 +138,10 @@ impl OutputSet {
 
 impl Drop for OutputSet {
     fn drop(&mut self) {
+        let mut registry = staged_files();
         for (tmp, _) in &self.staged {
             let _ = std::fs::remove_file(tmp);
+            registry.retain(|t| t != tmp);
         }
     }
 }
@@ -161,6 +228,61 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "new a");
         assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    #[test]
+    fn an_interrupt_removes_the_temp_files_of_sets_not_yet_committed() {
+        let dir = tempfile::tempdir().unwrap();
+        let in_dir = |p: &Path| p.starts_with(dir.path());
+        let files = || {
+            let mut names: Vec<String> = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            names
+        };
+        let mut done = OutputSet::default();
+        done.add(&dir.path().join("done.txt"), b"done").unwrap();
+        done.commit().unwrap();
+        let mut live = OutputSet::default();
+        live.add(&dir.path().join("a.txt"), b"a").unwrap();
+        live.add(&dir.path().join("b.txt"), b"b").unwrap();
+        let pid = std::process::id();
+        assert_eq!(
+            files(),
+            [
+                format!(".a.txt.tmp-{pid}"),
+                format!(".b.txt.tmp-{pid}"),
+                "done.txt".into()
+            ]
+        );
+        assert_eq!(remove_staged_files(in_dir), 2);
+        assert_eq!(files(), ["done.txt"]);
+        // Nothing is left registered for this folder, and the set's drop is harmless.
+        assert_eq!(remove_staged_files(in_dir), 0);
+        drop(live);
+        assert_eq!(files(), ["done.txt"]);
+    }
+
+    #[test]
+    fn a_rename_that_fails_midway_leaves_no_temp_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut set = OutputSet::default();
+        for name in ["a.txt", "b.txt", "c.txt"] {
+            set.add(&dir.path().join(name), name.as_bytes()).unwrap();
+        }
+        // b's temp file vanishes after staging: a is renamed, b fails, c must not stay.
+        let pid = std::process::id();
+        std::fs::remove_file(dir.path().join(format!(".b.txt.tmp-{pid}"))).unwrap();
+        let e = set.commit().unwrap_err().to_string();
+        assert!(e.contains("b.txt"), "{e}");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["a.txt"]);
+        assert_eq!(remove_staged_files(|p| p.starts_with(dir.path())), 0);
     }
 
     #[test]

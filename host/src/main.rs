@@ -9,5 +9,10 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    if let Err(e) = relume::fsutil::remove_staged_files_on_interrupt() {
+        eprintln!(
+            "relume: warning: cannot catch Ctrl-C ({e}): an interrupted run may leave hidden .<name>.tmp-<pid> files beside its outputs"
+        );
+    }
     std::process::exit(relume::cli::main());
 }
