@@ -336,7 +336,7 @@ fn run(command: Command) -> Result<(), Error> {
                     g.model,
                     g.error_final
                         .map_or("-".into(), |e| format!("{:.2}%", 100.0 * e)),
-                    g.decisions.last().map_or("", |d| d.as_str())
+                    g.settling_decision().unwrap_or("")
                 );
             }
             for w in &report.warnings {

@@ -105,6 +105,20 @@ impl GroupReport {
         self.latest_error = Some(estimate);
     }
 
+    /// The decision that settled the group's model, for a one-line summary: the last one
+    /// of a stage that sets models (1, 2, 4 and 5; stage 3 only sends groups on to 4 and
+    /// 5, and a stage's search, ladder or race and the colour polish are steps within or
+    /// after one). The last decision when there is none.
+    pub fn settling_decision(&self) -> Option<&str> {
+        const SETTING: [&str; 4] = ["stage 1:", "stage 2:", "stage 4:", "stage 5:"];
+        self.decisions
+            .iter()
+            .rev()
+            .find(|d| SETTING.iter().any(|stage| d.starts_with(stage)))
+            .or(self.decisions.last())
+            .map(String::as_str)
+    }
+
     /// Records a comparison of two models, and both errors it measured.
     pub(super) fn add_comparison(&mut self, report: ComparisonReport, c: &fit::ModelComparison) {
         self.comparisons.push(report);
@@ -197,4 +211,31 @@ pub struct RecoverReport {
     pub groups: Vec<GroupReport>,
     pub warnings: Vec<String>,
     pub seconds: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_summary_names_the_stage_that_settled_the_model_not_a_later_note() {
+        let mut r = GroupReport::new("desk", "plastic");
+        assert_eq!(r.settling_decision(), None);
+        r.decisions = [
+            "stage 1: diffuse error 0.0257 > SPECULAR_GAIN_THRESHOLD: tested for a weak specular",
+            "stage 2 search: the cache's proposal stands",
+            "stage 2 ladder: the proposal removes -0.0113",
+            "stage 2: stays diffuse: the best isotropic fit accounts for 0.0000",
+            "stage 3: not tested for texture: some of its objects have no texture coordinates",
+            "colour polish: colour scaled by the mean ratio",
+        ]
+        .map(String::from)
+        .to_vec();
+        assert_eq!(
+            r.settling_decision(),
+            Some("stage 2: stays diffuse: the best isotropic fit accounts for 0.0000")
+        );
+        r.decisions = vec!["uncertainty: no pixel".into()];
+        assert_eq!(r.settling_decision(), Some("uncertainty: no pixel"));
+    }
 }
