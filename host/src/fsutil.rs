@@ -29,14 +29,8 @@ pub const INTERRUPTED_EXIT_CODE: i32 = 130;
 pub fn remove_staged_files_on_interrupt() -> Result<(), String> {
     ctrlc::set_handler(|| {
         let removed = remove_staged_files(|_| true);
-        eprintln!(
-            "\nrelume: interrupted; no output of this run was written{}",
-            if removed > 0 {
-                format!(" ({removed} unfinished file(s) removed)")
-            } else {
-                String::new()
-            }
-        );
+        // Files of sets committed before (a stability study's finished runs) stay.
+        eprintln!("\nrelume: interrupted; {removed} unfinished output file(s) removed");
         // Exits holding the lock: no set can stage another file meanwhile.
         let _held = staged_files();
         std::process::exit(INTERRUPTED_EXIT_CODE);
