@@ -242,14 +242,19 @@ pub fn second_look(
     let group_spp = ladder_spp(rec, g, spp);
     let (rung, measured, mut evaluations) = best_rung(rec, g, cache, kind, diffuse, group_spp)?;
     let Some(rung) = rung.filter(|r| r.squared_gain > 0.0) else {
+        let proposal = format!(
+            "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test",
+            proposal.map_or(0.0, |c| c.gain),
+            proposal.map_or(0.0, |c| c.gain_sigma),
+            proposal.map_or(0.0, |c| c.z()),
+        );
         return Ok(SecondLook {
-            found: Err(format!(
-                "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test; none of the {} rungs measured (those with a positive specularity in closed form) removes any error over the diffuse model",
-                proposal.map_or(0.0, |c| c.gain),
-                proposal.map_or(0.0, |c| c.gain_sigma),
-                proposal.map_or(0.0, |c| c.z()),
-                measured.len(),
-            )),
+            found: Err(match rung {
+                None => format!(
+                    "{proposal}; no rung of LADDER_RUNGS {LADDER_RUNGS} has a positive specularity in closed form"
+                ),
+                Some(best) => no_gain(&proposal, &best, &measured),
+            }),
             evaluations,
         });
     };
@@ -286,6 +291,27 @@ pub fn second_look(
         },
         evaluations,
     })
+}
+
+/// Why a ladder whose best rung (at its lower confidence bound) removes no error ends
+/// there: that rung's reading, and how many of the others read a gain all the same (each
+/// below its noise: a lower bound under the best's).
+fn no_gain(proposal: &str, best: &Rung, measured: &[Rung]) -> String {
+    let gaining = measured.iter().filter(|r| r.squared_gain > 0.0).count();
+    format!(
+        "{proposal}; of the {} rungs measured (those with a positive specularity in closed form) none removes error at its lower confidence bound, and the best there (roughness {:.4}, s {:.4}) reads {:+.5} +- {:.5} of squared relative error over the diffuse model at {} spp{}",
+        measured.len(),
+        best.roughness,
+        best.specularity,
+        best.squared_gain,
+        best.squared_gain_sigma,
+        best.spp,
+        if gaining > 0 {
+            format!("; {gaining} other rung(s) read a gain within their noise")
+        } else {
+            String::new()
+        }
+    )
 }
 
 /// Samples per pixel of the whole group `g` for its ladder's renders, from the loop's
@@ -328,6 +354,22 @@ mod tests {
             lower: gain - fit::EXCEEDS_SIGMAS * sigma,
             spp: 64,
         }
+    }
+
+    #[test]
+    fn a_ladder_without_gain_says_what_its_best_rung_read_and_counts_the_others_that_gained() {
+        // The best at its lower bound reads no gain; a noisier rung reads one.
+        let best = rung(0.06, 0.05, -0.0001, 0.0001);
+        let noisy = rung(0.005, 0.08, 0.0005, 0.0005);
+        let text = no_gain("stage 2 ladder: p", &best, &[best, noisy]);
+        assert!(
+            text.contains("of the 2 rungs measured")
+                && text.contains("(roughness 0.0600, s 0.0500) reads -0.00010 +- 0.00010")
+                && text.ends_with("; 1 other rung(s) read a gain within their noise"),
+            "{text}"
+        );
+        let text = no_gain("stage 2 ladder: p", &best, &[best]);
+        assert!(!text.contains("other rung"), "{text}");
     }
 
     #[test]
