@@ -440,11 +440,31 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
             db(r.diffuse_map_psnr_ceiling_db),
         );
     }
+    println!("{}", class_summary(&rows));
     if let Some(path) = json {
         let text = serde_json::to_string_pretty(&rows).map_err(|e| Error::Usage(e.to_string()))?;
         fsutil::write_atomic(path, text.as_bytes())?;
     }
     Ok(())
+}
+
+/// The table's closing line: how many groups have their true model, and which do not (the
+/// first of the targets, and what a reader of a long table looks for first).
+fn class_summary(rows: &[MaterialRow]) -> String {
+    let wrong: Vec<&str> = rows
+        .iter()
+        .filter(|r| !r.class_ok)
+        .map(|r| r.group.as_str())
+        .collect();
+    let mut line = format!(
+        "classes right: {} of {}",
+        rows.len() - wrong.len(),
+        rows.len()
+    );
+    if !wrong.is_empty() {
+        line += &format!(" (wrong: {})", wrong.join(", "));
+    }
+    line
 }
 
 #[cfg(test)]
@@ -461,6 +481,23 @@ mod tests {
             height,
             pixels,
         }
+    }
+
+    #[test]
+    fn the_summary_counts_the_classes_right_and_names_the_wrong_ones() {
+        let row = |group: &str, class_ok| MaterialRow {
+            group: group.into(),
+            class_ok,
+            ..MaterialRow::default()
+        };
+        assert_eq!(
+            class_summary(&[row("floor", true), row("desk", false), row("lamp", false)]),
+            "classes right: 1 of 3 (wrong: desk, lamp)"
+        );
+        assert_eq!(
+            class_summary(&[row("floor", true)]),
+            "classes right: 1 of 1"
+        );
     }
 
     #[test]
