@@ -59,12 +59,13 @@ model = \"diffuse\"
 color = [0.5, 0.5, 0.5]
 ";
 
-/// A scene folder in a fresh temp dir: scene.toml, geo.obj, m.toml.
+/// A scene folder in a fresh temp dir: scene.toml, geo.obj, m.toml (less those left out).
 struct Case {
     dir: tempfile::TempDir,
     scene: String,
     obj: String,
     materials: String,
+    missing: Vec<&'static str>,
 }
 
 impl Case {
@@ -74,7 +75,14 @@ impl Case {
             scene: SCENE.into(),
             obj: OBJ.into(),
             materials: MATERIALS.into(),
+            missing: Vec::new(),
         }
+    }
+
+    /// The case with input file `name` not written.
+    fn without(mut self, name: &'static str) -> Case {
+        self.missing.push(name);
+        self
     }
 
     fn scene(mut self, from: &str, to: &str) -> Case {
@@ -129,9 +137,15 @@ impl Case {
     }
 
     fn write(&self) {
-        std::fs::write(self.path("scene.toml"), &self.scene).unwrap();
-        std::fs::write(self.path("geo.obj"), &self.obj).unwrap();
-        std::fs::write(self.path("m.toml"), &self.materials).unwrap();
+        for (name, text) in [
+            ("scene.toml", &self.scene),
+            ("geo.obj", &self.obj),
+            ("m.toml", &self.materials),
+        ] {
+            if !self.missing.contains(&name) {
+                std::fs::write(self.path(name), text).unwrap();
+            }
+        }
     }
 
     /// Runs `relume render scene.toml --materials m.toml --out out`; returns stderr after
@@ -403,17 +417,7 @@ fn materials_for_a_group_the_scene_lacks() {
 
 #[test]
 fn materials_missing_file() {
-    let case = Case::new();
-    case.write();
-    std::fs::remove_file(case.path("m.toml")).unwrap();
-    let out = case.render("out", None);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(IO), "{stderr}");
-    assert!(
-        stderr.contains("m.toml") && !stderr.contains("panicked"),
-        "{stderr}"
-    );
-    assert!(!case.path("out").exists());
+    Case::new().without("m.toml").fails(IO, &["m.toml"]);
 }
 
 #[test]
@@ -493,16 +497,7 @@ fn texture_missing() {
 
 #[test]
 fn scene_file_missing() {
-    let case = Case::new();
-    case.write();
-    std::fs::remove_file(case.path("scene.toml")).unwrap();
-    let out = case.render("out", None);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(IO), "{stderr}");
-    assert!(
-        stderr.contains("scene.toml") && !stderr.contains("panicked"),
-        "{stderr}"
-    );
+    Case::new().without("scene.toml").fails(IO, &["scene.toml"]);
 }
 
 /// A light that adds nothing is not an error, but the all-black result is said.

@@ -217,7 +217,7 @@ pub fn write_exr(path: &Path, image: &Image) -> Result<(), Error> {
 }
 
 /// The bytes [`write_exr`] writes to `path` (named in errors), for an [`fsutil::OutputSet`].
-pub fn exr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
+fn exr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
     check_buffer(path, image)?;
     check_finite(path, image)?;
     encode_exr(path, image)
@@ -245,6 +245,11 @@ fn encode_exr(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
     Ok(bytes)
 }
 
+/// Adds `image` to `set` as an EXR at `path` (what [`write_exr`] would write there).
+pub fn add_exr(set: &mut OutputSet, path: &Path, image: &Image) -> Result<(), Error> {
+    set.add(path, &exr_bytes(path, image)?)
+}
+
 /// Adds `<dir>/<name>.exr` and its PNG preview (`<dir>/<name>.png`) to `set`: how a view
 /// is written.
 pub fn add_exr_and_preview(
@@ -253,8 +258,7 @@ pub fn add_exr_and_preview(
     name: &str,
     image: &Image,
 ) -> Result<(), Error> {
-    let exr = dir.join(format!("{name}.exr"));
-    set.add(&exr, &exr_bytes(&exr, image)?)?;
+    add_exr(set, &dir.join(format!("{name}.exr")), image)?;
     let png = dir.join(format!("{name}.png"));
     set.add(&png, &png_preview_bytes(&png, image, None)?)
 }

@@ -28,7 +28,6 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::error::Error;
-use crate::fsutil;
 use crate::scene_file::TomlFile;
 
 /// The reflectance model of a group.
@@ -391,11 +390,6 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
     })
 }
 
-/// Writes `m` to `path` in the same schema, atomically: see [`materials_text`].
-pub fn write_materials(path: &Path, m: &MaterialsDesc) -> Result<(), Error> {
-    fsutil::write_atomic(path, materials_text(path, m)?.as_bytes())
-}
-
 /// `m` as the text of a materials file at `path`: keys in a fixed order, floats in the
 /// shortest form that reads back to the same f32, `diffuse_map` relative to the file's
 /// folder. Refuses materials that [`load_materials`] would refuse (except that a diffuse map
@@ -510,6 +504,12 @@ fn relative_to_folder_of(file: &Path, target: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fsutil;
+
+    /// `m` written at `path` as `recover` writes it (its `OutputSet` holds the same text).
+    fn write_materials(path: &Path, m: &MaterialsDesc) -> Result<(), Error> {
+        fsutil::write_atomic(path, materials_text(path, m)?.as_bytes())
+    }
 
     const VALUES: [&str; 7] = [
         "[0.5, 0.4, 0.3]",

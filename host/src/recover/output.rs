@@ -95,7 +95,7 @@ pub(super) fn write_all(
                 height: map.side,
                 pixels: map.texels.iter().map(|t| t.to_array()).collect(),
             };
-            set.add(&map_path(g), &images::exr_bytes(&map_path(g), &image)?)?;
+            images::add_exr(&mut set, &map_path(g), &image)?;
             match texture::uv_affine(rec, g) {
                 Some(affine) => {
                     add_radiance_picture(&mut set, out, name, &image, specularity, &affine)?;

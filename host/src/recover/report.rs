@@ -145,6 +145,10 @@ pub struct ComparisonReport {
     pub z: f64,
     /// The z the gain needed: `fit::gain_significance` of the pixels compared.
     pub z_needed: f64,
+    /// What the measurement said: the complex model passed the keep rule.
+    pub passed_test: bool,
+    /// What was kept: `passed_test`, unless something after it took the complex model
+    /// off (stage 4's pattern test: a picture's lobe that follows the picture).
     pub kept_complex: bool,
     /// Samples per pixel of the measurement that decided.
     pub samples_per_pixel: u32,
@@ -181,6 +185,7 @@ impl ComparisonReport {
             effect: c.effect(),
             z: c.z(),
             z_needed: c.significance(),
+            passed_test: c.favours_complex(),
             kept_complex: c.favours_complex(),
             samples_per_pixel,
         }
