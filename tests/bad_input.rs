@@ -645,12 +645,12 @@ fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
     assert_eq!(code, Some(0), "{stderr}");
 }
 
-/// Ctrl-C during a long render: relume says it was interrupted, exits with 130 rather than
-/// dying on the signal, and leaves no output (nor a hidden temp file).
+/// Runs a render of `case` at a million samples per pixel, sends it SIGINT once relume
+/// catches the signal and `ready` holds, and returns what it printed, having checked that
+/// it said it was interrupted, exited with 130 rather than dying on the signal, and left
+/// no output in `out` (nor a hidden temp file beside the inputs).
 #[cfg(target_os = "linux")]
-#[test]
-fn an_interrupted_render_exits_130_and_writes_nothing() {
-    let case = Case::new().scene("size = [4, 4]", "size = [64, 64]");
+fn interrupt_render(case: &Case, ready: impl Fn() -> bool) -> String {
     case.write();
     let out = case.path("out");
     let child = std::process::Command::new(env!("CARGO_BIN_EXE_relume"))
@@ -680,17 +680,17 @@ fn an_interrupted_render_exits_130_and_writes_nothing() {
             .is_some_and(|mask| mask & (1 << (libc::SIGINT - 1)) != 0)
     };
     let start = std::time::Instant::now();
-    while !catches_sigint() {
+    while !(catches_sigint() && ready()) {
         assert!(
-            start.elapsed().as_secs() < 60,
-            "relume never installed its handler"
+            start.elapsed().as_secs() < 120,
+            "relume never got ready to be interrupted"
         );
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
     // SAFETY: a plain kill(2) of our own child process.
     assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
     let result = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&result.stderr);
+    let stderr = String::from_utf8_lossy(&result.stderr).into_owned();
     assert_eq!(result.status.code(), Some(130), "{stderr}");
     assert!(
         stderr.contains("interrupted") && !stderr.contains("panicked"),
@@ -707,4 +707,48 @@ fn an_interrupted_render_exits_130_and_writes_nothing() {
         .filter(|n| n.to_string_lossy().contains(".tmp-"))
         .collect();
     assert!(left.is_empty(), "temp files left: {left:?}");
+    stderr
+}
+
+/// Ctrl-C during a long render, before any output is staged.
+#[cfg(target_os = "linux")]
+#[test]
+fn an_interrupted_render_exits_130_and_writes_nothing() {
+    let case = Case::new().scene("size = [4, 4]", "size = [64, 64]");
+    let stderr = interrupt_render(&case, || true);
+    assert!(stderr.contains("0 unfinished output file(s)"), "{stderr}");
+}
+
+/// Ctrl-C while the second view renders: the first view's files, staged as soon as it was
+/// rendered so as not to hold every view's pixels at once, and the output folder made for
+/// them go too.
+#[cfg(target_os = "linux")]
+#[test]
+fn an_interrupt_after_a_view_was_staged_removes_its_files_and_folder() {
+    let second_view = "exposure = 1.0
+
+[[view]]
+name = \"back\"
+position = [0.5, 2.5, 0.5]
+direction = [0.0, -1.0, 0.0]
+up = [0.0, 0.0, 1.0]
+fov_deg = [90.0, 90.0]
+size = [64, 64]
+exposure = 1.0
+";
+    let case = Case::new()
+        .scene("size = [4, 4]", "size = [1, 1]")
+        .scene("exposure = 1.0\n", second_view);
+    let out = case.path("out");
+    let front_staged = || {
+        std::fs::read_dir(&out).is_ok_and(|entries| {
+            entries.filter_map(|e| e.ok()).any(|e| {
+                e.file_name()
+                    .to_string_lossy()
+                    .starts_with(".front.png.tmp-")
+            })
+        })
+    };
+    let stderr = interrupt_render(&case, front_staged);
+    assert!(stderr.contains("2 unfinished output file(s)"), "{stderr}");
 }

@@ -2,21 +2,55 @@
 //! never sees a partial or corrupted output file; and reading text inputs with errors that
 //! say where they are not text.
 
-use std::io::Write;
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard};
 
 use crate::error::Error;
 
-/// The temp files of every [`OutputSet`] not yet committed or dropped, so that an
-/// interrupted run can remove them ([`remove_staged_files_on_interrupt`]). Sets hold the
-/// lock while they create a temp file and while they commit, so an interrupt waits for
-/// either to finish: it never sees a file half registered nor a set half renamed.
-static STAGED_FILES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// What the [`OutputSet`]s not yet committed or dropped have put on disk, so that an
+/// interrupted run can remove it ([`remove_staged_files_on_interrupt`]). Sets hold the
+/// lock while they register and create a temp file or folder and while they commit, so an
+/// interrupt never sees a file half registered nor a set half renamed.
+struct Staged {
+    /// Temp files.
+    files: Vec<PathBuf>,
+    /// Folders the sets created for their files, parents before children.
+    dirs: Vec<PathBuf>,
+}
 
-fn staged_files() -> MutexGuard<'static, Vec<PathBuf>> {
-    // A panic while the lock was held leaves the list as it was: still the files to remove.
-    STAGED_FILES.lock().unwrap_or_else(|e| e.into_inner())
+static STAGED: Mutex<Staged> = Mutex::new(Staged {
+    files: Vec::new(),
+    dirs: Vec::new(),
+});
+
+fn staged() -> MutexGuard<'static, Staged> {
+    // A panic while the lock was held leaves the lists as they were: still what to remove.
+    STAGED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Staged {
+    /// Removes the temp file `tmp` and forgets it.
+    fn remove_file(&mut self, tmp: &Path) {
+        let _ = std::fs::remove_file(tmp);
+        self.files.retain(|t| t != tmp);
+    }
+
+    /// Removes the folders of `dirs` (a set's, parents first) that are empty, children
+    /// first, and forgets them all. A folder that holds anything else stays.
+    fn remove_dirs(&mut self, dirs: &[PathBuf]) {
+        for dir in dirs.iter().rev() {
+            let _ = std::fs::remove_dir(dir);
+            self.forget_dir(dir);
+        }
+    }
+
+    fn forget_dir(&mut self, dir: &Path) {
+        if let Some(i) = self.dirs.iter().rposition(|d| d == dir) {
+            self.dirs.remove(i);
+        }
+    }
 }
 
 /// Exit status of a run ended by Ctrl-C or a termination signal (128 + SIGINT).
@@ -32,26 +66,34 @@ pub fn remove_staged_files_on_interrupt() -> Result<(), String> {
         // Files of sets committed before (a stability study's finished runs) stay.
         eprintln!("\nrelume: interrupted; {removed} unfinished output file(s) removed");
         // Exits holding the lock: no set can stage another file meanwhile.
-        let _held = staged_files();
+        let _held = staged();
         std::process::exit(INTERRUPTED_EXIT_CODE);
     })
     .map_err(|e| e.to_string())
 }
 
 /// Removes the temp files of live output sets that `matching` selects (all of them on an
-/// interrupt); returns how many. The sets' own `Drop` then finds nothing to remove.
+/// interrupt), then the folders they created that `matching` selects and are left empty;
+/// returns how many files. The sets' own `Drop` then finds nothing to remove.
 fn remove_staged_files(matching: impl Fn(&Path) -> bool) -> usize {
-    let mut staged = staged_files();
-    let before = staged.len();
-    staged.retain(|tmp| {
-        if matching(tmp) {
-            let _ = std::fs::remove_file(tmp);
-            false
-        } else {
-            true
-        }
-    });
-    before - staged.len()
+    let mut staged = staged();
+    let files: Vec<PathBuf> = staged
+        .files
+        .iter()
+        .filter(|t| matching(t))
+        .cloned()
+        .collect();
+    for tmp in &files {
+        staged.remove_file(tmp);
+    }
+    let dirs: Vec<PathBuf> = staged
+        .dirs
+        .iter()
+        .filter(|d| matching(d))
+        .cloned()
+        .collect();
+    staged.remove_dirs(&dirs);
+    files.len()
 }
 
 /// Writes `bytes` to `path` atomically (temp file beside it, fsync, rename).
@@ -70,31 +112,56 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
 pub struct OutputSet {
     /// (temp file, target) in the order added.
     staged: Vec<(PathBuf, PathBuf)>,
+    /// The folders [`OutputSet::create_dir`] created, parents first.
+    dirs: Vec<PathBuf>,
 }
 
 impl OutputSet {
     /// Writes `bytes` to a synced temp file beside `path`; a path added twice keeps the
     /// later bytes.
     pub fn add(&mut self, path: &Path, bytes: &[u8]) -> Result<(), Error> {
+        self.add_written(path, |file| {
+            file.write_all(bytes).map_err(|e| Error::io(path, e))
+        })
+    }
+
+    /// Like [`OutputSet::add`], with the file's content written by `write` straight into
+    /// the (buffered) temp file: a large image need not be held in memory a second time as
+    /// its encoded bytes.
+    pub fn add_written(
+        &mut self,
+        path: &Path,
+        write: impl FnOnce(&mut BufWriter<File>) -> Result<(), Error>,
+    ) -> Result<(), Error> {
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
             _ => Path::new("."),
         };
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
         let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-        let mut registry = staged_files();
-        if !registry.contains(&tmp) {
-            registry.push(tmp.clone());
-        }
-        let written = (|| {
-            let mut f = std::fs::File::create(&tmp)?;
-            f.write_all(bytes)?;
-            f.sync_all()
-        })();
+        // Registered and created under the lock; written outside it, so that an interrupt
+        // does not wait for a long encode: it removes the file (the writer goes on into
+        // an unlinked file until the process exits).
+        let created = {
+            let mut registry = staged();
+            if !registry.files.contains(&tmp) {
+                registry.files.push(tmp.clone());
+            }
+            File::create(&tmp).map_err(|e| Error::io(path, e))
+        };
+        let written = created.and_then(|file| {
+            let mut file = BufWriter::new(file);
+            write(&mut file)?;
+            let file = file
+                .into_inner()
+                .map_err(|e| Error::io(path, e.into_error()))?;
+            file.sync_all().map_err(|e| Error::io(path, e))
+        });
         if let Err(e) = written {
-            let _ = std::fs::remove_file(&tmp);
-            registry.retain(|t| *t != tmp);
-            return Err(Error::io(path, e));
+            // A path this set staged before lost its earlier content with the file.
+            staged().remove_file(&tmp);
+            self.staged.retain(|(t, _)| *t != tmp);
+            return Err(e);
         }
         if !self.staged.iter().any(|(t, _)| *t == tmp) {
             self.staged.push((tmp, path.to_path_buf()));
@@ -113,30 +180,49 @@ impl OutputSet {
                 ));
             }
         }
-        let mut registry = staged_files();
+        let mut registry = staged();
         let staged = std::mem::take(&mut self.staged);
         for (i, (tmp, target)) in staged.iter().enumerate() {
             if let Err(e) = std::fs::rename(tmp, target) {
-                // This file and the ones not yet renamed are not outputs.
+                // This file and the ones not yet renamed are not outputs (and `Drop`
+                // removes the set's folders that are left empty).
                 for (rest, _) in &staged[i..] {
-                    let _ = std::fs::remove_file(rest);
-                    registry.retain(|t| t != rest);
+                    registry.remove_file(rest);
                 }
                 return Err(Error::io(target, e));
             }
-            registry.retain(|t| t != tmp);
+            registry.files.retain(|t| t != tmp);
+        }
+        for dir in std::mem::take(&mut self.dirs) {
+            registry.forget_dir(&dir);
         }
         Ok(())
+    }
+
+    /// Creates the folder `dir` (and its missing parents) for files of this set. The
+    /// folders it creates are removed again, if empty, when the set is dropped without
+    /// its commit or the run is interrupted: a failed run leaves no empty output folder.
+    pub fn create_dir(&mut self, dir: &Path) -> Result<(), Error> {
+        let mut missing: Vec<PathBuf> = dir
+            .ancestors()
+            .take_while(|d| !d.as_os_str().is_empty() && std::fs::symlink_metadata(d).is_err())
+            .map(Path::to_path_buf)
+            .collect();
+        missing.reverse();
+        let mut registry = staged();
+        registry.dirs.extend(missing.iter().cloned());
+        self.dirs.extend(missing);
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
     }
 }
 
 impl Drop for OutputSet {
     fn drop(&mut self) {
-        let mut registry = staged_files();
+        let mut registry = staged();
         for (tmp, _) in &self.staged {
-            let _ = std::fs::remove_file(tmp);
-            registry.retain(|t| t != tmp);
+            registry.remove_file(tmp);
         }
+        registry.remove_dirs(&self.dirs);
     }
 }
 
@@ -222,6 +308,66 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "new a");
         assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    #[test]
+    fn a_writer_that_fails_midway_leaves_no_temp_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.exr");
+        let mut set = OutputSet::default();
+        set.add_written(&a, |file| {
+            file.write_all(b"the first half").unwrap();
+            Err(Error::input(&a, "cannot encode"))
+        })
+        .expect_err("the writer's error");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+        let tmp_of_a = |t: &Path| t.starts_with(dir.path());
+        assert_eq!(remove_staged_files(tmp_of_a), 0, "nothing left registered");
+        // A writer that succeeds: the same bytes as `add`.
+        set.add_written(&a, |file| {
+            file.write_all(b"whole").map_err(|e| Error::io(&a, e))
+        })
+        .unwrap();
+        set.commit().unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"whole");
+    }
+
+    #[test]
+    fn the_folders_a_set_creates_go_with_it_unless_it_commits() {
+        let dir = tempfile::tempdir().unwrap();
+        let (out, views) = (dir.path().join("out"), dir.path().join("out/views"));
+        let entries = |d: &Path| std::fs::read_dir(d).unwrap().count();
+        // Dropped: the file and both folders go.
+        let mut set = OutputSet::default();
+        set.create_dir(&views).unwrap();
+        set.add(&views.join("px.exr"), b"px").unwrap();
+        drop(set);
+        assert!(!out.exists());
+        // Interrupted: the same, through the registry.
+        let mut set = OutputSet::default();
+        set.create_dir(&views).unwrap();
+        set.add(&views.join("px.exr"), b"px").unwrap();
+        assert_eq!(remove_staged_files(|p| p.starts_with(dir.path())), 1);
+        assert!(!out.exists());
+        drop(set);
+        // Committed: the folders stay, and a later failed set leaves them.
+        let mut set = OutputSet::default();
+        set.create_dir(&views).unwrap();
+        set.add(&views.join("px.exr"), b"px").unwrap();
+        set.commit().unwrap();
+        let mut set = OutputSet::default();
+        set.create_dir(&views).unwrap();
+        set.create_dir(&out.join("errors")).unwrap();
+        set.add(&views.join("nx.exr"), b"nx").unwrap();
+        drop(set);
+        assert_eq!(std::fs::read(views.join("px.exr")).unwrap(), b"px");
+        assert_eq!((entries(&out), entries(&views)), (1, 1));
+        // A folder the set created holds a file of someone else's: it stays.
+        let mut set = OutputSet::default();
+        set.create_dir(&out.join("maps")).unwrap();
+        std::fs::write(out.join("maps/mine.txt"), "mine").unwrap();
+        drop(set);
+        assert!(out.join("maps/mine.txt").exists());
     }
 
     #[test]

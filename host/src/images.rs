@@ -7,14 +7,14 @@
 //! image gives three equal channels. PNG decoding uses the sRGB curve through the core's libm
 //! math, so it is deterministic across machines.
 
-use std::io::{BufReader, Cursor};
+use std::io::{BufReader, Seek, Write};
 use std::path::Path;
 
 use image::{DynamicImage, ImageError, ImageFormat, ImageReader};
 use relume_core::math;
 
 use crate::error::Error;
-use crate::fsutil::{self, OutputSet};
+use crate::fsutil::OutputSet;
 
 /// A linear RGB image, row-major, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
@@ -24,7 +24,7 @@ pub struct Image {
     pub pixels: Vec<[f32; 3]>,
 }
 
-/// The luminance percentile that [`png_preview_bytes`]'s auto-exposure maps to
+/// The luminance percentile that [`write_png_preview`]'s auto-exposure maps to
 /// [`PREVIEW_TARGET`].
 pub const PREVIEW_PERCENTILE: f64 = 0.99;
 /// Display value (before sRGB encoding) of the auto-exposure percentile.
@@ -213,18 +213,15 @@ fn check_finite(path: &Path, image: &Image) -> Result<(), Error> {
 /// Writes linear float32 RGB (ZIP compressed), atomically; [`read_image`] gives back the
 /// same floats.
 pub fn write_exr(path: &Path, image: &Image) -> Result<(), Error> {
-    fsutil::write_atomic(path, &exr_bytes(path, image)?)
+    let mut set = OutputSet::default();
+    add_exr(&mut set, path, image)?;
+    set.commit()
 }
 
-/// The bytes [`write_exr`] writes to `path` (named in errors), for an [`fsutil::OutputSet`].
-fn exr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
-    check_buffer(path, image)?;
-    check_finite(path, image)?;
-    encode_exr(path, image)
-}
-
-/// [`exr_bytes`] without the finite check (tests write bad files as another program might).
-fn encode_exr(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
+/// Encodes `image` as EXR into `out` (`path` is named in errors), without the finite check
+/// (tests write bad files as another program might). The pixels are read as the encoder
+/// goes, block by block: no second copy of the image is made.
+fn encode_exr(path: &Path, image: &Image, out: impl Write + Seek) -> Result<(), Error> {
     use exr::prelude::{Encoding, SpecificChannels, Vec2, WritableImage};
     let w = image.width as usize;
     let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
@@ -236,18 +233,19 @@ fn encode_exr(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
         Encoding::SMALL_LOSSLESS,
         channels,
     );
-    let mut bytes = Vec::new();
     exr_image
         .write()
         .non_parallel()
-        .to_buffered(Cursor::new(&mut bytes))
-        .map_err(|e| Error::input(path, format!("cannot encode EXR: {e}")))?;
-    Ok(bytes)
+        .to_buffered(out)
+        .map_err(|e| Error::input(path, format!("cannot encode EXR: {e}")))
 }
 
-/// Adds `image` to `set` as an EXR at `path` (what [`write_exr`] would write there).
+/// Adds `image` to `set` as an EXR at `path` (what [`write_exr`] would write there),
+/// encoded straight into the staged file.
 pub fn add_exr(set: &mut OutputSet, path: &Path, image: &Image) -> Result<(), Error> {
-    set.add(path, &exr_bytes(path, image)?)
+    check_buffer(path, image)?;
+    check_finite(path, image)?;
+    set.add_written(path, |file| encode_exr(path, image, file))
 }
 
 /// Adds `<dir>/<name>.exr` and its PNG preview (`<dir>/<name>.png`) to `set`: how a view
@@ -260,7 +258,7 @@ pub fn add_exr_and_preview(
 ) -> Result<(), Error> {
     add_exr(set, &dir.join(format!("{name}.exr")), image)?;
     let png = dir.join(format!("{name}.png"));
-    set.add(&png, &png_preview_bytes(&png, image, None)?)
+    set.add_written(&png, |file| write_png_preview(&png, image, None, file))
 }
 
 /// A Radiance RGBE picture (.hdr) to be written at `path` (named in errors): how a
@@ -276,14 +274,16 @@ pub fn hdr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
     Ok(bytes)
 }
 
-/// An 8-bit sRGB preview for people, to be written at `path` (named in errors): radiance
+/// Encodes into `out` an 8-bit sRGB preview for people, to be written at `path` (named
+/// in errors): radiance
 /// times `exposure`, or by default scaled so that the [`PREVIEW_PERCENTILE`] of luminance
 /// shows as [`PREVIEW_TARGET`]; clamped to [0, 1] (NaN and negative values show black).
-pub fn png_preview_bytes(
+pub fn write_png_preview(
     path: &Path,
     image: &Image,
     exposure: Option<f32>,
-) -> Result<Vec<u8>, Error> {
+    out: impl Write + Seek,
+) -> Result<(), Error> {
     check_buffer(path, image)?;
     let scale = match exposure {
         Some(e) if e.is_finite() && e > 0.0 => e,
@@ -301,10 +301,9 @@ pub fn png_preview_bytes(
         .collect();
     let rgb = image::RgbImage::from_raw(image.width, image.height, bytes)
         .ok_or_else(|| Error::input(path, "preview buffer has the wrong size"))?;
-    let mut png = Vec::new();
-    rgb.write_to(&mut Cursor::new(&mut png), ImageFormat::Png)
-        .map_err(|e| Error::input(path, format!("cannot encode PNG: {e}")))?;
-    Ok(png)
+    let mut out = out;
+    rgb.write_to(&mut out, ImageFormat::Png)
+        .map_err(|e| Error::input(path, format!("cannot encode PNG: {e}")))
 }
 
 /// The scale that maps the [`PREVIEW_PERCENTILE`] of luminance to [`PREVIEW_TARGET`] (the
@@ -319,14 +318,15 @@ fn auto_exposure(image: &Image) -> f32 {
     if lum.is_empty() {
         return 1.0;
     }
-    lum.sort_by(f32::total_cmp);
-    // Percentile over all pixels, black ones included.
+    // Percentile over all pixels, black ones included; a selection, not a sort, of what
+    // may be hundreds of millions of values.
     let n_black = image.pixels.len() - lum.len();
     let k = (PREVIEW_PERCENTILE * (image.pixels.len() - 1) as f64) as usize;
-    let p = match k.checked_sub(n_black) {
-        Some(i) => lum[i.min(lum.len() - 1)],
-        None => lum[lum.len() - 1],
+    let rank = match k.checked_sub(n_black) {
+        Some(i) => i.min(lum.len() - 1),
+        None => lum.len() - 1,
     };
+    let p = *lum.select_nth_unstable_by(rank, f32::total_cmp).1;
     let s = PREVIEW_TARGET / p;
     if s.is_finite() {
         s
@@ -361,6 +361,7 @@ fn encode_8bit(v: f32) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::io::Cursor;
 
     fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> [f32; 3]) -> Image {
         let pixels = (0..h)
@@ -376,8 +377,8 @@ mod tests {
 
     /// Writes `pixels` as an EXR without any checks, as another program might.
     fn raw_exr(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> [f32; 3]) {
-        let bytes = encode_exr(path, &image(w, h, f)).unwrap();
-        fsutil::write_atomic(path, &bytes).unwrap();
+        let file = std::fs::File::create(path).unwrap();
+        encode_exr(path, &image(w, h, f), std::io::BufWriter::new(file)).unwrap();
     }
 
     fn err(path: &Path) -> String {
@@ -647,8 +648,9 @@ mod tests {
     }
 
     fn preview(img: &Image, exposure: Option<f32>) -> image::RgbImage {
-        let png = png_preview_bytes(Path::new("p.png"), img, exposure).unwrap();
-        image::load_from_memory(&png).unwrap().into_rgb8()
+        let mut png = Cursor::new(Vec::new());
+        write_png_preview(Path::new("p.png"), img, exposure, &mut png).unwrap();
+        image::load_from_memory(png.get_ref()).unwrap().into_rgb8()
     }
 
     #[test]
@@ -708,9 +710,12 @@ mod tests {
             pixels: vec![],
         };
         assert!(write_exr(&p, &empty).is_err());
-        assert!(png_preview_bytes(&dir.path().join("x.png"), &bad, None).is_err());
-        let ok = image(1, 1, |_, _| [1.0; 3]);
-        assert!(png_preview_bytes(&dir.path().join("x.png"), &ok, Some(-1.0)).is_err());
+        let png = |image: &Image, exposure| {
+            let path = dir.path().join("x.png");
+            write_png_preview(&path, image, exposure, Cursor::new(Vec::new()))
+        };
+        assert!(png(&bad, None).is_err());
+        assert!(png(&image(1, 1, |_, _| [1.0; 3]), Some(-1.0)).is_err());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 

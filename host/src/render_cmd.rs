@@ -11,7 +11,7 @@ use relume_core::render::RenderSettings;
 
 use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
-use crate::fsutil::{self, OutputSet};
+use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::materials_file;
 use crate::parallel;
@@ -71,41 +71,39 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         ProgressStyle::with_template("{msg:>8} [{bar:40}] {pos}/{len} rows, {eta} left")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let start = Instant::now();
-    let mut rendered = Vec::new();
+    // One set: a failure on any file leaves none of this render's outputs. Each view is
+    // staged as soon as it is rendered, so that only one view's pixels are held at a time.
+    let mut set = OutputSet::default();
+    let mut seconds = 0.0;
     let mut samples = 0u64;
+    let mut all_black = true;
     for &i in &selected {
         progress.set_message(view_descs[i].name.clone());
+        let start = Instant::now();
         let pixels =
             parallel::render_view(&pool, &scene, &views[i], i as u32, &settings, &progress);
+        // Rendering alone, so that samples per second measure the renderer.
+        seconds += start.elapsed().as_secs_f64();
         samples += views[i].n_pixels() as u64 * settings.spp as u64;
-        rendered.push((i, pixels));
+        all_black &= pixels.iter().all(|p| *p == Vec3::ZERO);
+        let image = Image {
+            width: views[i].width,
+            height: views[i].height,
+            // The same layout: collected in place, not copied.
+            pixels: pixels.into_iter().map(<[f32; 3]>::from).collect(),
+        };
+        set.create_dir(&args.out)?;
+        images::add_exr_and_preview(&mut set, &args.out, &view_descs[i].name, &image)?;
     }
     progress.finish_and_clear();
-    let seconds = start.elapsed().as_secs_f64();
     let mut warnings = Vec::new();
-    if rendered
-        .iter()
-        .all(|(_, pixels)| pixels.iter().all(|p| *p == Vec3::ZERO))
-    {
+    if all_black {
         warnings.push(format!(
             "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away?)",
             args.scene.display()
         ));
     }
 
-    // One set: a failure on any file leaves none of this render's outputs.
-    let mut set = OutputSet::default();
-    fsutil::create_dir(&args.out)?;
-    for (i, pixels) in rendered {
-        let v = &views[i];
-        let image = Image {
-            width: v.width,
-            height: v.height,
-            pixels: pixels.iter().map(|p| p.to_array()).collect(),
-        };
-        images::add_exr_and_preview(&mut set, &args.out, &view_descs[i].name, &image)?;
-    }
     let info = serde_json::json!({
         "scene": args.scene.display().to_string(),
         "materials": args.materials.iter().map(|m| m.display().to_string()).collect::<Vec<_>>(),

@@ -9,7 +9,7 @@ use glam::Vec3;
 use super::model::GroupModel;
 use super::{texture, RecoverReport, Recovery};
 use crate::error::Error;
-use crate::fsutil::{self, OutputSet};
+use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialsDesc};
 use crate::parallel;
@@ -48,8 +48,8 @@ pub(super) fn write_all(
     report: &RecoverReport,
 ) -> Result<(), Error> {
     let mut set = OutputSet::default();
-    fsutil::create_dir(&out.join("views"))?;
-    fsutil::create_dir(&out.join("errors"))?;
+    set.create_dir(&out.join("views"))?;
+    set.create_dir(&out.join("errors"))?;
     for (vi, pixels) in renders.iter().enumerate() {
         let name = &rec.owned.desc.views[vi].name;
         let view = &rec.views[vi];
@@ -88,7 +88,7 @@ pub(super) fn write_all(
         let mut primitive = (*model, String::from("void"));
         if let GroupModel::Textured { map, lobe } = *model {
             let specularity = lobe.specularity();
-            fsutil::create_dir(&out.join("textures"))?;
+            set.create_dir(&out.join("textures"))?;
             let map = &rec.maps[map];
             let image = Image {
                 width: map.side,
