@@ -77,21 +77,14 @@ pub fn remove_staged_files_on_interrupt() -> Result<(), String> {
 /// returns how many files. The sets' own `Drop` then finds nothing to remove.
 fn remove_staged_files(matching: impl Fn(&Path) -> bool) -> usize {
     let mut staged = staged();
-    let files: Vec<PathBuf> = staged
-        .files
-        .iter()
-        .filter(|t| matching(t))
-        .cloned()
-        .collect();
+    let selected = |paths: &[PathBuf]| -> Vec<PathBuf> {
+        paths.iter().filter(|p| matching(p)).cloned().collect()
+    };
+    let files = selected(&staged.files);
     for tmp in &files {
         staged.remove_file(tmp);
     }
-    let dirs: Vec<PathBuf> = staged
-        .dirs
-        .iter()
-        .filter(|d| matching(d))
-        .cloned()
-        .collect();
+    let dirs = selected(&staged.dirs);
     staged.remove_dirs(&dirs);
     files.len()
 }

@@ -275,14 +275,14 @@ pub fn hdr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
 }
 
 /// Encodes into `out` an 8-bit sRGB preview for people, to be written at `path` (named
-/// in errors): radiance
-/// times `exposure`, or by default scaled so that the [`PREVIEW_PERCENTILE`] of luminance
-/// shows as [`PREVIEW_TARGET`]; clamped to [0, 1] (NaN and negative values show black).
+/// in errors): radiance times `exposure`, or by default scaled so that the
+/// [`PREVIEW_PERCENTILE`] of luminance shows as [`PREVIEW_TARGET`]; clamped to [0, 1]
+/// (NaN and negative values show black).
 pub fn write_png_preview(
     path: &Path,
     image: &Image,
     exposure: Option<f32>,
-    out: impl Write + Seek,
+    mut out: impl Write + Seek,
 ) -> Result<(), Error> {
     check_buffer(path, image)?;
     let scale = match exposure {
@@ -301,7 +301,6 @@ pub fn write_png_preview(
         .collect();
     let rgb = image::RgbImage::from_raw(image.width, image.height, bytes)
         .ok_or_else(|| Error::input(path, "preview buffer has the wrong size"))?;
-    let mut out = out;
     rgb.write_to(&mut out, ImageFormat::Png)
         .map_err(|e| Error::input(path, format!("cannot encode PNG: {e}")))
 }

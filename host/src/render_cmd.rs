@@ -73,7 +73,9 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     );
     // One set: a failure on any file leaves none of this render's outputs. Each view is
     // staged as soon as it is rendered, so that only one view's pixels are held at a time.
+    // The folder first: one that cannot be made fails before a long render, not after.
     let mut set = OutputSet::default();
+    set.create_dir(&args.out)?;
     let mut seconds = 0.0;
     let mut samples = 0u64;
     let mut all_black = true;
@@ -92,7 +94,6 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
             // The same layout: collected in place, not copied.
             pixels: pixels.into_iter().map(<[f32; 3]>::from).collect(),
         };
-        set.create_dir(&args.out)?;
         images::add_exr_and_preview(&mut set, &args.out, &view_descs[i].name, &image)?;
     }
     progress.finish_and_clear();
