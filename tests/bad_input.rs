@@ -535,32 +535,55 @@ fn a_folder_in_the_way_of_one_output_leaves_none_of_the_others() {
     let stderr = case.fails(IO, &["render.json", "folder"]);
     assert!(!case.path("out/front.exr").exists(), "{stderr}");
 
-    // recover, with the tiny scene's own render as its panorama.
+    let case = case_with_panorama();
+    std::fs::create_dir_all(case.path("recovered/report.json")).unwrap();
+    let stderr = recover_fails(&case, &case.path("recovered"), &[]);
+    assert!(stderr.contains("report.json"), "{stderr}");
+    assert_eq!(files_in(&case.path("recovered")), Vec::<PathBuf>::new());
+}
+
+/// The tiny scene with its own render (4 spp) as its panorama, for `recover`.
+fn case_with_panorama() -> Case {
     let case = Case::new().scene(
         "name = \"front\"\n",
         "name = \"front\"\nimage = \"panorama/front.exr\"\n",
     );
     case.write();
     assert!(case.render("panorama", Some(4)).status.success());
-    std::fs::create_dir_all(case.path("recovered/report.json")).unwrap();
-    let out = relume(
-        case.dir.path(),
-        &[
-            "recover",
-            path_str(&case.path("scene.toml")),
-            "--out",
-            path_str(&case.path("recovered")),
-            "--effort",
-            "fast",
-        ],
-    );
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(IO), "{stderr}");
+    case
+}
+
+/// Runs `relume recover` of `case` into `out` at effort fast with `extra` arguments,
+/// expects the I/O exit code and no panic, and returns stderr.
+fn recover_fails(case: &Case, out: &Path, extra: &[&str]) -> String {
+    let scene = case.path("scene.toml");
+    let mut args = vec!["recover", path_str(&scene), "--out", path_str(out)];
+    args.extend(["--effort", "fast"]);
+    args.extend(extra);
+    let run = relume(case.dir.path(), &args);
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert_eq!(run.status.code(), Some(IO), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    stderr
+}
+
+/// An output folder that cannot be made (under a file) fails at the start of a recovery,
+/// before its minutes of work, naming the folder; nothing is written. The run also names a
+/// group the scene does not have in `--limit-group-pixels`, an error recovery meets only
+/// after it has found the pure pixels: the folder's error comes first.
+#[test]
+fn a_recovery_whose_output_folder_cannot_be_made_fails_at_once() {
+    let case = case_with_panorama();
+    let out = case.path("m.toml/recovered");
+    let stderr = recover_fails(&case, &out, &["--limit-group-pixels", "nosuch=10"]);
     assert!(
-        stderr.contains("report.json") && !stderr.contains("panicked"),
+        stderr.contains("m.toml/recovered") && !stderr.contains("nosuch"),
         "{stderr}"
     );
-    assert_eq!(files_in(&case.path("recovered")), Vec::<PathBuf>::new());
+    assert_eq!(
+        std::fs::read_to_string(case.path("m.toml")).unwrap(),
+        MATERIALS
+    );
 }
 
 /// `relume compare uncertainty m.toml <report>` in the case's folder: exit code, stderr.

@@ -622,6 +622,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .collect();
     let mut owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
     let pool = parallel::thread_pool(args.threads)?;
+    let output = output::prepare(&args.out)?;
     let views = owned.views.clone();
     let n_groups = owned.group_names.len();
     let names = owned.group_names.clone();
@@ -821,6 +822,6 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         warnings,
         seconds: start.elapsed().as_secs_f64(),
     };
-    output::write_all(&args.out, &rec, &renders, &report)?;
+    output::write_all(output, &args.out, &rec, &renders, &report)?;
     Ok(report)
 }

@@ -41,15 +41,25 @@ pub(super) fn render_views(
     Ok(renders)
 }
 
+/// The output set of a recovery into `out`, with its folders made: called before the
+/// recovery, so that an output folder that cannot be made fails in a moment rather than
+/// after minutes of work (the set removes the folders again if the run fails or is
+/// interrupted).
+pub(super) fn prepare(out: &Path) -> Result<OutputSet, Error> {
+    let mut set = OutputSet::default();
+    set.create_dir(&out.join("views"))?;
+    set.create_dir(&out.join("errors"))?;
+    Ok(set)
+}
+
+/// Writes everything into `set` (from [`prepare`]) and commits it.
 pub(super) fn write_all(
+    mut set: OutputSet,
     out: &Path,
     rec: &Recovery,
     renders: &[Vec<Vec3>],
     report: &RecoverReport,
 ) -> Result<(), Error> {
-    let mut set = OutputSet::default();
-    set.create_dir(&out.join("views"))?;
-    set.create_dir(&out.join("errors"))?;
     for (vi, pixels) in renders.iter().enumerate() {
         let name = &rec.owned.desc.views[vi].name;
         let view = &rec.views[vi];
