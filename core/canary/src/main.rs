@@ -47,7 +47,12 @@ impl Line {
     }
 
     fn text(&mut self, text: &str) -> &mut Line {
-        for &b in text.as_bytes() {
+        self.raw(text.as_bytes())
+    }
+
+    /// ASCII bytes; what does not fit is dropped.
+    fn raw(&mut self, bytes: &[u8]) -> &mut Line {
+        for &b in bytes {
             if self.len < self.bytes.len() {
                 self.bytes[self.len] = b;
                 self.len += 1;
@@ -74,8 +79,7 @@ impl Line {
             if i == 3 {
                 self.text(".");
             }
-            let d = [digits[i]];
-            self.text(core::str::from_utf8(&d).unwrap_or("?"));
+            self.raw(&[digits[i]]);
         }
         self
     }
@@ -385,9 +389,7 @@ pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
     for (i, h) in hex.iter_mut().enumerate() {
         *h = b"0123456789abcdef"[((checksum >> (28 - 4 * i)) & 0xf) as usize];
     }
-    Line::new("relume-core canary: checksum ")
-        .text(core::str::from_utf8(&hex).unwrap_or("?"))
-        .print();
+    Line::new("relume-core canary: checksum ").raw(&hex).print();
 
     if recover_floor(&scene) {
         Line::new("relume-core canary: the floor's material recovered").print();
