@@ -81,6 +81,12 @@ pub fn load_obj(path: &Path) -> Result<Vec<ObjObject>, Error> {
             format!("OBJ loader (tobj) failed after checking: {e}"),
         )
     })?;
+    // tobj gives a trailing object without faces as an empty model (one in the middle of
+    // the file it drops): objects without faces are no part of the geometry either way.
+    let models: Vec<tobj::Model> = models
+        .into_iter()
+        .filter(|m| !m.mesh.indices.is_empty())
+        .collect();
     let disagree = |what: String| {
         Error::input(
             path,
@@ -387,6 +393,27 @@ mod tests {
             vec![[v[0], v[1], v[4]], [v[4], v[1], v[2]]]
         );
         assert_eq!(objs[0].uvs, None);
+    }
+
+    /// An object without faces is no object of the geometry, wherever it stands (tobj
+    /// drops one in the middle and gave one at the end as an empty model, which the
+    /// loader then refused as an internal disagreement).
+    #[test]
+    fn objects_without_faces_are_left_out_anywhere_in_the_file() {
+        for (text, expected) in [
+            (format!("o empty\no a\n{QUAD}f 1 2 3\n"), vec!["a"]),
+            (
+                format!("o a\n{QUAD}f 1 2 3\no empty\nv 0 0 2\no b\nf 1 2 4\n"),
+                vec!["a", "b"],
+            ),
+            (
+                format!("o a\n{QUAD}f 1 2 3\no b\nf 1 2 4\no empty\n"),
+                vec!["a", "b"],
+            ),
+        ] {
+            let names: Vec<String> = load(&text).into_iter().map(|o| o.name).collect();
+            assert_eq!(names, expected, "from {text:?}");
+        }
     }
 
     #[test]

@@ -393,7 +393,15 @@ pub fn check_objects(desc: &SceneDesc, objects: &[ObjObject]) -> Result<(), Erro
         .join(", ");
     let lines = SceneLines::read(&desc.path);
     let missing = |object: &str, role: String, line: Option<usize>| {
-        let msg = format!("object '{object}' ({role}) is not in the geometry ({files})");
+        // An `o` line with no faces after it is named in the file but is no object of the
+        // geometry: say where it is, since "not in the geometry" would look wrong there.
+        let empty_at = desc.geometry.iter().find_map(|file| {
+            crate::obj::object_line(file, object).map(|l| format!("{}:{l}", file.display()))
+        });
+        let msg = match empty_at {
+            Some(at) => format!("object '{object}' ({role}) has no faces in the geometry ({at})"),
+            None => format!("object '{object}' ({role}) is not in the geometry ({files})"),
+        };
         match line {
             Some(l) => Error::at_line(&desc.path, l, msg),
             None => Error::input(&desc.path, msg),
@@ -1197,6 +1205,24 @@ objects = ["quad"]
         check_objects(&d, &objects_of(&d))
             .expect_err("check_objects should refuse")
             .to_string()
+    }
+
+    #[test]
+    fn an_object_named_in_the_obj_without_faces_is_reported_where_it_is() {
+        let (_dir, path) = write("hide = []", "hide = [\"chair\"]");
+        let obj = path.with_file_name("geo.obj");
+        std::fs::write(&obj, format!("{OBJ}o chair\n")).unwrap();
+        let d = load_scene(&path).unwrap();
+        let e = check_objects(&d, &objects_of(&d))
+            .expect_err("check_objects should refuse")
+            .to_string();
+        let line = OBJ.lines().count() + 1;
+        assert!(
+            e.contains("scene.toml:4")
+                && e.contains("'chair' (in `hide`) has no faces in the geometry")
+                && e.contains(&format!("geo.obj:{line})")),
+            "{e}"
+        );
     }
 
     #[test]
