@@ -586,6 +586,88 @@ fn a_recovery_whose_output_folder_cannot_be_made_fails_at_once() {
     );
 }
 
+/// Output folders that hold the run's own inputs: a recovery into the folder whose
+/// `views/` is its panorama, a render into that `views/`, a downsampled scene into the
+/// scene's folder. Each would have replaced an input (the recovery with its re-rendered
+/// views, after its whole run); each fails at once with the input code, naming the file
+/// and what it is, and leaves every file as it was.
+#[test]
+fn no_output_replaces_an_input_of_its_run() {
+    let case = Case::new().scene(
+        "name = \"front\"\n",
+        "name = \"front\"\nimage = \"rec/views/front.exr\"\n",
+    );
+    case.write();
+    assert!(case.render("rec/views", Some(4)).status.success());
+    let before: Vec<(PathBuf, Vec<u8>)> = files_in(case.dir.path())
+        .into_iter()
+        .map(|f| (f.clone(), std::fs::read(&f).unwrap()))
+        .collect();
+    let scene = case.path("scene.toml");
+    let runs: [(Vec<&str>, &str, &str); 3] = [
+        (
+            // --limit-group-pixels names a group recovery would refuse only later.
+            vec![
+                "recover",
+                path_str(&scene),
+                "--out",
+                "rec",
+                "--effort",
+                "fast",
+            ],
+            "rec/views/front.exr",
+            "the image of view 'front'",
+        ),
+        (
+            vec![
+                "render",
+                path_str(&scene),
+                "--materials",
+                "m.toml",
+                "--out",
+                "rec/views",
+            ],
+            "rec/views/front.exr",
+            "the image of view 'front'",
+        ),
+        (
+            vec![
+                "bench",
+                "downsample",
+                path_str(&scene),
+                "--factor",
+                "1",
+                "--out",
+                ".",
+            ],
+            "scene.toml",
+            "the scene file",
+        ),
+    ];
+    for (mut args, file, what) in runs {
+        if args[0] == "recover" {
+            args.extend(["--limit-group-pixels", "nosuch=10"]);
+        }
+        let run = relume(case.dir.path(), &args);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(INPUT), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(file)
+                && stderr.contains(&format!("would replace {what}, an input of this run")),
+            "{args:?}: {stderr}"
+        );
+        assert!(
+            !stderr.contains("panicked") && !stderr.contains("nosuch"),
+            "{stderr}"
+        );
+        let after: Vec<(PathBuf, Vec<u8>)> = files_in(case.dir.path())
+            .into_iter()
+            .map(|f| (f.clone(), std::fs::read(&f).unwrap()))
+            .collect();
+        assert!(after == before, "{args:?} changed the files");
+    }
+}
+
 /// `relume compare uncertainty m.toml <report>` in the case's folder: exit code, stderr.
 fn compare_uncertainty(case: &Case, report: &Path) -> (Option<i32>, String) {
     let out = relume(

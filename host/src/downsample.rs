@@ -8,7 +8,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::error::Error;
-use crate::fsutil;
+use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::scene_file::{self, GroupKind, SceneDesc};
 
@@ -119,8 +119,10 @@ pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<(), Error> {
 /// Writes `desc` (read from `scene`) as `out/scene.toml`, every view's panorama read with
 /// its exposure applied, box-averaged by `factor`, passed through `edit(view index, image)`
 /// and written to `out/views/<view>.exr` at exposure 1 (radiance in, radiance out); the
-/// geometry paths made absolute. `doing` names the operation in errors. Returns the scene
-/// file's path. Errors: a view without image, a size not divisible by `factor`.
+/// geometry paths made absolute, all as one output set (a failure leaves none of them).
+/// `doing` names the operation in errors. Returns the scene file's path. Errors: a view
+/// without image, a size not divisible by `factor`, an output that would replace one of
+/// the scene's own files.
 pub fn write_derived_scene(
     scene: &Path,
     mut desc: SceneDesc,
@@ -130,7 +132,18 @@ pub fn write_derived_scene(
     mut edit: impl FnMut(usize, &mut Image),
 ) -> Result<PathBuf, Error> {
     let views_dir = out.join("views");
-    fsutil::create_dir(&views_dir)?;
+    let scene_path = out.join("scene.toml");
+    // One set, which may replace none of the scene's own files: derived into the scene's
+    // folder, the panorama's views and scene.toml would be overwritten.
+    let mut set = OutputSet::keeping(desc.input_files());
+    set.check_target(&scene_path)?;
+    for v in &desc.views {
+        set.check_target(&views_dir.join(format!("{}.exr", v.name)))?;
+    }
+    set.create_dir(&views_dir)?;
+    // The views' paths as the derived scene gives them: absolute, in a folder that exists.
+    let views_dir_absolute =
+        std::fs::canonicalize(&views_dir).map_err(|e| Error::io(&views_dir, e))?;
     for (vi, v) in desc.views.iter_mut().enumerate() {
         let Some(path) = v.image.clone() else {
             return Err(Error::input(
@@ -152,9 +165,9 @@ pub fn write_derived_scene(
             image = box_average(&image, factor);
         }
         edit(vi, &mut image);
-        let target = views_dir.join(format!("{}.exr", v.name));
-        images::write_exr(&target, &image)?;
-        v.image = Some(std::fs::canonicalize(&target).map_err(|e| Error::io(&target, e))?);
+        let file = format!("{}.exr", v.name);
+        images::add_exr(&mut set, &views_dir.join(&file), &image)?;
+        v.image = Some(views_dir_absolute.join(file));
         v.size = [v.size[0] / factor, v.size[1] / factor];
         v.exposure = 1.0;
     }
@@ -163,9 +176,9 @@ pub fn write_derived_scene(
         .iter()
         .map(|g| std::fs::canonicalize(g).map_err(|e| Error::io(g, e)))
         .collect::<Result<_, _>>()?;
-    let path = out.join("scene.toml");
-    fsutil::write_atomic(&path, scene_toml(&desc).as_bytes())?;
-    Ok(path)
+    set.add(&scene_path, scene_toml(&desc).as_bytes())?;
+    set.commit()?;
+    Ok(scene_path)
 }
 
 #[cfg(test)]

@@ -107,9 +107,50 @@ pub struct OutputSet {
     staged: Vec<(PathBuf, PathBuf)>,
     /// The folders [`OutputSet::create_dir`] created, parents first.
     dirs: Vec<PathBuf>,
+    /// Files the run reads (canonical path, what each is), which no output may replace.
+    inputs: Vec<(PathBuf, String)>,
 }
 
 impl OutputSet {
+    /// A set that refuses to replace any of `inputs`, the files its run reads (path, and
+    /// what it is, for the error). An output folder is easily the input's own: a recovery
+    /// written into its scene's folder put its re-rendered views over the panorama.
+    pub fn keeping(inputs: Vec<(PathBuf, String)>) -> OutputSet {
+        OutputSet {
+            staged: Vec::new(),
+            dirs: Vec::new(),
+            inputs: inputs
+                .into_iter()
+                .filter_map(|(path, what)| Some((std::fs::canonicalize(path).ok()?, what)))
+                .collect(),
+        }
+    }
+
+    /// An error when a file written at `path` would replace one of the set's inputs. Every
+    /// file added is checked; a command calls this before its work for the files it will
+    /// write, so that it fails at once rather than at the end.
+    pub fn check_target(&self, path: &Path) -> Result<(), Error> {
+        let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
+            return Ok(());
+        };
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        // The folder resolved, not the file: a link at `path` is replaced, not its target.
+        let Ok(target) = std::fs::canonicalize(dir).map(|d| d.join(name)) else {
+            return Ok(()); // a folder not made yet holds no input
+        };
+        match self.inputs.iter().find(|(input, _)| *input == target) {
+            Some((_, what)) => Err(Error::input(
+                path,
+                format!("this output would replace {what}, an input of this run: write to another folder"),
+            )),
+            None => Ok(()),
+        }
+    }
+
     /// Writes `bytes` to a synced temp file beside `path`; a path added twice keeps the
     /// later bytes.
     pub fn add(&mut self, path: &Path, bytes: &[u8]) -> Result<(), Error> {
@@ -130,6 +171,7 @@ impl OutputSet {
             Some(d) if !d.as_os_str().is_empty() => d,
             _ => Path::new("."),
         };
+        self.check_target(path)?;
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
         let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
         // Registered and created under the lock; written outside it, so that an interrupt
@@ -323,6 +365,44 @@ mod tests {
         .unwrap();
         set.commit().unwrap();
         assert_eq!(std::fs::read(&a).unwrap(), b"whole");
+    }
+
+    #[test]
+    fn a_set_refuses_to_replace_an_input_by_any_path_to_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("views").join("px.exr");
+        std::fs::create_dir(input.parent().unwrap()).unwrap();
+        std::fs::write(&input, b"panorama").unwrap();
+        let mut set = OutputSet::keeping(vec![(input.clone(), "view 'px''s image".into())]);
+        // The same file by another spelling of its folder.
+        let other = dir
+            .path()
+            .join("views")
+            .join("..")
+            .join("views")
+            .join("px.exr");
+        let e = set.add(&other, b"render").unwrap_err().to_string();
+        assert!(
+            e.contains("would replace view 'px''s image, an input of this run"),
+            "{e}"
+        );
+        assert!(e.contains("px.exr"), "{e}");
+        assert_eq!(std::fs::read(&input).unwrap(), b"panorama");
+        // Beside it, in a folder not made yet, and a set that keeps nothing: all fine.
+        set.add(&dir.path().join("views").join("nx.exr"), b"render")
+            .unwrap();
+        set.check_target(&dir.path().join("new").join("px.exr"))
+            .unwrap();
+        set.commit().unwrap();
+        let mut free = OutputSet::default();
+        free.add(&input, b"render").unwrap();
+        free.commit().unwrap();
+        assert_eq!(std::fs::read(&input).unwrap(), b"render");
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path().join("views"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(leftovers.len(), 2, "{leftovers:?}");
     }
 
     #[test]

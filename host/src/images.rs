@@ -8,7 +8,7 @@
 //! math, so it is deterministic across machines.
 
 use std::io::{BufReader, Seek, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use image::{DynamicImage, ImageError, ImageFormat, ImageReader};
 use relume_core::math;
@@ -256,9 +256,17 @@ pub fn add_exr_and_preview(
     name: &str,
     image: &Image,
 ) -> Result<(), Error> {
-    add_exr(set, &dir.join(format!("{name}.exr")), image)?;
-    let png = dir.join(format!("{name}.png"));
+    let [exr, png] = exr_and_preview_paths(dir, name);
+    add_exr(set, &exr, image)?;
     set.add_written(&png, |file| write_png_preview(&png, image, None, file))
+}
+
+/// Where [`add_exr_and_preview`] writes image `name` in `dir`: the EXR, then the PNG.
+pub fn exr_and_preview_paths(dir: &Path, name: &str) -> [PathBuf; 2] {
+    [
+        dir.join(format!("{name}.exr")),
+        dir.join(format!("{name}.png")),
+    ]
 }
 
 /// A Radiance RGBE picture (.hdr) to be written at `path` (named in errors): how a

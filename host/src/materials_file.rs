@@ -136,6 +136,21 @@ pub struct MaterialsDesc {
     pub materials: Vec<MaterialDesc>,
 }
 
+impl MaterialsDesc {
+    /// The files these materials read (path, and what it is): the materials file and its
+    /// diffuse maps. No output of a run may replace them (`OutputSet::keeping`).
+    pub fn input_files(&self) -> Vec<(PathBuf, String)> {
+        let mut files = vec![(self.path.clone(), "a materials file".to_string())];
+        files.extend(self.materials.iter().filter_map(|m| {
+            Some((
+                m.diffuse_map.clone()?,
+                format!("the diffuse map of group '{}'", m.group),
+            ))
+        }));
+        files
+    }
+}
+
 impl MaterialDesc {
     /// An entry of `model` for `group` with no parameter set yet (for writers).
     pub fn new(group: &str, model: Model) -> MaterialDesc {

@@ -16,6 +16,9 @@ use crate::images::{self, Image};
 use crate::materials_file;
 use crate::parallel;
 
+/// The settings and timing of a render, beside its views.
+const RENDER_JSON: &str = "render.json";
+
 pub struct RenderArgs {
     pub scene: PathBuf,
     pub materials: Vec<PathBuf>,
@@ -53,6 +56,8 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
             )));
         }
     }
+    let mut inputs = owned.desc.input_files();
+    inputs.extend(files.iter().flat_map(|f| f.input_files()));
     let pool = parallel::thread_pool(args.threads)?;
     let view_descs = owned.desc.views.clone();
     let views = owned.views.clone();
@@ -73,8 +78,16 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     );
     // One set: a failure on any file leaves none of this render's outputs. Each view is
     // staged as soon as it is rendered, so that only one view's pixels are held at a time.
-    // The folder first: one that cannot be made fails before a long render, not after.
-    let mut set = OutputSet::default();
+    // Before a long render, not after: no output may replace an input (a render into
+    // the panorama's folder would put itself over the views' images), and the folder must
+    // be made.
+    let mut set = OutputSet::keeping(inputs);
+    for &i in &selected {
+        for path in images::exr_and_preview_paths(&args.out, &view_descs[i].name) {
+            set.check_target(&path)?;
+        }
+    }
+    set.check_target(&args.out.join(RENDER_JSON))?;
     set.create_dir(&args.out)?;
     let mut seconds = 0.0;
     let mut samples = 0u64;
@@ -117,7 +130,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         "warnings": warnings,
     });
     let text = serde_json::to_string_pretty(&info).map_err(|e| Error::Usage(e.to_string()))?;
-    set.add(&args.out.join("render.json"), text.as_bytes())?;
+    set.add(&args.out.join(RENDER_JSON), text.as_bytes())?;
     set.commit()?;
     Ok(RenderSummary {
         samples,

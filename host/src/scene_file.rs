@@ -86,6 +86,25 @@ pub struct SceneDesc {
     pub groups: Vec<GroupDesc>,
 }
 
+impl SceneDesc {
+    /// The files this scene reads (path, and what it is): the scene file, its geometry and
+    /// its views' images. No output of a run may replace them (`OutputSet::keeping`).
+    pub fn input_files(&self) -> Vec<(PathBuf, String)> {
+        let mut files = vec![(self.path.clone(), "the scene file".to_string())];
+        files.extend(
+            self.geometry
+                .iter()
+                .map(|g| (g.clone(), "the scene's geometry".to_string())),
+        );
+        files.extend(
+            self.views.iter().filter_map(|v| {
+                Some((v.image.clone()?, format!("the image of view '{}'", v.name)))
+            }),
+        );
+        files
+    }
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawScene {

@@ -613,6 +613,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         };
         real.push(images::read_view_image(path, v.exposure, v.size)?);
     }
+    let inputs = desc.input_files();
+    let view_names: Vec<String> = desc.views.iter().map(|v| v.name.clone()).collect();
     let kinds: Vec<GroupKind> = desc.groups.iter().map(|g| g.kind).collect();
     // Whether every object of a group has texture coordinates, as a diffuse map needs.
     let mapped: Vec<bool> = desc
@@ -622,7 +624,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .collect();
     let mut owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
     let pool = parallel::thread_pool(args.threads)?;
-    let output = output::prepare(&args.out)?;
+    let output = output::prepare(&args.out, inputs, &view_names)?;
     let views = owned.views.clone();
     let n_groups = owned.group_names.len();
     let names = owned.group_names.clone();

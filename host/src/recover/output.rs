@@ -2,7 +2,7 @@
 //! report.json, the diffuse maps, the re-rendered views and per-view error images. A
 //! failure on any file leaves none of them, so a folder never mixes two runs' outputs.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
@@ -45,12 +45,35 @@ pub(super) fn render_views(
 /// recovery, so that an output folder that cannot be made fails in a moment rather than
 /// after minutes of work (the set removes the folders again if the run fails or is
 /// interrupted).
-pub(super) fn prepare(out: &Path) -> Result<OutputSet, Error> {
-    let mut set = OutputSet::default();
-    set.create_dir(&out.join("views"))?;
-    set.create_dir(&out.join("errors"))?;
+pub(super) fn prepare(
+    out: &Path,
+    inputs: Vec<(PathBuf, String)>,
+    view_names: &[String],
+) -> Result<OutputSet, Error> {
+    let mut set = OutputSet::keeping(inputs);
+    // The files named before the recovery (the maps' names depend on its result): none may
+    // replace an input, which the set checks again as each is written.
+    for file in [MATERIALS_TOML, MATERIALS_RAD, REPORT_JSON] {
+        set.check_target(&out.join(file))?;
+    }
+    for dir in [VIEWS_DIR, ERRORS_DIR] {
+        for name in view_names {
+            for path in images::exr_and_preview_paths(&out.join(dir), name) {
+                set.check_target(&path)?;
+            }
+        }
+    }
+    set.create_dir(&out.join(VIEWS_DIR))?;
+    set.create_dir(&out.join(ERRORS_DIR))?;
     Ok(set)
 }
+
+/// The files and folders of a recovery's output folder.
+const MATERIALS_TOML: &str = "materials.toml";
+const MATERIALS_RAD: &str = "materials.rad";
+const REPORT_JSON: &str = "report.json";
+const VIEWS_DIR: &str = "views";
+const ERRORS_DIR: &str = "errors";
 
 /// Writes everything into `set` (from [`prepare`]) and commits it.
 pub(super) fn write_all(
@@ -68,7 +91,7 @@ pub(super) fn write_all(
             height: view.height,
             pixels: pixels.iter().map(|p| p.to_array()).collect(),
         };
-        images::add_exr_and_preview(&mut set, &out.join("views"), name, &image)?;
+        images::add_exr_and_preview(&mut set, &out.join(VIEWS_DIR), name, &image)?;
         // |render - real| per channel: where the fit is poor.
         let diff = Image {
             width: view.width,
@@ -86,7 +109,7 @@ pub(super) fn write_all(
                 })
                 .collect(),
         };
-        images::add_exr_and_preview(&mut set, &out.join("errors"), name, &diff)?;
+        images::add_exr_and_preview(&mut set, &out.join(ERRORS_DIR), name, &diff)?;
     }
     let names = &rec.owned.group_names;
     let map_path = |g: usize| out.join("textures").join(format!("{}.exr", names[g]));
@@ -134,7 +157,7 @@ pub(super) fn write_all(
             None => rad.push_str(&format!("\n# {name}: unseen, not recovered\n")),
         }
     }
-    let materials_path = out.join("materials.toml");
+    let materials_path = out.join(MATERIALS_TOML);
     let materials = MaterialsDesc {
         path: materials_path.clone(),
         materials: rec
@@ -149,9 +172,9 @@ pub(super) fn write_all(
     };
     let toml = materials_file::materials_text(&materials_path, &materials)?;
     set.add(&materials_path, toml.as_bytes())?;
-    set.add(&out.join("materials.rad"), rad.as_bytes())?;
+    set.add(&out.join(MATERIALS_RAD), rad.as_bytes())?;
     let text = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(e.to_string()))?;
-    set.add(&out.join("report.json"), text.as_bytes())?;
+    set.add(&out.join(REPORT_JSON), text.as_bytes())?;
     set.commit()
 }
 
