@@ -668,6 +668,110 @@ fn no_output_replaces_an_input_of_its_run() {
     }
 }
 
+/// A floor under a lamp, and a cellar under the floor that no light reaches, each seen by
+/// its own view from above (the panorama: the scene's own render, `views/`).
+const LIT_AND_UNLIT: &str = r#"format = 1
+name = "cellar"
+geometry = ["geo.obj"]
+hide = []
+
+[[view]]
+name = "floor"
+image = "views/floor.exr"
+position = [0.5, 0.5, 0.9]
+direction = [0.0, 0.0, -1.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = [50.0, 50.0]
+size = [8, 8]
+
+[[view]]
+name = "cellar"
+image = "views/cellar.exr"
+position = [0.5, 0.5, -0.1]
+direction = [0.0, 0.0, -1.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = [50.0, 50.0]
+size = [8, 8]
+
+[[light]]
+object = "lamp"
+radiance = [10.0, 10.0, 10.0]
+
+[[group]]
+name = "floor"
+kind = "plastic"
+objects = ["quad"]
+
+[[group]]
+name = "cellar"
+kind = "plastic"
+objects = ["cellar"]
+"#;
+
+/// A group no light reaches renders black whatever its material: recovery says so and
+/// leaves it unrecovered (it kept its starting colour, 0.5, as a "diffuse" result with
+/// an error of 100%), and recovers the rest. With the lamp hidden too, no group is lit
+/// and recovery refuses the scene rather than write a file of starting colours.
+#[test]
+fn a_group_no_light_reaches_is_not_recovered_and_a_scene_without_light_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = format!(
+        "{}o cellar\nv 0 0 -1\nv 1 0 -1\nv 1 1 -1\nv 0 1 -1\nf 8 9 10 11\n",
+        OBJ
+    );
+    std::fs::write(dir.path().join("geo.obj"), obj).unwrap();
+    std::fs::write(dir.path().join("scene.toml"), LIT_AND_UNLIT).unwrap();
+    let materials = format!("{MATERIALS}\n[[material]]\ngroup = \"cellar\"\nmodel = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]\n");
+    std::fs::write(dir.path().join("m.toml"), materials).unwrap();
+    common::relume_ok(
+        dir.path(),
+        &[
+            "render",
+            "scene.toml",
+            "--materials",
+            "m.toml",
+            "--out",
+            "views",
+            "--spp",
+            "4",
+        ],
+    );
+    let run = common::relume_ok(
+        dir.path(),
+        &["recover", "scene.toml", "--out", "rec", "--effort", "fast"],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("group 'cellar': no light of the scene reaches it")
+            && stderr.contains("its material is not recovered"),
+        "{stderr}"
+    );
+    let recovered = std::fs::read_to_string(dir.path().join("rec/materials.toml")).unwrap();
+    assert!(
+        recovered.contains("group = \"floor\"") && !recovered.contains("group = \"cellar\""),
+        "{recovered}"
+    );
+
+    let no_light = LIT_AND_UNLIT
+        .replace("hide = []", "hide = [\"lamp\"]")
+        .replace(
+            "[[light]]\nobject = \"lamp\"\nradiance = [10.0, 10.0, 10.0]\n",
+            "",
+        );
+    std::fs::write(dir.path().join("scene.toml"), no_light).unwrap();
+    let run = relume(
+        dir.path(),
+        &["recover", "scene.toml", "--out", "dark", "--effort", "fast"],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("scene.toml: no light of the scene reaches what its views see"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("dark").exists());
+}
+
 /// `relume compare uncertainty m.toml <report>` in the case's folder: exit code, stderr.
 fn compare_uncertainty(case: &Case, report: &Path) -> (Option<i32>, String) {
     let out = relume(

@@ -30,6 +30,13 @@ pub(super) fn run(
     let all = vec![true; n_groups];
     let (first, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
     let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
+    let unlit = unlit_groups(rec, &first, spp)?;
+    if (0..n_groups).all(|g| unlit[g].is_some() || pure_pixels[g] == 0) {
+        return Err(Error::input(
+            &rec.owned.desc.path,
+            "no light of the scene reaches what its views see: every group's pure pixels render black, so no material can be recovered (a light hidden, of radiance 0, facing away, or none?)",
+        ));
+    }
     // Which groups go on is decided on the bias-only error, at the decisions' samples and
     // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
     // own noise (heavy-tailed paths), by whole percents either way.
@@ -66,6 +73,19 @@ pub(super) fn run(
         r.set_diffuse(decided[g]);
         let e = decided[g].map_or(0.0, |e| e.error);
         let sigma = decided[g].map_or(0.0, |e| e.sigma);
+        if let Some(unlit) = &unlit[g] {
+            rec.models[g] = GroupModel::Unseen;
+            r.decisions.push(format!(
+                "unlit: {}; material not recovered",
+                unlit.describe()
+            ));
+            warnings.push(format!(
+                "group '{}': {}; its material is not recovered (are the scene's lights right?)",
+                names[g],
+                unlit.describe()
+            ));
+            continue;
+        }
         match diffuse::verdict(pure_pixels[g], decided[g]) {
             DiffuseVerdict::Unseen => {
                 rec.models[g] = GroupModel::Unseen;
@@ -124,6 +144,64 @@ pub(super) fn run(
         }
     }
     Ok((report, candidates))
+}
+
+/// Pixel samples (at least) at which a group that rendered black in the iteration's first
+/// step is rendered again before it is called unlit: at the loop's few samples a dim group
+/// of a few pixels, lit only by light reflected off other groups, could miss every path.
+const UNLIT_CHECK_SAMPLES: u64 = CACHE_MIN_SAMPLES;
+
+/// A group that the scene's lights do not reach: whatever its material, its pixels render
+/// black, and the diffuse update, a ratio to the rendered mean, has nothing to scale (it
+/// kept its starting colour and went on with an error of 100%).
+struct Unlit {
+    pixels: u32,
+    spp: u32,
+    /// The panorama's mean over the pixels.
+    real_mean: [f64; 3],
+}
+
+impl Unlit {
+    fn describe(&self) -> String {
+        let [r, g, b] = self.real_mean;
+        format!(
+            "no light of the scene reaches it: its {} pure pixels render black at {} samples per pixel, where the panorama's mean is [{r:.4}, {g:.4}, {b:.4}]",
+            self.pixels, self.spp
+        )
+    }
+}
+
+/// The groups that rendered black in `first` (the iteration's first step, at `spp`) and
+/// again at [`UNLIT_CHECK_SAMPLES`] pixel samples or more, on the pixels of the iteration.
+fn unlit_groups(
+    rec: &mut Recovery,
+    first: &[fit::GroupFit],
+    spp: u32,
+) -> Result<Vec<Option<Unlit>>, Error> {
+    let black = |f: &fit::GroupFit| f.pixels > 0 && f.sum_rendered == [0.0; 3];
+    let suspects: Vec<bool> = first.iter().map(black).collect();
+    if !suspects.contains(&true) {
+        return Ok(first.iter().map(|_| None).collect());
+    }
+    let subset: Vec<_> = rec
+        .diffuse_subset()
+        .into_iter()
+        .filter(|p| suspects[p.group as usize])
+        .collect();
+    let check_spp = min_samples_spp(spp, subset.len() as u32, UNLIT_CHECK_SAMPLES);
+    let seed = rec.seed ^ 0x0B1A_C4ED;
+    let fits = rec.evaluate_pixels(&subset, check_spp, seed, &|g| suspects[g as usize])?;
+    Ok(fits
+        .iter()
+        .zip(&suspects)
+        .map(|(f, &suspect)| {
+            (suspect && black(f)).then(|| Unlit {
+                pixels: f.pixels,
+                spp: check_spp,
+                real_mean: f.sum_real.map(|v| v / f.pixels as f64),
+            })
+        })
+        .collect())
 }
 
 /// The diffuse refinement, after stage 5: the diffuse groups' colours again, under the
