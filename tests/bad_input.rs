@@ -526,6 +526,36 @@ fn a_scene_whose_light_adds_nothing_renders_black_with_a_warning() {
     );
 }
 
+/// An anisotropic direction along a flat group's normal has no projection on the surface:
+/// the lobe renders isotropic there (reflectance.md), which the render says, naming the
+/// group; a direction along the surface renders without a word.
+#[test]
+fn an_anisotropic_direction_along_the_normal_renders_isotropic_with_a_warning() {
+    let anisotropic = |direction: &str| {
+        let case = Case::new().materials(
+            "model = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]\n",
+            &format!(
+                "model = \"anisotropic\"\ncolor = [0.5, 0.5, 0.5]\nspecularity = 0.2\nroughness_u = 0.05\nroughness_v = 0.2\ndirection_u = {direction}\n"
+            ),
+        );
+        case.write();
+        // At 64 spp the view's 16 pixels find the small quad and lamp (no black warning).
+        let out = case.render("out", Some(64));
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        stderr
+    };
+    let stderr = anisotropic("[0.0, 0.0, -2.0]");
+    assert!(
+        stderr.contains(
+            "warning: group 'floor': its direction_u is parallel to the surface normal over 100% of its area"
+        ),
+        "{stderr}"
+    );
+    let stderr = anisotropic("[1.0, 0.0, 0.5]");
+    assert!(!stderr.contains("warning"), "{stderr}");
+}
+
 /// A folder where one output file should go (here the last one written): the command fails
 /// naming it, and writes none of its other outputs, so the folder never mixes two runs.
 #[test]

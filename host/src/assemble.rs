@@ -435,6 +435,42 @@ impl OwnedScene {
         .map_err(|e| Error::core(format!("{path}: building the scene"), e))
     }
 
+    /// Per group with an anisotropic material, the share of its area where the material's
+    /// direction is parallel to the surface normal, where the lobe renders isotropic
+    /// (reflectance.md): `(group, share)` for the groups where the share is not zero. A
+    /// direction given along a flat group's normal is a mistake the renderer cannot see.
+    pub fn isotropic_fallbacks(&self) -> Vec<(usize, f64)> {
+        let mut areas = vec![(0.0f64, 0.0f64); self.materials.len()];
+        for t in &self.triangles {
+            let Surface::Group(g) = t.surface else {
+                continue;
+            };
+            let Some(SurfaceMaterial {
+                material: Material::WardAnisotropic { direction, .. },
+                ..
+            }) = self.materials.get(g as usize)
+            else {
+                continue;
+            };
+            let n = t.normal_area2();
+            let area = n.length() as f64;
+            if area.is_nan() || area <= 0.0 {
+                continue;
+            }
+            let entry = &mut areas[g as usize];
+            entry.0 += area;
+            if relume_core::material::anisotropic_falls_back(n.normalize(), *direction) {
+                entry.1 += area;
+            }
+        }
+        areas
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, fallback))| *fallback > 0.0)
+            .map(|(g, (total, fallback))| (g, fallback / total))
+            .collect()
+    }
+
     /// The name of a surface, for reports.
     pub fn surface_name(&self, surface: Surface) -> &str {
         match surface {

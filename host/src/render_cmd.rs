@@ -56,6 +56,17 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
             )));
         }
     }
+    let fallbacks: Vec<String> = owned
+        .isotropic_fallbacks()
+        .into_iter()
+        .map(|(g, share)| {
+            format!(
+                "group '{}': its direction_u is parallel to the surface normal over {:.0}% of its area, where the anisotropic lobe renders isotropic (reflectance.md): give a direction along the surface",
+                owned.group_names[g],
+                100.0 * share
+            )
+        })
+        .collect();
     let mut inputs = owned.desc.input_files();
     inputs.extend(files.iter().flat_map(|f| f.input_files()));
     let pool = parallel::thread_pool(args.threads)?;
@@ -110,7 +121,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         images::add_exr_and_preview(&mut set, &args.out, &view_descs[i].name, &image)?;
     }
     progress.finish_and_clear();
-    let mut warnings = Vec::new();
+    let mut warnings = fallbacks;
     if all_black {
         warnings.push(format!(
             "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away?)",

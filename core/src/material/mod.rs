@@ -273,6 +273,14 @@ fn specular_probability(rho_d: Vec3, rho_s: Vec3) -> f32 {
     }
 }
 
+/// Whether an anisotropic lobe with `direction` falls back to isotropic at unit normal
+/// `n`: the direction is parallel to the normal, so its projection on the surface gives
+/// no u axis (reflectance.md). The same test as `Frame::from_normal_and_direction`, on a
+/// unit direction; public so that a host can tell a user where it happens.
+pub fn anisotropic_falls_back(n: Vec3, direction: Vec3) -> bool {
+    !(n.cross(normalized(direction)).length_squared() > 1e-12)
+}
+
 /// Unit vector `v / |v|` through libm; zero for a zero vector.
 #[inline]
 fn normalized(v: Vec3) -> Vec3 {
@@ -386,10 +394,8 @@ impl Bsdf {
                 alpha_v,
                 direction,
             } => {
-                let d = normalized(direction);
-                // The same test as `Frame::from_normal_and_direction`, on a unit direction.
-                if n.cross(d).length_squared() > 1e-12 {
-                    let frame = Frame::from_normal_and_direction(n, d);
+                if !anisotropic_falls_back(n, direction) {
+                    let frame = Frame::from_normal_and_direction(n, normalized(direction));
                     glossy(frame, rho_d, rho_s, alpha_u, alpha_v)
                 } else {
                     // reflectance.md: a direction parallel to n falls back to isotropic.
