@@ -97,6 +97,22 @@ pub fn read_view_image(path: &Path, exposure: f32, expected: [u32; 2]) -> Result
             ),
         ));
     }
+    let w = image.width as usize;
+    for (i, p) in image.pixels.iter().enumerate() {
+        if let Some(c) = p.iter().position(|&v| v > MAX_RADIANCE) {
+            let (x, y) = ((i % w) as u32, (i / w) as u32);
+            return Err(Error::at_pixel(
+                path,
+                x,
+                y,
+                format!(
+                    "channel {} value {} (times exposure {exposure}) is above the largest radiance relume computes with, {MAX_RADIANCE:e} (is the exposure right?)",
+                    CHANNELS[c],
+                    p[c] / exposure
+                ),
+            ));
+        }
+    }
     Ok(image)
 }
 
@@ -117,6 +133,12 @@ fn png_to_linear(decoded: DynamicImage) -> Vec<[f32; 3]> {
             .collect()
     }
 }
+
+/// The largest radiance a scene may hold (a panorama's pixel times its view's exposure, a
+/// light's radiance): recovery's errors square differences of radiances in 32-bit floats, summed over three
+/// channels, which stays below f32's largest (3.4e38) up to here. A panorama 1e30 times
+/// too bright read as NaN errors and reflectances at their bound.
+pub const MAX_RADIANCE: f32 = 1e18;
 
 /// Rejects NaN, infinite and negative values, then multiplies by `exposure` (and rejects an
 /// overflow to infinity).
@@ -443,6 +465,15 @@ mod tests {
                 && e.contains("overflows"),
             "{e}"
         );
+        // A panorama's radiance (times exposure) stays within MAX_RADIANCE.
+        let e = read_view_image(&big, 1e18, [2, 1]).unwrap_err().to_string();
+        assert!(
+            e.contains("big.exr: pixel (x 1, y 0)")
+                && e.contains("channel B value 2 (times exposure 1000000000000000000)")
+                && e.contains("above the largest radiance relume computes with, 1e18"),
+            "{e}"
+        );
+        read_view_image(&big, 5e17, [2, 1]).unwrap();
     }
 
     #[test]

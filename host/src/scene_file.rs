@@ -238,6 +238,15 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
                 format!("light '{object}': radiance must be >= 0, got {radiance:?}"),
             ));
         }
+        if radiance.iter().any(|&c| c > crate::images::MAX_RADIANCE) {
+            return Err(file.at(
+                l.radiance.span(),
+                format!(
+                    "light '{object}': radiance must be at most {:e}, the largest relume computes with, got {radiance:?}",
+                    crate::images::MAX_RADIANCE
+                ),
+            ));
+        }
         used.insert(object.clone(), ("a light".to_string(), line));
         lights.push(LightDesc { object, radiance });
     }
@@ -986,6 +995,13 @@ objects = ["quad"]
         // Zero is a switched-off light.
         let (_dir, path) = write("radiance = [5.0, 5.0, 5.0]", "radiance = [0.0, 0.0, 0.0]");
         assert_eq!(load_scene(&path).unwrap().lights[0].radiance, [0.0; 3]);
+        // Nor so large that errors overflow 32-bit floats.
+        bad(
+            "radiance = [5.0, 5.0, 5.0]",
+            "radiance = [5.0, 5.0, 1e30]",
+            18,
+            &["light 'lamp'", "radiance must be at most 1e18"],
+        );
     }
 
     #[test]

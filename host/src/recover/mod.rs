@@ -737,6 +737,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     for (g, r) in reports.iter_mut().enumerate() {
         r.error_final = final_fits[g].relative_error();
         r.model = rec.models[g].name().into();
+        warnings.extend(warnings::brighter_than_lit(
+            &names[g],
+            &rec.models[g],
+            &final_fits[g],
+        ));
     }
     let renders = output::render_views(&mut rec, final_spp, final_seed)?;
 

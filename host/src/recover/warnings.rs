@@ -2,7 +2,8 @@
 //! `relume bench stability` saw recovery fail (docs/stability.md): a user should know
 //! which parts of the answer the study says not to trust, from the report alone.
 
-use relume_core::fit;
+use relume_core::fit::{self, GroupFit};
+use relume_core::stages::diffuse;
 
 use super::model::GroupModel;
 use super::{Budget, GroupReport};
@@ -126,11 +127,84 @@ fn specularity(model: &GroupModel) -> Option<f64> {
     }
 }
 
+/// How much brighter than the render a diffuse group's panorama may be, with its colour at
+/// [`diffuse::MAX_DIFFUSE_REFLECTANCE`], before recovery says that no material explains it
+/// (5%: far above the final render's noise in a group's mean).
+pub const BRIGHTER_THAN_LIT: f64 = 0.05;
+
+/// A warning when group `name`'s diffuse colour ended at its bound in a channel where the
+/// panorama is still brighter than the final render (`fit`) by more than
+/// [`BRIGHTER_THAN_LIT`]: the scene's lights cannot light it that bright, so the colour is
+/// the bound, not a measurement. A light's radiance or a view's exposure is the likely
+/// culprit (a panorama 1.5x too bright came out as 0.99 everywhere, without a word).
+pub fn brighter_than_lit(name: &str, model: &GroupModel, fit: &GroupFit) -> Option<String> {
+    let GroupModel::Diffuse { color } = *model else {
+        return None;
+    };
+    let ratio = fit.mean_ratio();
+    let (c, worst) = (0..3)
+        .filter(|&c| color[c] >= diffuse::MAX_DIFFUSE_REFLECTANCE)
+        .map(|c| (c, ratio[c]))
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    (worst > 1.0 + BRIGHTER_THAN_LIT).then(|| {
+        format!(
+            "group '{name}': the panorama is {worst:.2}x as bright as the render with its diffuse reflectance at the bound {} ({} channel): no material explains it under the scene's lights; a light's radiance or a view's exposure is likely too low",
+            diffuse::MAX_DIFFUSE_REFLECTANCE,
+            ["red", "green", "blue"][c]
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::recover::{ComparisonReport, Effort};
     use relume_core::material::Kind;
+
+    /// A one-pixel fit whose panorama is `ratio` times the render in red.
+    fn fit_with_red_ratio(ratio: f64) -> GroupFit {
+        GroupFit {
+            pixels: 1,
+            sum_real: [ratio, 0.5, 0.5],
+            sum_rendered: [1.0, 0.5, 0.5],
+            ..GroupFit::default()
+        }
+    }
+
+    #[test]
+    fn a_diffuse_colour_at_its_bound_under_a_brighter_panorama_is_named() {
+        let at_bound = GroupModel::Diffuse {
+            color: [diffuse::MAX_DIFFUSE_REFLECTANCE, 0.5, 0.5],
+        };
+        let w = brighter_than_lit("wall", &at_bound, &fit_with_red_ratio(1.2)).unwrap();
+        assert!(
+            w.contains("group 'wall': the panorama is 1.20x as bright") && w.contains("red"),
+            "{w}"
+        );
+        // Within the allowance, below the bound, or not a diffuse colour: nothing to say.
+        let within = 1.0 + 0.9 * BRIGHTER_THAN_LIT;
+        assert_eq!(
+            brighter_than_lit("wall", &at_bound, &fit_with_red_ratio(within)),
+            None
+        );
+        let below = GroupModel::Diffuse {
+            color: [0.9, 0.5, 0.5],
+        };
+        assert_eq!(
+            brighter_than_lit("wall", &below, &fit_with_red_ratio(1.5)),
+            None
+        );
+        let lobe = GroupModel::Isotropic {
+            kind: Kind::Plastic,
+            color: [diffuse::MAX_DIFFUSE_REFLECTANCE, 0.5, 0.5],
+            specularity: 0.1,
+            roughness: 0.1,
+        };
+        assert_eq!(
+            brighter_than_lit("wall", &lobe, &fit_with_red_ratio(1.5)),
+            None
+        );
+    }
 
     fn group(name: &str, pixels: u32, comparisons: Vec<ComparisonReport>) -> GroupReport {
         GroupReport {
