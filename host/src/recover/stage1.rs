@@ -31,7 +31,9 @@ pub(super) fn run(
     let (first, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
     let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
     let unlit = unlit_groups(rec, &first, spp)?;
-    if (0..n_groups).all(|g| unlit[g].is_some() || pure_pixels[g] == 0) {
+    // (A scene whose views see no group whole is a different matter: every group unseen.)
+    let lit = (0..n_groups).any(|g| pure_pixels[g] > 0 && unlit[g].is_none());
+    if !lit && unlit.iter().any(Option::is_some) {
         return Err(Error::input(
             &rec.owned.desc.path,
             "no light of the scene reaches what its views see: every group's pure pixels render black, so no material can be recovered (a light hidden, of radiance 0, facing away, or none?)",
