@@ -157,6 +157,7 @@ const UNLIT_CHECK_SAMPLES: u64 = CACHE_MIN_SAMPLES;
 /// black, and the diffuse update, a ratio to the rendered mean, has nothing to scale (it
 /// kept its starting colour and went on with an error of 100%).
 struct Unlit {
+    /// Pixels rendered (the iteration's, at most `DIFFUSE_GROUP_PIXELS`).
     pixels: u32,
     spp: u32,
     /// The panorama's mean over the pixels.
@@ -167,7 +168,7 @@ impl Unlit {
     fn describe(&self) -> String {
         let [r, g, b] = self.real_mean;
         format!(
-            "no light of the scene reaches it: its {} pure pixels render black at {} samples per pixel, where the panorama's mean is [{r:.4}, {g:.4}, {b:.4}]",
+            "no light of the scene reaches it: its pure pixels render black ({} of them at {} samples per pixel), where the panorama's mean is [{r:.4}, {g:.4}, {b:.4}]",
             self.pixels, self.spp
         )
     }
