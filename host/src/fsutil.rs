@@ -121,7 +121,7 @@ impl OutputSet {
             dirs: Vec::new(),
             inputs: inputs
                 .into_iter()
-                .filter_map(|(path, what)| Some((std::fs::canonicalize(path).ok()?, what)))
+                .filter_map(|(path, what)| Some((resolved(&path)?, what)))
                 .collect(),
         }
     }
@@ -130,16 +130,7 @@ impl OutputSet {
     /// file added is checked; a command calls this before its work for the files it will
     /// write, so that it fails at once rather than at the end.
     pub fn check_target(&self, path: &Path) -> Result<(), Error> {
-        let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
-            return Ok(());
-        };
-        let dir = if dir.as_os_str().is_empty() {
-            Path::new(".")
-        } else {
-            dir
-        };
-        // The folder resolved, not the file: a link at `path` is replaced, not its target.
-        let Ok(target) = std::fs::canonicalize(dir).map(|d| d.join(name)) else {
+        let Some(target) = resolved(path) else {
             return Ok(()); // a folder not made yet holds no input
         };
         match self.inputs.iter().find(|(input, _)| *input == target) {
@@ -249,6 +240,17 @@ impl OutputSet {
         self.dirs.extend(missing);
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
     }
+}
+
+/// `path` with its folder resolved (links, `..`), not the file itself: what a rename onto
+/// `path` replaces (a link there, not its target). `None` when the folder does not exist.
+fn resolved(path: &Path) -> Option<PathBuf> {
+    let name = path.file_name()?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    std::fs::canonicalize(dir).ok().map(|d| d.join(name))
 }
 
 impl Drop for OutputSet {
