@@ -106,9 +106,8 @@ pub fn read_view_image(path: &Path, exposure: f32, expected: [u32; 2]) -> Result
                 x,
                 y,
                 format!(
-                    "channel {} value {} (times exposure {exposure}) is above the largest radiance relume computes with, {MAX_RADIANCE:e} (is the exposure right?)",
-                    CHANNELS[c],
-                    p[c] / exposure
+                    "channel {} is {:e} after exposure {exposure}, above the largest radiance relume computes with, {MAX_RADIANCE:e} (is the exposure right?)",
+                    CHANNELS[c], p[c]
                 ),
             ));
         }
@@ -135,9 +134,9 @@ fn png_to_linear(decoded: DynamicImage) -> Vec<[f32; 3]> {
 }
 
 /// The largest radiance a scene may hold (a panorama's pixel times its view's exposure, a
-/// light's radiance): recovery's errors square differences of radiances in 32-bit floats, summed over three
-/// channels, which stays below f32's largest (3.4e38) up to here. A panorama 1e30 times
-/// too bright read as NaN errors and reflectances at their bound.
+/// light's radiance): recovery's errors square differences of radiances in 32-bit floats,
+/// summed over three channels, which stays below f32's largest (3.4e38) up to here. A
+/// panorama 1e30 times too bright read as NaN errors and reflectances at their bound.
 pub const MAX_RADIANCE: f32 = 1e18;
 
 /// Rejects NaN, infinite and negative values, then multiplies by `exposure` (and rejects an
@@ -509,7 +508,7 @@ mod tests {
         let e = read_view_image(&big, 1e18, [2, 1]).unwrap_err().to_string();
         assert!(
             e.contains("big.exr: pixel (x 1, y 0)")
-                && e.contains("channel B value 2 (times exposure 1000000000000000000)")
+                && e.contains("channel B is 2e18 after exposure 1000000000000000000")
                 && e.contains("above the largest radiance relume computes with, 1e18"),
             "{e}"
         );

@@ -1,6 +1,8 @@
 //! Warnings in report.json where a recovery's input or result falls in a region where
 //! `relume bench stability` saw recovery fail (docs/stability.md): a user should know
-//! which parts of the answer the study says not to trust, from the report alone.
+//! which parts of the answer the study says not to trust, from the report alone. And one
+//! on the result itself: a diffuse colour held at its bound by a panorama brighter than
+//! the scene's lights can make it ([`brighter_than_lit`]).
 
 use relume_core::fit::{self, GroupFit};
 use relume_core::stages::diffuse;
@@ -136,7 +138,9 @@ pub const BRIGHTER_THAN_LIT: f64 = 0.05;
 /// panorama is still brighter than the final render (`fit`) by more than
 /// [`BRIGHTER_THAN_LIT`]: the scene's lights cannot light it that bright, so the colour is
 /// the bound, not a measurement. A light's radiance or a view's exposure is the likely
-/// culprit (a panorama 1.5x too bright came out as 0.99 everywhere, without a word).
+/// culprit: cornell's panorama at 10x its exposure holds its ceiling at the bound 1.22x
+/// too dark (a milder error hides in higher reflectances, whose interreflections brighten
+/// a closed room; at 2x no colour reached the bound).
 pub fn brighter_than_lit(name: &str, model: &GroupModel, fit: &GroupFit) -> Option<String> {
     let GroupModel::Diffuse { color } = *model else {
         return None;
