@@ -636,7 +636,6 @@ fn no_output_replaces_an_input_of_its_run() {
     let scene = case.path("scene.toml");
     let runs: [(Vec<&str>, &str, &str); 3] = [
         (
-            // --limit-group-pixels names a group recovery would refuse only later.
             vec![
                 "recover",
                 path_str(&scene),
@@ -675,6 +674,7 @@ fn no_output_replaces_an_input_of_its_run() {
         ),
     ];
     for (mut args, file, what) in runs {
+        // A group recovery would refuse only after its first renders: the check comes first.
         if args[0] == "recover" {
             args.extend(["--limit-group-pixels", "nosuch=10"]);
         }
