@@ -197,6 +197,14 @@ fn files_in(dir: &Path) -> Vec<PathBuf> {
     out
 }
 
+/// Every file under `dir` with its bytes, sorted by path.
+fn files_and_bytes(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    files_in(dir)
+        .into_iter()
+        .map(|f| (f.clone(), std::fs::read(&f).unwrap()))
+        .collect()
+}
+
 const INPUT: i32 = 3;
 const IO: i32 = 4;
 
@@ -629,10 +637,7 @@ fn no_output_replaces_an_input_of_its_run() {
     );
     case.write();
     assert!(case.render("rec/views", Some(4)).status.success());
-    let before: Vec<(PathBuf, Vec<u8>)> = files_in(case.dir.path())
-        .into_iter()
-        .map(|f| (f.clone(), std::fs::read(&f).unwrap()))
-        .collect();
+    let before = files_and_bytes(case.dir.path());
     let scene = case.path("scene.toml");
     let runs: [(Vec<&str>, &str, &str); 3] = [
         (
@@ -690,11 +695,10 @@ fn no_output_replaces_an_input_of_its_run() {
             !stderr.contains("panicked") && !stderr.contains("nosuch"),
             "{stderr}"
         );
-        let after: Vec<(PathBuf, Vec<u8>)> = files_in(case.dir.path())
-            .into_iter()
-            .map(|f| (f.clone(), std::fs::read(&f).unwrap()))
-            .collect();
-        assert!(after == before, "{args:?} changed the files");
+        assert!(
+            files_and_bytes(case.dir.path()) == before,
+            "{args:?} changed the files"
+        );
     }
 }
 
