@@ -109,6 +109,8 @@ pub struct OutputSet {
     dirs: Vec<PathBuf>,
     /// Files the run reads (canonical path, what each is), which no output may replace.
     inputs: Vec<(PathBuf, String)>,
+    /// Earlier outputs that this set's files make stale, removed at its commit.
+    stale: Vec<PathBuf>,
 }
 
 impl OutputSet {
@@ -119,6 +121,7 @@ impl OutputSet {
         OutputSet {
             staged: Vec::new(),
             dirs: Vec::new(),
+            stale: Vec::new(),
             inputs: inputs
                 .into_iter()
                 .filter_map(|(path, what)| Some((resolved(&path)?, what)))
@@ -195,8 +198,23 @@ impl OutputSet {
         Ok(())
     }
 
-    /// Renames every file into place. A target that a file cannot replace (a folder) is
-    /// found before the first rename, so that case too leaves no part of the set.
+    /// Whether a file for `path` is staged in this set.
+    pub fn stages(&self, path: &Path) -> bool {
+        self.staged.iter().any(|(_, target)| target == path)
+    }
+
+    /// Removes the file at `path` when the set commits (an earlier run's output that this
+    /// one does not write again, so that a folder never mixes two runs); not if the set
+    /// fails. An input of the run is refused, as for a file written.
+    pub fn remove_on_commit(&mut self, path: &Path) -> Result<(), Error> {
+        self.check_target(path)?;
+        self.stale.push(path.to_path_buf());
+        Ok(())
+    }
+
+    /// Renames every file into place, then removes the stale ones. A target that a file
+    /// cannot replace (a folder) is found before the first rename, so that case too leaves
+    /// no part of the set.
     pub fn commit(mut self) -> Result<(), Error> {
         for (_, target) in &self.staged {
             if std::fs::symlink_metadata(target).is_ok_and(|m| m.is_dir()) {
@@ -221,6 +239,15 @@ impl OutputSet {
         }
         for dir in std::mem::take(&mut self.dirs) {
             registry.forget_dir(&dir);
+        }
+        drop(registry);
+        for path in std::mem::take(&mut self.stale) {
+            match std::fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(Error::io(&path, e))
+                }
+                _ => {}
+            }
         }
         Ok(())
     }
@@ -405,6 +432,33 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(leftovers.len(), 2, "{leftovers:?}");
+    }
+
+    #[test]
+    fn stale_files_go_only_when_the_set_commits() {
+        let dir = tempfile::tempdir().unwrap();
+        let (old, new) = (dir.path().join("old.exr"), dir.path().join("new.exr"));
+        std::fs::write(&old, b"earlier run").unwrap();
+        let mut failed = OutputSet::default();
+        failed.add(&new, b"this run").unwrap();
+        failed.remove_on_commit(&old).unwrap();
+        assert!(failed.stages(&new) && !failed.stages(&old));
+        drop(failed);
+        assert!(
+            old.exists() && !new.exists(),
+            "a set that fails removes nothing"
+        );
+        let mut set = OutputSet::default();
+        set.add(&new, b"this run").unwrap();
+        set.remove_on_commit(&old).unwrap();
+        set.remove_on_commit(&dir.path().join("never-there.exr"))
+            .unwrap();
+        set.commit().unwrap();
+        assert!(!old.exists() && new.exists());
+        // An input is not removed.
+        std::fs::write(&old, b"input").unwrap();
+        let mut keeping = OutputSet::keeping(vec![(old.clone(), "an input".into())]);
+        assert!(keeping.remove_on_commit(&old).is_err());
     }
 
     #[test]

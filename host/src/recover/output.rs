@@ -74,6 +74,7 @@ const MATERIALS_RAD: &str = "materials.rad";
 const REPORT_JSON: &str = "report.json";
 const VIEWS_DIR: &str = "views";
 const ERRORS_DIR: &str = "errors";
+const TEXTURES_DIR: &str = "textures";
 
 /// Writes everything into `set` (from [`prepare`]) and commits it.
 pub(super) fn write_all(
@@ -112,7 +113,7 @@ pub(super) fn write_all(
         images::add_exr_and_preview(&mut set, &out.join(ERRORS_DIR), name, &diff)?;
     }
     let names = &rec.owned.group_names;
-    let map_path = |g: usize| out.join("textures").join(format!("{}.exr", names[g]));
+    let map_path = |g: usize| out.join(TEXTURES_DIR).join(format!("{}.exr", names[g]));
     let mut rad = String::from("# relume: recovered materials as RADIANCE primitives\n");
     for (g, model) in rec.models.iter().enumerate() {
         let name = &names[g];
@@ -121,7 +122,7 @@ pub(super) fn write_all(
         let mut primitive = (*model, String::from("void"));
         if let GroupModel::Textured { map, lobe } = *model {
             let specularity = lobe.specularity();
-            set.create_dir(&out.join("textures"))?;
+            set.create_dir(&out.join(TEXTURES_DIR))?;
             let map = &rec.maps[map];
             let image = Image {
                 width: map.side,
@@ -157,6 +158,10 @@ pub(super) fn write_all(
             None => rad.push_str(&format!("\n# {name}: unseen, not recovered\n")),
         }
     }
+    // An earlier recovery's map of a group this one did not map is no output of this run.
+    for path in stale_maps(&set, out, names) {
+        set.remove_on_commit(&path)?;
+    }
     let materials_path = out.join(MATERIALS_TOML);
     let materials = MaterialsDesc {
         path: materials_path.clone(),
@@ -178,6 +183,19 @@ pub(super) fn write_all(
     set.commit()
 }
 
+/// The files of `out/textures` named for one of the scene's groups (`<group>.exr`,
+/// `.hdr`, `.cal`) that `set` does not write: an earlier recovery's maps, which the
+/// materials of this one do not name. Files of other names are left alone.
+fn stale_maps(set: &OutputSet, out: &Path, group_names: &[String]) -> Vec<PathBuf> {
+    group_names
+        .iter()
+        .flat_map(|name| {
+            ["exr", "hdr", "cal"].map(|ext| out.join(TEXTURES_DIR).join(format!("{name}.{ext}")))
+        })
+        .filter(|path| !set.stages(path) && path.is_file())
+        .collect()
+}
+
 /// The RADIANCE picture and mapping of a textured group: `textures/<group>.hdr` holds the
 /// map over (1 - s) (RADIANCE's plastic multiplies the picture by its colour and (1 - s));
 /// `textures/<group>.cal` turns the hit point into the OBJ (u, v) and remaps it so that
@@ -197,7 +215,7 @@ fn add_radiance_picture(
         height: map.height,
         pixels: map.pixels.iter().map(|p| p.map(|c| c * scale)).collect(),
     };
-    let hdr = out.join("textures").join(format!("{name}.hdr"));
+    let hdr = out.join(TEXTURES_DIR).join(format!("{name}.hdr"));
     set.add(&hdr, &images::hdr_bytes(&hdr, &picture)?)?;
     let (o, gu, gv) = (affine.origin, affine.grad_u, affine.grad_v);
     let cal = format!(
@@ -221,7 +239,40 @@ fn add_radiance_picture(
         gvz = gv.z,
     );
     set.add(
-        &out.join("textures").join(format!("{name}.cal")),
+        &out.join(TEXTURES_DIR).join(format!("{name}.cal")),
         cal.as_bytes(),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Of an earlier run's maps, those this run does not write again are stale; a file of
+    /// another name in the folder is not the recovery's to remove.
+    #[test]
+    fn an_earlier_runs_maps_that_this_run_does_not_write_are_stale() {
+        let dir = tempfile::tempdir().unwrap();
+        let textures = dir.path().join(TEXTURES_DIR);
+        std::fs::create_dir(&textures).unwrap();
+        for file in [
+            "picture.exr",
+            "picture.hdr",
+            "picture.cal",
+            "wall.exr",
+            "notes.txt",
+        ] {
+            std::fs::write(textures.join(file), b"earlier run").unwrap();
+        }
+        let mut set = OutputSet::default();
+        set.add(&textures.join("wall.exr"), b"this run").unwrap();
+        let names = ["wall", "picture", "floor"].map(String::from);
+        let mut stale = stale_maps(&set, dir.path(), &names);
+        stale.sort();
+        let expected: Vec<PathBuf> = ["picture.cal", "picture.exr", "picture.hdr"]
+            .iter()
+            .map(|f| textures.join(f))
+            .collect();
+        assert_eq!(stale, expected);
+    }
 }
