@@ -136,10 +136,13 @@ pub fn write_derived_scene(
     // One set, which may replace none of the scene's own files: derived into the scene's
     // folder, the panorama's views and scene.toml would be overwritten.
     let mut set = OutputSet::keeping(desc.input_files());
-    set.check_target(&scene_path)?;
-    for v in &desc.views {
-        set.check_target(&views_dir.join(format!("{}.exr", v.name)))?;
-    }
+    set.check_targets(
+        std::iter::once(scene_path.clone()).chain(
+            desc.views
+                .iter()
+                .map(|v| views_dir.join(format!("{}.exr", v.name))),
+        ),
+    )?;
     set.create_dir(&views_dir)?;
     // The views' paths as the derived scene gives them: absolute, in a folder that exists.
     let views_dir_absolute =

@@ -145,6 +145,11 @@ impl OutputSet {
         }
     }
 
+    /// [`OutputSet::check_target`] for each of `paths`.
+    pub fn check_targets(&self, paths: impl IntoIterator<Item = PathBuf>) -> Result<(), Error> {
+        paths.into_iter().try_for_each(|p| self.check_target(&p))
+    }
+
     /// Writes `bytes` to a synced temp file beside `path`; a path added twice keeps the
     /// later bytes.
     pub fn add(&mut self, path: &Path, bytes: &[u8]) -> Result<(), Error> {
@@ -161,10 +166,7 @@ impl OutputSet {
         path: &Path,
         write: impl FnOnce(&mut BufWriter<File>) -> Result<(), Error>,
     ) -> Result<(), Error> {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
+        let dir = folder_of(path);
         self.check_target(path)?;
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
         let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
@@ -273,11 +275,17 @@ impl OutputSet {
 /// `path` replaces (a link there, not its target). `None` when the folder does not exist.
 fn resolved(path: &Path) -> Option<PathBuf> {
     let name = path.file_name()?;
-    let dir = match path.parent() {
+    std::fs::canonicalize(folder_of(path))
+        .ok()
+        .map(|d| d.join(name))
+}
+
+/// The folder a file at `path` is in (`.` for a bare file name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
-    };
-    std::fs::canonicalize(dir).ok().map(|d| d.join(name))
+    }
 }
 
 impl Drop for OutputSet {

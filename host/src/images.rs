@@ -97,21 +97,14 @@ pub fn read_view_image(path: &Path, exposure: f32, expected: [u32; 2]) -> Result
             ),
         ));
     }
-    let w = image.width as usize;
-    for (i, p) in image.pixels.iter().enumerate() {
-        if let Some(c) = p.iter().position(|&v| v > MAX_RADIANCE) {
-            let (x, y) = ((i % w) as u32, (i / w) as u32);
-            return Err(Error::at_pixel(
-                path,
-                x,
-                y,
-                format!(
-                    "channel {} is {:e} after exposure {exposure}, above the largest radiance relume computes with, {MAX_RADIANCE:e} (is the exposure right?)",
-                    CHANNELS[c], p[c]
-                ),
-            ));
-        }
-    }
+    reject_value(
+        path,
+        &image,
+        |v| v > MAX_RADIANCE,
+        &format!(
+            "after exposure {exposure} is above the largest radiance relume computes with, {MAX_RADIANCE:e} (is the exposure right?)"
+        ),
+    )?;
     Ok(image)
 }
 
@@ -508,7 +501,9 @@ mod tests {
         let e = read_view_image(&big, 1e18, [2, 1]).unwrap_err().to_string();
         assert!(
             e.contains("big.exr: pixel (x 1, y 0)")
-                && e.contains("channel B is 2e18 after exposure 1000000000000000000")
+                && e.contains(
+                    "channel B value 2000000000000000000 after exposure 1000000000000000000"
+                )
                 && e.contains("above the largest radiance relume computes with, 1e18"),
             "{e}"
         );

@@ -93,12 +93,12 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     // the panorama's folder would put itself over the views' images), and the folder must
     // be made.
     let mut set = OutputSet::keeping(inputs);
-    for &i in &selected {
-        for path in images::exr_and_preview_paths(&args.out, &view_descs[i].name) {
-            set.check_target(&path)?;
-        }
-    }
-    set.check_target(&args.out.join(RENDER_JSON))?;
+    set.check_targets(
+        selected
+            .iter()
+            .flat_map(|&i| images::exr_and_preview_paths(&args.out, &view_descs[i].name))
+            .chain([args.out.join(RENDER_JSON)]),
+    )?;
     set.create_dir(&args.out)?;
     let mut seconds = 0.0;
     let mut samples = 0u64;

@@ -128,6 +128,18 @@ const CACHE_SPP: u32 = 256;
 const COLOR_TOLERANCE: f64 = 0.01;
 const LOBE_TOLERANCE: f64 = 0.08;
 
+/// A square view of `side` pixels from half a unit above the floor, looking down at it.
+fn looking_down(side: u32) -> Option<View> {
+    View::new(
+        Vec3::new(0.0, 0.0, 0.5),
+        -Vec3::Z,
+        Vec3::Y,
+        [90.0, 90.0],
+        [side, side],
+    )
+    .ok()
+}
+
 fn floor_material(material: Material) -> [SurfaceMaterial; 1] {
     [SurfaceMaterial {
         material,
@@ -227,13 +239,7 @@ fn floor_sums(
 /// Recovers the floor of `scene` (group 0) as the core's stages would, and checks it
 /// against the material the "panorama" was rendered with. Returns whether it matched.
 fn recover_floor(scene: &Scene) -> bool {
-    let Ok(view) = View::new(
-        Vec3::new(0.0, 0.0, 0.5),
-        -Vec3::Z,
-        Vec3::Y,
-        [90.0, 90.0],
-        [SIDE, SIDE],
-    ) else {
+    let Some(view) = looking_down(SIDE) else {
         return false;
     };
     // The "panorama": the floor rendered with its true material.
@@ -303,14 +309,7 @@ fn recover_floor(scene: &Scene) -> bool {
         .text(" diffuse")
         .print();
 
-    let off = |value: f64, truth: f32| {
-        let relative = value / truth as f64 - 1.0;
-        if relative < 0.0 {
-            -relative
-        } else {
-            relative
-        }
-    };
+    let off = |value: f64, truth: f32| (value / truth as f64 - 1.0).abs();
     let color_ok = (0..3).all(|c| off(lobe.color[c], TRUE_COLOR[c]) <= COLOR_TOLERANCE);
     let lobe_ok = off(lobe.specularity, TRUE_SPECULARITY) <= LOBE_TOLERANCE
         && off(alpha, TRUE_ROUGHNESS) <= LOBE_TOLERANCE;
@@ -364,15 +363,8 @@ pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
             return 1;
         }
     };
-    let view = match View::new(
-        Vec3::new(0.0, 0.0, 0.5),
-        -Vec3::Z,
-        Vec3::Y,
-        [90.0, 90.0],
-        [4, 4],
-    ) {
-        Ok(v) => v,
-        Err(_) => return 1,
+    let Some(view) = looking_down(4) else {
+        return 1;
     };
     let settings = RenderSettings {
         spp: 16,

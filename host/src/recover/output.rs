@@ -53,16 +53,12 @@ pub(super) fn prepare(
     let mut set = OutputSet::keeping(inputs);
     // The files named before the recovery (the maps' names depend on its result): none may
     // replace an input, which the set checks again as each is written.
-    for file in [MATERIALS_TOML, MATERIALS_RAD, REPORT_JSON] {
-        set.check_target(&out.join(file))?;
-    }
-    for dir in [VIEWS_DIR, ERRORS_DIR] {
-        for name in view_names {
-            for path in images::exr_and_preview_paths(&out.join(dir), name) {
-                set.check_target(&path)?;
-            }
-        }
-    }
+    set.check_targets([MATERIALS_TOML, MATERIALS_RAD, REPORT_JSON].map(|f| out.join(f)))?;
+    set.check_targets([VIEWS_DIR, ERRORS_DIR].iter().flat_map(|dir| {
+        view_names
+            .iter()
+            .flat_map(move |name| images::exr_and_preview_paths(&out.join(dir), name))
+    }))?;
     set.create_dir(&out.join(VIEWS_DIR))?;
     set.create_dir(&out.join(ERRORS_DIR))?;
     Ok(set)
