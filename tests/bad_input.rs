@@ -582,12 +582,17 @@ fn a_folder_in_the_way_of_one_output_leaves_none_of_the_others() {
 
 /// The tiny scene with its own render (4 spp) as its panorama, for `recover`.
 fn case_with_panorama() -> Case {
+    case_with_panorama_in("panorama")
+}
+
+/// [`case_with_panorama`] with the panorama in `folder` (relative to the scene).
+fn case_with_panorama_in(folder: &str) -> Case {
     let case = Case::new().scene(
         "name = \"front\"\n",
-        "name = \"front\"\nimage = \"panorama/front.exr\"\n",
+        &format!("name = \"front\"\nimage = \"{folder}/front.exr\"\n"),
     );
     case.write();
-    assert!(case.render("panorama", Some(4)).status.success());
+    assert!(case.render(folder, Some(4)).status.success());
     case
 }
 
@@ -631,12 +636,7 @@ fn a_recovery_whose_output_folder_cannot_be_made_fails_at_once() {
 /// and what it is, and leaves every file as it was.
 #[test]
 fn no_output_replaces_an_input_of_its_run() {
-    let case = Case::new().scene(
-        "name = \"front\"\n",
-        "name = \"front\"\nimage = \"rec/views/front.exr\"\n",
-    );
-    case.write();
-    assert!(case.render("rec/views", Some(4)).status.success());
+    let case = case_with_panorama_in("rec/views");
     let before = files_and_bytes(case.dir.path());
     let scene = case.path("scene.toml");
     let runs: [(Vec<&str>, &str, &str); 3] = [
