@@ -401,9 +401,11 @@ impl<'a> Bvh<'a> {
     /// A view of buffers that [`Bvh::build`] filled for these `triangles`, using
     /// `node_count` nodes ([`Bvh::node_count`]): recovery renders the same geometry many
     /// times under new materials, and building costs as much as a few hundred thousand
-    /// rays. Errors if the buffers are too short for the counts. Traversal checks every
-    /// index, so buffers that were not built for these triangles give wrong hits, never a
-    /// panic.
+    /// rays. Errors if the buffers are too short for the counts, or if an interior node's
+    /// second child is not after its first (the build's depth-first order, which makes
+    /// every traversal step move forward and so end). Traversal checks every index, so
+    /// buffers that were not built for these triangles give wrong hits, never a panic or
+    /// a hang.
     pub fn from_built(
         triangles: &[Triangle],
         nodes: &'a [BvhNode],
@@ -421,6 +423,14 @@ impl<'a> Bvh<'a> {
         if (n == 0) != (node_count == 0) {
             return Err(Error::InvalidValue {
                 what: "built bvh: node count does not match the triangles",
+            });
+        }
+        let forward = |(i, node): (usize, &BvhNode)| {
+            node.count > 0 || (node.first as usize > i + 1 && (node.first as usize) < node_count)
+        };
+        if !nodes.iter().enumerate().all(forward) {
+            return Err(Error::InvalidValue {
+                what: "built bvh: an interior node's children are not after it",
             });
         }
         Ok(Bvh { nodes, packed })
@@ -1194,6 +1204,37 @@ mod tests {
                 needed: MAX_TRIANGLES + 1
             })
         );
+    }
+
+    #[test]
+    fn built_buffers_whose_children_point_back_are_refused() {
+        let tris = random_soup(11, 40, 0.1);
+        let mut nodes = vec![BvhNode::default(); 2 * tris.len()];
+        let mut packed = vec![PackedTriangle::default(); tris.len()];
+        let used = Bvh::build(
+            &tris,
+            BvhBuffers {
+                nodes: &mut nodes,
+                packed: &mut packed,
+            },
+        )
+        .unwrap()
+        .node_count();
+        assert!(used > 1 && nodes[0].count == 0);
+        assert!(Bvh::from_built(&tris, &nodes, &packed, used).is_ok());
+        // An interior node whose second child is itself, its first child, or past the end
+        // once made traversal loop for ever or stop short.
+        for first in [0, 1, used as u32] {
+            let mut bad = nodes.clone();
+            bad[0].first = first;
+            assert_eq!(
+                Bvh::from_built(&tris, &bad, &packed, used).err(),
+                Some(Error::InvalidValue {
+                    what: "built bvh: an interior node's children are not after it"
+                }),
+                "first {first}"
+            );
+        }
     }
 
     #[test]

@@ -51,8 +51,12 @@ pub fn upper_tail(t: f64, df: u32) -> f64 {
     }
 }
 
-/// The value t with `df` degrees of freedom exceeds with probability `p` (`0 < p < 0.5`).
+/// The value t with `df` degrees of freedom exceeds with probability `p` (`0 < p < 0.5`;
+/// NaN outside it, where the bisection's bracket would grow without end).
 pub fn critical_value(p: f64, df: u32) -> f64 {
+    if !(p > 0.0 && p < 0.5) {
+        return f64::NAN;
+    }
     let z = normal_critical_value(p);
     if df >= EXPANSION_FROM {
         return cornish_fisher(z, df as f64);
@@ -138,5 +142,15 @@ mod tests {
         let values: [f64; 6] = [15, 16, 80, 100, 1000, 1_000_000].map(|df| critical_value(p, df));
         assert!(values.windows(2).all(|w| w[0] > w[1]), "{values:?}");
         assert!((values[0] - 3.59).abs() < 0.01 && (values[5] - 3.0).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_probability_outside_the_upper_half_has_no_critical_value() {
+        // A negative p once doubled the bisection's bracket for ever.
+        for p in [-0.1, 0.0, 0.5, 0.7, f64::NAN, f64::INFINITY] {
+            for df in [1, 5, 99, 100] {
+                assert!(critical_value(p, df).is_nan(), "p {p} df {df}");
+            }
+        }
     }
 }

@@ -65,7 +65,8 @@ pub fn map_side(pixels: usize) -> u32 {
 /// Solves for the `width x height` map in `texels` (row 0 = v 1), starting from its
 /// content, clamped to reflectances in `[0, max_reflectance]`. `numerator` and
 /// `denominator` are scratch of the same length. Returns how many texels no observation
-/// touched (filled from their neighbours).
+/// touched (filled from their neighbours). An empty map or a bound that is not a finite
+/// non-negative reflectance is an error.
 pub fn solve_map(
     observations: &[MapObservation],
     width: u32,
@@ -75,6 +76,16 @@ pub fn solve_map(
     numerator: &mut [Vec3],
     denominator: &mut [Vec3],
 ) -> Result<usize, Error> {
+    if width == 0 || height == 0 {
+        return Err(Error::InvalidValue {
+            what: "texture map: a side is 0",
+        });
+    }
+    if !(max_reflectance.is_finite() && max_reflectance >= 0.0) {
+        return Err(Error::InvalidValue {
+            what: "texture map: the largest reflectance is not finite and non-negative",
+        });
+    }
     let n = (width as usize)
         .checked_mul(height as usize)
         .ok_or(Error::InvalidValue {
@@ -356,6 +367,24 @@ mod tests {
         let mut a = vec![Vec3::ZERO; 16];
         let mut b = vec![Vec3::ZERO; 16];
         assert!(solve_map(&[], 4, 4, 1.0, &mut small, &mut a, &mut b).is_err());
+    }
+
+    #[test]
+    fn an_empty_map_or_a_bad_bound_is_an_error_not_a_panic() {
+        let obs = observe(&truth_map(4, 4), 4, 4, 50, 0.0, 1.0);
+        let mut buffers = [
+            vec![Vec3::splat(0.5); 16],
+            vec![Vec3::ZERO; 16],
+            vec![Vec3::ZERO; 16],
+        ];
+        let [map, a, b] = &mut buffers;
+        // A side of 0 once indexed an empty buffer; a NaN bound once reached `clamp`.
+        assert!(solve_map(&obs, 0, 4, 1.0, map, a, b).is_err());
+        assert!(solve_map(&obs, 4, 0, 1.0, map, a, b).is_err());
+        for bound in [f32::NAN, -0.5, f32::INFINITY] {
+            assert!(solve_map(&obs, 4, 4, bound, map, a, b).is_err(), "{bound}");
+        }
+        assert!(solve_map(&obs, 4, 4, 1.0, map, a, b).is_ok());
     }
 
     #[test]
