@@ -267,6 +267,13 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                 if name.is_empty() {
                     return Err(err(format!("`{key}` without a name")));
                 }
+                // A name may hold spaces, so `o floor # comment` would silently name an
+                // object "floor # comment"; OBJ has no trailing comments (as on `v` lines).
+                if name.contains('#') {
+                    return Err(err(format!(
+                        "object name '{name}' contains '#': OBJ has no comments after a statement; put the comment on a line of its own"
+                    )));
+                }
                 if let Some(first) = objects.iter().find(|o| o.name == name) {
                     return Err(err(format!(
                         "object '{name}' appears twice in the file (first at line {}): names must be unique",
@@ -594,6 +601,23 @@ mod tests {
             &["object 'a' appears twice"],
         );
         bad("o\n", 1, &["`o` without a name"]);
+    }
+
+    #[test]
+    fn a_comment_after_an_object_name_is_an_error_not_part_of_the_name() {
+        bad(
+            &format!("o floor # the floor\n{QUAD}f 1 2 3\n"),
+            1,
+            &[
+                "object name 'floor # the floor' contains '#'",
+                "a line of its own",
+            ],
+        );
+        bad(
+            &format!("g a#1\n{QUAD}f 1 2 3\n"),
+            1,
+            &["'a#1' contains '#'"],
+        );
     }
 
     #[test]
