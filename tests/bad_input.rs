@@ -611,16 +611,31 @@ fn recover_fails(case: &Case, out: &Path, extra: &[&str]) -> String {
 }
 
 /// An output folder that cannot be made (under a file) fails at the start of a recovery,
-/// before its minutes of work, naming the folder; nothing is written. The run also names a
-/// group the scene does not have in `--limit-group-pixels`, an error recovery meets only
-/// after it has found the pure pixels: the folder's error comes first.
+/// before its minutes of work, naming the file in the way (bad input: once the system's
+/// bare "Not a directory", an I/O error); nothing is written. The run also names a group
+/// the scene does not have in `--limit-group-pixels`, an error recovery meets only after
+/// it has found the pure pixels: the folder's error comes first.
 #[test]
 fn a_recovery_whose_output_folder_cannot_be_made_fails_at_once() {
     let case = case_with_panorama();
     let out = case.path("m.toml/recovered");
-    let stderr = recover_fails(&case, &out, &["--limit-group-pixels", "nosuch=10"]);
+    let scene = case.path("scene.toml");
+    let args = [
+        "recover",
+        path_str(&scene),
+        "--out",
+        path_str(&out),
+        "--effort",
+        "fast",
+    ];
+    let run = relume(
+        case.dir.path(),
+        &[&args[..], &["--limit-group-pixels", "nosuch=10"]].concat(),
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
     assert!(
-        stderr.contains("m.toml/recovered") && !stderr.contains("nosuch"),
+        stderr.contains("m.toml: is a file, not a folder") && !stderr.contains("nosuch"),
         "{stderr}"
     );
     assert_eq!(
@@ -700,6 +715,48 @@ fn no_output_replaces_an_input_of_its_run() {
             "{args:?} changed the files"
         );
     }
+}
+
+/// Which groups get a map is known only after a recovery, so a panorama image where a
+/// group's map would go (`textures/<group>.exr`) was refused only after the whole run: now
+/// every group's map files are checked before it (the `nosuch` group of
+/// `--limit-group-pixels` is an error met only after the first renders).
+#[test]
+fn a_panorama_where_a_groups_map_would_go_is_refused_before_the_recovery() {
+    let case = Case::new().scene(
+        "name = \"front\"\n",
+        "name = \"front\"\nimage = \"rec/textures/floor.exr\"\n",
+    );
+    case.write();
+    assert!(case.render("rec/textures", Some(4)).status.success());
+    std::fs::rename(
+        case.path("rec/textures/front.exr"),
+        case.path("rec/textures/floor.exr"),
+    )
+    .unwrap();
+    let before = files_and_bytes(case.dir.path());
+    let scene = case.path("scene.toml");
+    let args = [
+        "recover",
+        path_str(&scene),
+        "--out",
+        "rec",
+        "--effort",
+        "fast",
+    ];
+    let run = relume(
+        case.dir.path(),
+        &[&args[..], &["--limit-group-pixels", "nosuch=10"]].concat(),
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("rec/textures/floor.exr")
+            && stderr.contains("would replace the image of view 'front', an input of this run")
+            && !stderr.contains("nosuch"),
+        "{stderr}"
+    );
+    assert!(files_and_bytes(case.dir.path()) == before);
 }
 
 /// A floor under a lamp, and a cellar under the floor that no light reaches, each seen by

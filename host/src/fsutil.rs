@@ -133,6 +133,7 @@ impl OutputSet {
     /// file added is checked; a command calls this before its work for the files it will
     /// write, so that it fails at once rather than at the end.
     pub fn check_target(&self, path: &Path) -> Result<(), Error> {
+        refuse_file_in_the_way(folder_of(path))?;
         let Some(target) = resolved(path) else {
             return Ok(()); // a folder not made yet holds no input
         };
@@ -264,6 +265,7 @@ impl OutputSet {
             .map(Path::to_path_buf)
             .collect();
         missing.reverse();
+        refuse_file_in_the_way(dir)?;
         let mut registry = staged();
         registry.dirs.extend(missing.iter().cloned());
         self.dirs.extend(missing);
@@ -323,7 +325,24 @@ pub fn read_text(path: &Path) -> Result<String, Error> {
 
 /// Creates `dir` and its parents.
 pub fn create_dir(dir: &Path) -> Result<(), Error> {
+    refuse_file_in_the_way(dir)?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+}
+
+/// An error when the nearest existing one of `dir` and its parents is not a folder: an
+/// `--out` naming a file gave the system's bare "File exists" or "Not a directory".
+fn refuse_file_in_the_way(dir: &Path) -> Result<(), Error> {
+    let existing = dir
+        .ancestors()
+        .filter(|d| !d.as_os_str().is_empty())
+        .find_map(|d| Some((d, std::fs::metadata(d).ok()?)));
+    match existing {
+        Some((d, meta)) if !meta.is_dir() => Err(Error::input(
+            d,
+            "is a file, not a folder: outputs (--out) go into a folder",
+        )),
+        _ => Ok(()),
+    }
 }
 
 #[cfg(test)]
@@ -568,5 +587,28 @@ mod tests {
         let p = dir.path().join("no/such/a.txt");
         let e = write_atomic(&p, b"x").unwrap_err();
         assert!(e.to_string().contains("a.txt"), "{e}");
+    }
+
+    #[test]
+    fn an_output_folder_that_is_a_file_is_named_as_such_before_any_write() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("afile");
+        std::fs::write(&file, b"keep").unwrap();
+        let set = OutputSet::default();
+        for target in [file.join("px.exr"), file.join("views/px.exr")] {
+            let e = set.check_target(&target).unwrap_err();
+            assert_eq!(e.exit_code(), 3, "{e}");
+            assert!(
+                e.to_string().contains("afile: is a file, not a folder"),
+                "{e}"
+            );
+        }
+        let e = create_dir(&file.join("views")).unwrap_err();
+        assert!(e.to_string().contains("is a file, not a folder"), "{e}");
+        assert!(OutputSet::default().create_dir(&file).is_err());
+        assert_eq!(std::fs::read(&file).unwrap(), b"keep");
+        // A folder, present or not yet made, is fine.
+        assert!(set.check_target(&dir.path().join("new/px.exr")).is_ok());
+        assert!(set.check_target(&dir.path().join("px.exr")).is_ok());
     }
 }

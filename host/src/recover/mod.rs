@@ -624,7 +624,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         .collect();
     let mut owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
     let pool = parallel::thread_pool(args.threads)?;
-    let output = output::prepare(&args.out, inputs, &view_names)?;
+    let output = output::prepare(&args.out, inputs, &view_names, &owned.group_names)?;
     let views = owned.views.clone();
     let n_groups = owned.group_names.len();
     let names = owned.group_names.clone();

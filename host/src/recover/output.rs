@@ -49,16 +49,19 @@ pub(super) fn prepare(
     out: &Path,
     inputs: Vec<(PathBuf, String)>,
     view_names: &[String],
+    group_names: &[String],
 ) -> Result<OutputSet, Error> {
     let mut set = OutputSet::keeping(inputs);
-    // The files named before the recovery (the maps' names depend on its result): none may
-    // replace an input, which the set checks again as each is written.
+    // None of the files it may write or remove may replace an input (the set checks again
+    // as each is written). Which groups get maps depends on the recovery, so every group's
+    // map files are checked.
     set.check_targets([MATERIALS_TOML, MATERIALS_RAD, REPORT_JSON].map(|f| out.join(f)))?;
     set.check_targets([VIEWS_DIR, ERRORS_DIR].iter().flat_map(|dir| {
         view_names
             .iter()
             .flat_map(move |name| images::exr_and_preview_paths(&out.join(dir), name))
     }))?;
+    set.check_targets(group_names.iter().flat_map(|name| map_files(out, name)))?;
     set.create_dir(&out.join(VIEWS_DIR))?;
     set.create_dir(&out.join(ERRORS_DIR))?;
     Ok(set)
@@ -185,11 +188,15 @@ pub(super) fn write_all(
 fn stale_maps(set: &OutputSet, out: &Path, group_names: &[String]) -> Vec<PathBuf> {
     group_names
         .iter()
-        .flat_map(|name| {
-            ["exr", "hdr", "cal"].map(|ext| out.join(TEXTURES_DIR).join(format!("{name}.{ext}")))
-        })
+        .flat_map(|name| map_files(out, name))
         .filter(|path| !set.stages(path) && path.is_file())
         .collect()
+}
+
+/// The files a recovery into `out` writes for a mapped group `name`: its map, and its
+/// RADIANCE picture and mapping.
+fn map_files(out: &Path, name: &str) -> [PathBuf; 3] {
+    ["exr", "hdr", "cal"].map(|ext| out.join(TEXTURES_DIR).join(format!("{name}.{ext}")))
 }
 
 /// The RADIANCE picture and mapping of a textured group: `textures/<group>.hdr` holds the
