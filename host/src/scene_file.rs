@@ -167,9 +167,14 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
     for g in raw.geometry.get_ref() {
         let p = file.resolve(&file.name(g, "geometry file")?);
         if !p.is_file() {
+            let what = if p.is_dir() {
+                "is a folder, not an OBJ file"
+            } else {
+                "does not exist"
+            };
             return Err(file.at(
                 g.span(),
-                format!("geometry file {} does not exist", p.display()),
+                format!("geometry file {} {what}", p.display()),
             ));
         }
         let c = std::fs::canonicalize(&p).unwrap_or_else(|_| p.clone());
@@ -373,9 +378,15 @@ fn check_view(file: &TomlFile, v: &RawView) -> Result<ViewDesc, Error> {
         Some(e) => {
             let x = file.number(e, "exposure")?;
             if x <= 0.0 {
+                let written = *e.get_ref();
+                let why = if written > 0.0 {
+                    format!("got {written:e}, which is 0 as a 32-bit float (below about 1e-45)")
+                } else {
+                    format!("got {x}")
+                };
                 return Err(file.at(
                     e.span(),
-                    format!("view '{name}': exposure must be > 0, got {x}"),
+                    format!("view '{name}': exposure must be > 0, {why}"),
                 ));
             }
             x
@@ -1018,6 +1029,13 @@ objects = ["quad"]
             14,
             &["exposure must be > 0"],
         );
+        // Below f32's range the value written is not the value meant: say so.
+        bad(
+            "exposure = 1.0",
+            "exposure = 1e-50",
+            14,
+            &["exposure must be > 0, got 1e-50", "0 as a 32-bit float"],
+        );
     }
 
     #[test]
@@ -1207,6 +1225,12 @@ objects = ["quad"]
             "geometry = [\"nope.obj\"]",
             3,
             &["nope.obj does not exist"],
+        );
+        bad(
+            "geometry = [\"geo.obj\"]",
+            "geometry = [\".\"]",
+            3,
+            &["is a folder, not an OBJ file"],
         );
         bad(
             "geometry = [\"geo.obj\"]",
