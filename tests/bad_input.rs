@@ -311,6 +311,15 @@ fn scene_object_in_a_group_and_a_light() {
         .fails(INPUT, &["scene.toml:22", "'lamp'", "also a light"]);
 }
 
+/// A light whose faces are all degenerate emits nothing: said, with the light and its
+/// file, rather than an all-black render whose warning could not say why.
+#[test]
+fn a_light_without_area_is_named() {
+    Case::new()
+        .obj("f 5 7 6", "f 5 5 6")
+        .fails(INPUT, &["geo.obj", "light 'lamp'", "no area"]);
+}
+
 #[test]
 fn scene_object_not_in_the_geometry() {
     Case::new()

@@ -55,6 +55,30 @@ struct BuiltFor {
     counts: BuiltCounts,
 }
 
+/// An error when every face of the light `object` is degenerate: a light of no area
+/// emits nothing, and rendered only black with a warning that could not say why.
+fn refuse_a_light_without_area(object: &ObjObject) -> Result<(), Error> {
+    let area: f32 = object
+        .triangles
+        .iter()
+        .map(|[a, b, c]| {
+            let [a, b, c] = [a, b, c].map(|p| Vec3::from(*p));
+            (b - a).cross(c - a).length() / 2.0
+        })
+        .sum();
+    if area > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::input(
+            &object.file,
+            format!(
+                "light '{}': its faces have no area (every triangle degenerate), so it emits nothing",
+                object.name
+            ),
+        ))
+    }
+}
+
 /// Reads scene.toml and its OBJ files and checks that objects, groups and lights agree.
 pub fn load_scene(scene_path: &Path) -> Result<(SceneDesc, Vec<ObjObject>), Error> {
     let desc = scene_file::load_scene(scene_path)?;
@@ -125,6 +149,9 @@ pub fn assemble(
                 ),
             ));
         };
+        if let Surface::Light(_) = surface {
+            refuse_a_light_without_area(object)?;
+        }
         for (i, v) in object.triangles.iter().enumerate() {
             let uv = match &object.uvs {
                 Some(uvs) => uvs[i].map(Vec2::from),
