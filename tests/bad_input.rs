@@ -541,6 +541,20 @@ fn a_scene_whose_light_adds_nothing_renders_black_with_a_warning() {
         out.status.success() && !stderr.contains("warning"),
         "{stderr}"
     );
+    // Lit, with a second view looking away from everything: that view is named.
+    let away = Case::new().scene(
+        "[[light]]",
+        "[[view]]\nname = \"away\"\nposition = [0.5, -1.5, 0.5]\ndirection = [0.0, -1.0, 0.0]\nup = [0.0, 0.0, 1.0]\nfov_deg = [90.0, 90.0]\nsize = [4, 4]\n\n[[light]]",
+    );
+    let out = render(&away);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning: view 'away': every pixel is black while other views are not")
+            && !stderr.contains("view 'front'")
+            && !stderr.contains("every pixel is black: no light"),
+        "{stderr}"
+    );
 }
 
 /// An anisotropic direction along a flat group's normal has no projection on the surface:

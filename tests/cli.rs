@@ -80,6 +80,14 @@ fn render_writes_exr_png_and_summary_for_every_view() {
         serde_json::from_slice(&std::fs::read(out.join("render.json")).unwrap()).unwrap();
     assert_eq!(info["spp"], 4);
     assert_eq!(info["samples"], 6 * 32 * 32 * 4);
+    let mut views: Vec<&str> = info["views"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    views.sort();
+    assert_eq!(views, ["nx", "ny", "nz", "px", "py", "pz"]);
     // Nothing but the outputs: no temp files left behind.
     let n = std::fs::read_dir(&out).unwrap().count();
     assert_eq!(n, 6 * 2 + 1);

@@ -102,7 +102,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     set.create_dir(&args.out)?;
     let mut seconds = 0.0;
     let mut samples = 0u64;
-    let mut all_black = true;
+    let mut black_views = Vec::new();
     for &i in &selected {
         progress.set_message(view_descs[i].name.clone());
         let start = Instant::now();
@@ -111,7 +111,9 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         // Rendering alone, so that samples per second measure the renderer.
         seconds += start.elapsed().as_secs_f64();
         samples += views[i].n_pixels() as u64 * settings.spp as u64;
-        all_black &= pixels.iter().all(|p| *p == Vec3::ZERO);
+        if pixels.iter().all(|p| *p == Vec3::ZERO) {
+            black_views.push(view_descs[i].name.as_str());
+        }
         let image = Image {
             width: views[i].width,
             height: views[i].height,
@@ -122,18 +124,29 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     }
     progress.finish_and_clear();
     let mut warnings = fallbacks;
-    if all_black {
+    if black_views.len() == selected.len() {
         warnings.push(format!(
             "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away?)",
             args.scene.display()
         ));
+    } else {
+        // One view black among lit ones is a camera outside the scene or facing nothing.
+        warnings.extend(black_views.iter().map(|name| {
+            format!("view '{name}': every pixel is black while other views are not: is its camera outside the scene or looking at nothing?")
+        }));
     }
+    // Views of earlier renders into the same folder (`--view`) stay: say which are this one's.
+    let rendered: Vec<&str> = selected
+        .iter()
+        .map(|&i| view_descs[i].name.as_str())
+        .collect();
 
     let info = serde_json::json!({
         "scene": args.scene.display().to_string(),
         "materials": args.materials.iter().map(|m| m.display().to_string()).collect::<Vec<_>>(),
         "spp": args.spp,
         "seed": args.seed,
+        "views": rendered,
         "threads": pool.current_num_threads(),
         "samples": samples,
         "seconds": seconds,
