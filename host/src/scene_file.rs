@@ -172,10 +172,7 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
             } else {
                 "does not exist"
             };
-            return Err(file.at(
-                g.span(),
-                format!("geometry file {} {what}", p.display()),
-            ));
+            return Err(file.at(g.span(), format!("geometry file {} {what}", p.display())));
         }
         let c = std::fs::canonicalize(&p).unwrap_or_else(|_| p.clone());
         if canonical.contains(&c) {
