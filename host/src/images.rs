@@ -3,13 +3,17 @@
 //! tone-mapped PNG previews.
 //!
 //! Reading checks every value: a NaN, infinite or negative channel is an error naming the file,
-//! the pixel and the channel. Alpha channels are dropped (a view is opaque radiance); a grey
-//! image gives three equal channels. PNG decoding uses the sRGB curve through the core's libm
-//! math, so it is deterministic across machines.
+//! the pixel and the channel. An alpha channel must be fully opaque, and is then dropped (a
+//! view is opaque radiance); a grey image gives three equal channels. An EXR's data window
+//! must cover its display window, and a Radiance picture's `EXPOSURE` and `COLORCORR` header
+//! lines are divided out. A file cut short is bad input, not an I/O failure. PNG decoding
+//! uses the sRGB curve through the core's libm math, so it is deterministic across machines.
 
-use std::io::{BufReader, Seek, Write};
+use std::cell::Cell;
+use std::io::{BufRead, BufReader, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
+use image::error::{DecodingError, ImageFormatHint};
 use image::{DynamicImage, ImageError, ImageFormat, ImageReader};
 use relume_core::math;
 
@@ -59,12 +63,36 @@ pub fn read_image(path: &Path, exposure: f32) -> Result<Image, Error> {
         }
     };
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let decoded = ImageReader::with_format(BufReader::new(file), format)
-        .decode()
-        .map_err(|e| match e {
-            ImageError::IoError(io) => Error::io(path, io),
-            other => Error::input(path, format!("cannot read as {format:?}: {other}")),
-        })?;
+    let metadata = file.metadata().map_err(|e| Error::io(path, e))?;
+    if metadata.is_file() && metadata.len() == 0 {
+        return Err(Error::input(path, "the file is empty: not an image"));
+    }
+    let hit_end = Cell::new(false);
+    let mut reader = BufReader::new(EndWatch {
+        inner: file,
+        hit_end: &hit_end,
+    });
+    let unreadable = |e| decode_error(path, format, e, hit_end.get());
+    let header_scale = match format {
+        ImageFormat::OpenExr => {
+            check_exr_windows(path, &mut reader, unreadable)?;
+            None
+        }
+        ImageFormat::Hdr => {
+            let lines =
+                hdr_header_lines(&mut reader).map_err(|e| unreadable(ImageError::IoError(e)))?;
+            hdr_header_scale(path, &lines)?
+        }
+        _ => None,
+    };
+    reader
+        .seek(SeekFrom::Start(0))
+        .map_err(|e| Error::io(path, e))?;
+    let mut decoder = ImageReader::with_format(reader, format);
+    // The image crate's default 512 MiB cap refused a float view past about 6500x6500,
+    // which `render` writes; the size a view may have is the scene's to bound.
+    decoder.no_limits();
+    let decoded = decoder.decode().map_err(unreadable)?;
     let (width, height) = (decoded.width(), decoded.height());
     if width == 0 || height == 0 {
         return Err(Error::input(
@@ -72,6 +100,7 @@ pub fn read_image(path: &Path, exposure: f32) -> Result<Image, Error> {
             format!("image is empty ({width}x{height})"),
         ));
     }
+    reject_transparent(path, &decoded)?;
     let pixels = match format {
         ImageFormat::Png => png_to_linear(decoded),
         _ => decoded.into_rgb32f().pixels().map(|p| p.0).collect(),
@@ -81,8 +110,249 @@ pub fn read_image(path: &Path, exposure: f32) -> Result<Image, Error> {
         height,
         pixels,
     };
-    check_and_scale(path, &mut image, exposure)?;
+    check_and_scale(path, &mut image, exposure, header_scale.as_ref())?;
     Ok(image)
+}
+
+/// A reader that notes when the file ended under a read (a read of 0 bytes): a decoder that
+/// then fails was given a file cut short.
+struct EndWatch<'a, R> {
+    inner: R,
+    hit_end: &'a Cell<bool>,
+}
+
+impl<R: Read> Read for EndWatch<'_, R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if n == 0 && !buf.is_empty() {
+            self.hit_end.set(true);
+        }
+        Ok(n)
+    }
+}
+
+impl<R: Seek> Seek for EndWatch<'_, R> {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.inner.seek(pos)
+    }
+}
+
+/// A decoder's failure as relume reports it: a file that ends early is bad input (exit 3)
+/// saying so, as is any content the decoder refuses, while a failed read of an existing
+/// file (a disk error, a folder) stays an I/O error (exit 4). `hit_end`: the file ended
+/// under a read.
+fn decode_error(path: &Path, format: ImageFormat, error: ImageError, hit_end: bool) -> Error {
+    use std::io::ErrorKind::{InvalidData, UnexpectedEof};
+    let truncated = |what: &dyn std::fmt::Display| {
+        Error::input(path, format!("the image is truncated or corrupt ({what})"))
+    };
+    match error {
+        ImageError::IoError(io) if matches!(io.kind(), UnexpectedEof | InvalidData) => {
+            truncated(&io)
+        }
+        ImageError::IoError(io) => Error::io(path, io),
+        other if hit_end => truncated(&other),
+        other => Error::input(path, format!("cannot read as {format:?}: {other}")),
+    }
+}
+
+/// An error of the exr crate as the image crate reports it when it decodes an EXR.
+fn exr_to_image_error(error: exr::error::Error) -> ImageError {
+    match error {
+        exr::error::Error::Io(io) => ImageError::IoError(io),
+        other => ImageError::Decoding(DecodingError::new(
+            ImageFormatHint::Exact(ImageFormat::OpenExr),
+            other.to_string(),
+        )),
+    }
+}
+
+/// Refuses an EXR whose data window (the pixels stored) does not cover its display window
+/// (the image): the image crate fills the uncovered pixels with 0, a black that was never
+/// measured. The layer checked is the one the image crate decodes, the first flat one with
+/// R, G and B; a file without one is left for it to refuse. A data window larger than the
+/// display window (overscan) is cropped, as EXR intends. `unreadable` reports a header that
+/// cannot be read.
+fn check_exr_windows(
+    path: &Path,
+    reader: &mut impl Read,
+    unreadable: impl Fn(ImageError) -> Error,
+) -> Result<(), Error> {
+    use exr::meta::{attribute::IntegerBounds, header::Header};
+    let meta = exr::meta::MetaData::read_from_buffered(reader, false)
+        .map_err(|e| unreadable(exr_to_image_error(e)))?;
+    let has_rgb = |h: &&Header| {
+        !h.deep
+            && ["R", "G", "B"].iter().all(|&c| {
+                h.channels
+                    .find_index_of_channel(&exr::prelude::Text::from(c))
+                    .is_some()
+            })
+    };
+    let Some(header) = meta.headers.iter().find(has_rgb) else {
+        return Ok(());
+    };
+    // Inclusive corners in i64: a window's end may pass i32's range.
+    let corners = |w: IntegerBounds| {
+        let (x, y) = (i64::from(w.position.x()), i64::from(w.position.y()));
+        [
+            x,
+            y,
+            x + w.size.width() as i64 - 1,
+            y + w.size.height() as i64 - 1,
+        ]
+    };
+    let data = corners(header.data_window());
+    let display = corners(header.shared_attributes.display_window);
+    if data[0] <= display[0]
+        && data[1] <= display[1]
+        && data[2] >= display[2]
+        && data[3] >= display[3]
+    {
+        return Ok(());
+    }
+    let show = |c: [i64; 4]| format!("({},{})-({},{})", c[0], c[1], c[2], c[3]);
+    Err(Error::input(
+        path,
+        format!(
+            "data window {} does not cover the display window {}: pixels outside it have no value",
+            show(data),
+            show(display)
+        ),
+    ))
+}
+
+/// The header lines of a Radiance picture, numbered from 1 (the `#?RADIANCE` line), up to
+/// the empty line that ends the header (or the file's end, which the decoder then refuses).
+/// No lines for a file without the signature, also left for the decoder to refuse.
+fn hdr_header_lines(reader: &mut impl BufRead) -> std::io::Result<Vec<(usize, String)>> {
+    let mut lines = Vec::new();
+    if !reader.fill_buf()?.starts_with(b"#?RADIANCE") {
+        return Ok(lines);
+    }
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        // Lines end at '\n' alone, as the decoder reads them.
+        if reader.read_until(b'\n', &mut line)? == 0 {
+            return Ok(lines);
+        }
+        if line.last() == Some(&b'\n') {
+            line.pop();
+        }
+        if line.is_empty() {
+            return Ok(lines);
+        }
+        lines.push((lines.len() + 1, String::from_utf8_lossy(&line).into_owned()));
+    }
+}
+
+/// What a Radiance picture's header says its stored values were multiplied by, per
+/// channel: every `EXPOSURE=` line, times every `COLORCORR=` line's factor for the
+/// channel (Radiance's convention: `pfilt -e 2`, for one, doubles the pixels and adds
+/// `EXPOSURE=2`), so radiance is the stored value divided by it. None when there are no
+/// such lines, so such files read bit for bit as before. A value that is not a finite
+/// positive number is an error at its line.
+fn hdr_header_scale(path: &Path, lines: &[(usize, String)]) -> Result<Option<[f64; 3]>, Error> {
+    let mut scale = None;
+    for (number, line) in lines {
+        // Keys as the decoder reads them: before the first '=', trimmed; '#' comments.
+        let Some((key, value)) = line.split_once('=') else {
+            continue;
+        };
+        let key = key.trim();
+        if line.starts_with('#') || !(key == "EXPOSURE" || key == "COLORCORR") {
+            continue;
+        }
+        let numbers: Vec<&str> = value.split_whitespace().collect();
+        let expected = if key == "EXPOSURE" { 1 } else { 3 };
+        if numbers.len() != expected {
+            return Err(Error::at_line(
+                path,
+                *number,
+                format!(
+                    "{key}= needs {expected} number{}, got '{}'",
+                    if expected == 1 {
+                        ""
+                    } else {
+                        "s (red, green, blue)"
+                    },
+                    value.trim()
+                ),
+            ));
+        }
+        let mut factors = [1.0f64; 3];
+        for (i, text) in numbers.iter().enumerate() {
+            let v = text.parse::<f64>().map_err(|_| {
+                Error::at_line(
+                    path,
+                    *number,
+                    format!("{key} value '{text}' is not a number"),
+                )
+            })?;
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::at_line(
+                    path,
+                    *number,
+                    format!("{key} value {v} must be finite and > 0"),
+                ));
+            }
+            factors[i] = v;
+        }
+        if key == "EXPOSURE" {
+            factors = [factors[0]; 3];
+        }
+        let s: &mut [f64; 3] = scale.get_or_insert([1.0; 3]);
+        for (s, f) in s.iter_mut().zip(factors) {
+            *s *= f;
+        }
+    }
+    if let Some(s) = scale {
+        if s.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+            return Err(Error::input(
+                path,
+                format!(
+                    "the header's EXPOSURE and COLORCORR lines multiply to {s:?}, past a double's range"
+                ),
+            ));
+        }
+    }
+    Ok(scale)
+}
+
+/// Refuses a pixel whose alpha is not fully opaque (the type's largest value, 1 in float):
+/// a radiance image with transparency is not a calibrated capture, and dropping the alpha
+/// would keep colours that were meant to be blended away.
+fn reject_transparent(path: &Path, decoded: &DynamicImage) -> Result<(), Error> {
+    fn first<T: PartialEq + std::fmt::Display>(
+        alphas: impl Iterator<Item = T>,
+        opaque: T,
+    ) -> Option<(usize, String)> {
+        alphas
+            .enumerate()
+            .find(|(_, a)| *a != opaque)
+            .map(|(i, a)| (i, format!("alpha {a} is not fully opaque ({opaque})")))
+    }
+    let found = match decoded {
+        DynamicImage::ImageLumaA8(b) => first(b.pixels().map(|p| p.0[1]), u8::MAX),
+        DynamicImage::ImageLumaA16(b) => first(b.pixels().map(|p| p.0[1]), u16::MAX),
+        DynamicImage::ImageRgba8(b) => first(b.pixels().map(|p| p.0[3]), u8::MAX),
+        DynamicImage::ImageRgba16(b) => first(b.pixels().map(|p| p.0[3]), u16::MAX),
+        DynamicImage::ImageRgba32F(b) => first(b.pixels().map(|p| p.0[3]), 1.0f32),
+        _ => None,
+    };
+    match found {
+        None => Ok(()),
+        Some((i, what)) => {
+            let w = decoded.width().max(1) as usize;
+            Err(Error::at_pixel(
+                path,
+                (i % w) as u32,
+                (i / w) as u32,
+                format!("{what}: a radiance image with transparency is not a calibrated capture"),
+            ))
+        }
+    }
 }
 
 /// [`read_image`], and the size must be the view's `[width, height]`.
@@ -132,9 +402,15 @@ fn png_to_linear(decoded: DynamicImage) -> Vec<[f32; 3]> {
 /// panorama 1e30 times too bright read as NaN errors and reflectances at their bound.
 pub const MAX_RADIANCE: f32 = 1e18;
 
-/// Rejects NaN, infinite and negative values, then multiplies by `exposure` (and rejects an
-/// overflow to infinity).
-fn check_and_scale(path: &Path, image: &mut Image, exposure: f32) -> Result<(), Error> {
+/// Rejects NaN, infinite and negative values, then multiplies by `exposure` and divides by
+/// `header` (a Radiance picture's [`hdr_header_scale`], per channel), and rejects an overflow
+/// to infinity. Without a header the product is f32's, as it always was.
+fn check_and_scale(
+    path: &Path,
+    image: &mut Image,
+    exposure: f32,
+    header: Option<&[f64; 3]>,
+) -> Result<(), Error> {
     let w = image.width as usize;
     for (i, p) in image.pixels.iter_mut().enumerate() {
         let (x, y) = ((i % w) as u32, (i / w) as u32);
@@ -156,14 +432,20 @@ fn check_and_scale(path: &Path, image: &mut Image, exposure: f32) -> Result<(), 
                     format!("channel {} value {} {what}", CHANNELS[c], v),
                 ));
             }
-            let scaled = *v * exposure;
+            let scaled = match header {
+                None => *v * exposure,
+                Some(h) => (f64::from(*v) * f64::from(exposure) / h[c]) as f32,
+            };
             if !scaled.is_finite() {
+                let header_note = header.map_or(String::new(), |h| {
+                    format!(" divided by the header's EXPOSURE and COLORCORR, {}", h[c])
+                });
                 return Err(Error::at_pixel(
                     path,
                     x,
                     y,
                     format!(
-                        "channel {} value {} times exposure {exposure} overflows",
+                        "channel {} value {} times exposure {exposure}{header_note} overflows",
                         CHANNELS[c], v
                     ),
                 ));
@@ -637,7 +919,7 @@ mod tests {
         image::RgbaImage::from_raw(
             3,
             1,
-            vec![0, 128, 255, 7, 255, 255, 255, 0, 10, 20, 30, 255],
+            vec![0, 128, 255, 255, 255, 255, 255, 255, 10, 20, 30, 255],
         )
         .unwrap()
         .save(&p8)
@@ -687,6 +969,245 @@ mod tests {
         std::fs::write(&p, bytes).unwrap();
         let back = read_image(&p, 1.0).unwrap();
         assert_eq!(back.pixels, vec![[1.0, 0.5, 2.0], [0.0, 0.25, 8.0]]);
+    }
+
+    /// Writes an EXR of grey 0.5 whose data window is `data` (corner, size) within the
+    /// display window `display`.
+    fn windowed_exr(
+        path: &Path,
+        display: ((i32, i32), (usize, usize)),
+        data: ((i32, i32), (usize, usize)),
+    ) {
+        use exr::prelude::{
+            Encoding, ImageAttributes, IntegerBounds, Layer, LayerAttributes, SpecificChannels,
+            Vec2, WritableImage,
+        };
+        let attributes = LayerAttributes {
+            layer_position: Vec2(data.0 .0, data.0 .1),
+            ..LayerAttributes::default()
+        };
+        let channels = SpecificChannels::rgb(|_: Vec2<usize>| (0.5f32, 0.5f32, 0.5f32));
+        let layer = Layer::new(data.1, attributes, Encoding::UNCOMPRESSED, channels);
+        let display = IntegerBounds::new(display.0, display.1);
+        exr::prelude::Image::new(ImageAttributes::new(display), layer)
+            .write()
+            .to_file(path)
+            .unwrap();
+    }
+
+    #[test]
+    fn an_exr_whose_data_window_does_not_cover_the_display_window_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let cases = [
+            // An 8x8 data window in a 16x16 image: 3/4 of it would read black.
+            (
+                ((0, 0), (16, 16)),
+                ((0, 0), (8, 8)),
+                "(0,0)-(7,7)",
+                "(0,0)-(15,15)",
+            ),
+            // The right size, offset.
+            (
+                ((0, 0), (16, 16)),
+                ((4, 4), (16, 16)),
+                "(4,4)-(19,19)",
+                "(0,0)-(15,15)",
+            ),
+            (
+                ((-2, 3), (4, 4)),
+                ((-2, 3), (4, 3)),
+                "(-2,3)-(1,5)",
+                "(-2,3)-(1,6)",
+            ),
+        ];
+        for (i, (display, data, data_text, display_text)) in cases.into_iter().enumerate() {
+            let p = dir.path().join(format!("w{i}.exr"));
+            windowed_exr(&p, display, data);
+            let e = read_view_image(&p, 1.0, [display.1 .0 as u32, display.1 .1 as u32])
+                .expect_err("the uncovered pixels have no value");
+            assert_eq!(e.exit_code(), 3, "{e}");
+            let e = e.to_string();
+            assert!(
+                e.contains(&format!(
+                    "w{i}.exr: data window {data_text} does not cover the display window \
+                     {display_text}: pixels outside it have no value"
+                )),
+                "{e}"
+            );
+        }
+        // Equal windows (here away from the origin) read as before, and a larger data
+        // window (overscan) is cropped to the display window.
+        for (i, (display, data)) in [
+            (((-3, -2), (4, 3)), ((-3, -2), (4, 3))),
+            (((0, 0), (4, 3)), ((-1, -1), (6, 5))),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let p = dir.path().join(format!("ok{i}.exr"));
+            windowed_exr(&p, display, data);
+            let img = read_view_image(&p, 1.0, [4, 3]).unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!(img.pixels, vec![[0.5; 3]; 12]);
+        }
+    }
+
+    /// An RGBE file of `pixels` (one row) with `lines` added to its header after the
+    /// signature (so the first added line is line 2).
+    fn hdr_with_header(path: &Path, lines: &str, pixels: &[[f32; 3]]) {
+        let px: Vec<image::Rgb<f32>> = pixels.iter().map(|p| image::Rgb(*p)).collect();
+        let mut bytes = Vec::new();
+        image::codecs::hdr::HdrEncoder::new(&mut bytes)
+            .encode(&px, px.len(), 1)
+            .unwrap();
+        let first_line_end = bytes.iter().position(|&b| b == b'\n').unwrap() + 1;
+        bytes.splice(first_line_end..first_line_end, lines.bytes());
+        std::fs::write(path, bytes).unwrap();
+    }
+
+    #[test]
+    fn hdr_header_exposure_and_colorcorr_are_divided_out() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.hdr");
+        let stored = [[1.0, 0.5, 2.0], [0.0, 0.25, 8.0]];
+        // Several EXPOSURE lines multiply, COLORCORR is per channel: stored / [8, 16, 4].
+        hdr_with_header(
+            &p,
+            "EXPOSURE=2\n# EXPOSURE=100 is a comment\nEXPOSURE= 4\nCOLORCORR=1 2 0.5\n",
+            &stored,
+        );
+        let back = read_image(&p, 2.0).unwrap();
+        assert_eq!(back.pixels, vec![[0.25, 0.0625, 1.0], [0.0, 0.03125, 4.0]]);
+        hdr_with_header(&p, "EXPOSURE=2\n", &stored);
+        let back = read_view_image(&p, 1.0, [2, 1]).unwrap();
+        assert_eq!(back.pixels, vec![[0.5, 0.25, 1.0], [0.0, 0.125, 4.0]]);
+        // Without such lines the stored values, bit for bit.
+        let odd = [[1.0e-30, 0.1, 3.0e30], [1.0 / 3.0, 7.0, 0.0]];
+        hdr_with_header(&p, "SOFTWARE=test\n", &odd);
+        let expected: Vec<[f32; 3]> = image::load_from_memory(&std::fs::read(&p).unwrap())
+            .unwrap()
+            .into_rgb32f()
+            .pixels()
+            .map(|p| p.0.map(|v| v * 1.5))
+            .collect();
+        assert_eq!(read_image(&p, 1.5).unwrap().pixels, expected);
+        // A tiny EXPOSURE can take a stored value past f32's range.
+        hdr_with_header(&p, "EXPOSURE=1e-40\n", &stored);
+        let e = read_image(&p, 1.0).unwrap_err().to_string();
+        assert!(
+            e.contains("a.hdr: pixel (x 0, y 0): channel R value 1 times exposure 1 divided by the header's EXPOSURE and COLORCORR, 0.0000")
+                && e.contains("overflows"),
+            "{e}"
+        );
+        for (line, what) in [
+            ("EXPOSURE=0", "EXPOSURE value 0 must be finite and > 0"),
+            ("EXPOSURE=-2", "EXPOSURE value -2 must be finite and > 0"),
+            ("EXPOSURE=inf", "EXPOSURE value inf must be finite and > 0"),
+            ("EXPOSURE=NaN", "EXPOSURE value NaN must be finite and > 0"),
+            ("EXPOSURE=two", "EXPOSURE value 'two' is not a number"),
+            ("EXPOSURE=", "EXPOSURE= needs 1 number, got ''"),
+            (
+                "COLORCORR=1 2",
+                "COLORCORR= needs 3 numbers (red, green, blue), got '1 2'",
+            ),
+            (
+                "COLORCORR=1 0 1",
+                "COLORCORR value 0 must be finite and > 0",
+            ),
+        ] {
+            hdr_with_header(&p, &format!("FORMAT=32-bit_rle_rgbe\n{line}\n"), &stored);
+            let e = read_image(&p, 1.0).expect_err(line);
+            assert_eq!(e.exit_code(), 3, "{e}");
+            let e = e.to_string();
+            assert!(e.contains(&format!("a.hdr:3: {what}")), "{line}: {e}");
+        }
+    }
+
+    #[test]
+    fn truncated_and_empty_images_are_bad_input() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = image(16, 16, |x, y| [x as f32 * 0.37, y as f32, 1.0]);
+        let exr = dir.path().join("t.exr");
+        write_exr(&exr, &img).unwrap();
+        let hdr = dir.path().join("t.hdr");
+        std::fs::write(&hdr, hdr_bytes(&hdr, &img).unwrap()).unwrap();
+        let png = dir.path().join("t.png");
+        image::RgbImage::from_fn(16, 16, |x, y| image::Rgb([x as u8 * 9, y as u8 * 7, 3]))
+            .save(&png)
+            .unwrap();
+        for path in [exr, hdr, png] {
+            let bytes = std::fs::read(&path).unwrap();
+            let name = path.file_name().unwrap().to_str().unwrap();
+            for cut in [0, 5, 11, 30, bytes.len() / 2] {
+                std::fs::write(&path, &bytes[..cut]).unwrap();
+                let e = read_image(&path, 1.0).expect_err("a cut file is refused");
+                assert!(matches!(e, Error::Input { .. }), "{name} cut at {cut}: {e}");
+                let e = e.to_string();
+                let what = if cut == 0 {
+                    "the file is empty: not an image"
+                } else {
+                    "the image is truncated or corrupt ("
+                };
+                assert!(
+                    e.contains(&format!("{name}: {what}")),
+                    "{name} cut at {cut}: {e}"
+                );
+            }
+        }
+        // A failed read of something that is there stays an I/O error.
+        let folder = dir.path().join("folder.exr");
+        std::fs::create_dir(&folder).unwrap();
+        let e = read_image(&folder, 1.0).unwrap_err();
+        assert!(matches!(e, Error::Io { .. }), "{e}");
+    }
+
+    #[test]
+    fn alpha_must_be_fully_opaque() {
+        use exr::prelude::{Encoding, SpecificChannels, Vec2, WritableImage};
+        let dir = tempfile::tempdir().unwrap();
+        let rgba_exr = |name: &str, alpha_at_2_1: f32| {
+            let p = dir.path().join(name);
+            let ch = SpecificChannels::rgba(|pos: Vec2<usize>| {
+                let a = if (pos.x(), pos.y()) == (2, 1) {
+                    alpha_at_2_1
+                } else {
+                    1.0
+                };
+                (0.5f32, pos.x() as f32, 0.25f32, a)
+            });
+            exr::prelude::Image::from_encoded_channels((3, 2), Encoding::UNCOMPRESSED, ch)
+                .write()
+                .to_file(&p)
+                .unwrap();
+            p
+        };
+        let opaque = read_image(&rgba_exr("opaque.exr", 1.0), 1.0).unwrap();
+        assert_eq!(opaque.pixels[5], [0.5, 2.0, 0.25]);
+        let e = err(&rgba_exr("half.exr", 0.5));
+        assert!(
+            e.contains("half.exr: pixel (x 2, y 1): alpha 0.5 is not fully opaque (1)"),
+            "{e}"
+        );
+        let rgba_png = image::RgbaImage::from_fn(3, 2, |x, y| {
+            image::Rgba([10, 20, 30, if (x, y) == (1, 1) { 7 } else { 255 }])
+        });
+        let p = dir.path().join("rgba.png");
+        rgba_png.save(&p).unwrap();
+        let e = err(&p);
+        assert!(
+            e.contains("rgba.png: pixel (x 1, y 1): alpha 7 is not fully opaque (255)")
+                && e.contains("transparency is not a calibrated capture"),
+            "{e}"
+        );
+        let p = dir.path().join("la16.png");
+        image::ImageBuffer::<image::LumaA<u16>, _>::from_raw(2, 1, vec![100u16, 65535, 200, 65534])
+            .unwrap()
+            .save(&p)
+            .unwrap();
+        let e = err(&p);
+        assert!(
+            e.contains("la16.png: pixel (x 1, y 0): alpha 65534 is not fully opaque (65535)"),
+            "{e}"
+        );
     }
 
     #[test]
