@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
 
-use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
 use crate::recover::{self as recover_cmd, Effort};
 use crate::{bench, compare, downsample, render_cmd};
@@ -173,8 +172,8 @@ enum BenchCommand {
         #[arg(long)]
         threads: Option<usize>,
         /// Timed runs (best is kept) after one warm-up.
-        #[arg(long, default_value_t = 5)]
-        repeats: usize,
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+        repeats: u32,
     },
     /// Box-average a scene's panorama by an integer factor into a new scene (for timing
     /// and judging recovery at several resolutions).
@@ -365,7 +364,10 @@ fn run(command: Command) -> Result<(), Error> {
             truth,
             report,
             json,
-        }) => crate::coverage::compare_uncertainty(&truth, &report, json.as_deref()),
+        }) => {
+            compare::check_uncertainty_run(&truth, &report, json.as_deref())?;
+            crate::coverage::compare_uncertainty(&truth, &report, json.as_deref())
+        }
         Command::Bench(BenchCommand::Rays {
             scene,
             rays,
@@ -375,8 +377,6 @@ fn run(command: Command) -> Result<(), Error> {
             threads,
             repeats,
         }) => {
-            let mut owned = assemble::load_and_assemble(&scene, MaterialSource::GeometryOnly)?;
-            let built = owned.build()?;
             let args = bench::rays::BenchRaysArgs {
                 scene,
                 rays,
@@ -384,9 +384,9 @@ fn run(command: Command) -> Result<(), Error> {
                 json_out: json,
                 reference_hits: reference,
                 threads,
-                repeats,
+                repeats: repeats as usize,
             };
-            bench::rays::bench_rays(&args, &built).map(|_| ())
+            bench::rays::run(&args).map(|_| ())
         }
         Command::Bench(BenchCommand::Downsample { scene, factor, out }) => {
             downsample::downsample(&scene, factor, &out)?;

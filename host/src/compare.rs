@@ -2,7 +2,7 @@
 //! recovered materials are from the truth. These are the user's yardsticks (and ours).
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use relume_core::geometry::Surface;
 use relume_core::material::texture::bilinear_taps;
@@ -11,10 +11,11 @@ use serde::Serialize;
 
 use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
+use crate::fsutil::{self, OutputSet};
 use crate::images::{self, Image};
-use crate::materials_file::{self, MaterialDesc, Model};
-use crate::scene_file::ViewDesc;
-use crate::{fsutil, parallel};
+use crate::materials_file::{self, MaterialDesc, MaterialsDesc, Model};
+use crate::parallel;
+use crate::scene_file::{self, ViewDesc};
 
 /// Sub-rays per pixel side used to decide that a pixel's whole footprint sees one group.
 pub const LABEL_RAYS_PER_SIDE: u32 = 4;
@@ -39,39 +40,64 @@ impl Sums {
         }
     }
 
-    fn row(&self, name: &str) -> ViewsRow {
+    /// The row named `name`; `what` names it for a reader ("group 'floor' (views px,
+    /// nx)") where its relative figures mean nothing: no pixel, or a reference of 0 over
+    /// them, which divided by 0 and printed `NaN%`.
+    fn row(&self, name: &str, what: &str) -> ViewsRow {
         let n = (self.pixels * 3).max(1) as f64;
         let mean_a = self.sum_a / n;
         let mean_b = self.sum_b / n;
+        let undefined = if self.pixels == 0 {
+            Some(format!("{what}: no pure pixel, nothing to compare"))
+        } else if mean_a > 0.0 {
+            None
+        } else {
+            Some(format!(
+                "{what}: the reference (A) is 0 over its {} pure pixels: no difference relative to it",
+                self.pixels
+            ))
+        };
+        let relative = |v: f64| if undefined.is_none() { v } else { f64::NAN };
         ViewsRow {
             name: name.to_string(),
             pixels: self.pixels,
             mean_a,
             mean_b,
-            rel_mean_diff: if mean_a > 0.0 {
-                (mean_b - mean_a) / mean_a
-            } else {
-                f64::NAN
-            },
-            rel_rms: if mean_a > 0.0 {
-                (self.sum_sq_diff / n).sqrt() / mean_a
-            } else {
-                f64::NAN
-            },
+            rel_mean_diff: relative((mean_b - mean_a) / mean_a),
+            rel_rms: relative((self.sum_sq_diff / n).sqrt() / mean_a),
+            undefined,
         }
     }
 }
 
 /// One line of the views table: `rel_mean_diff = (mean B - mean A) / mean A`,
-/// `rel_rms = RMS(B - A) / mean A` (the reference READMEs' definitions).
+/// `rel_rms = RMS(B - A) / mean A` (the reference READMEs' definitions). The relative
+/// figures are NaN (`null` in JSON, `-` in the table) where they mean nothing, and
+/// `undefined` says why.
 #[derive(Serialize, Clone, Debug)]
 pub struct ViewsRow {
     pub name: String,
     pub pixels: u64,
     pub mean_a: f64,
     pub mean_b: f64,
+    #[serde(serialize_with = "finite_or_null")]
     pub rel_mean_diff: f64,
+    #[serde(serialize_with = "finite_or_null")]
     pub rel_rms: f64,
+    /// Why the relative figures are undefined (no pure pixel, or a reference of 0 over
+    /// them); absent when they are defined.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub undefined: Option<String>,
+}
+
+/// A number as JSON, `null` when it is not finite: serde_json would write `null` for NaN
+/// anyway; said here so that a reader of the code sees it.
+fn finite_or_null<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    if v.is_finite() {
+        s.serialize_f64(*v)
+    } else {
+        s.serialize_none()
+    }
 }
 
 #[derive(Serialize, Clone, Debug)]
@@ -91,6 +117,15 @@ pub enum ViewImages<'a> {
 }
 
 impl ViewImages<'_> {
+    /// Where the images are, for an error about all of them: the folder, or the scene
+    /// file that names them.
+    fn origin(&self, scene_path: &Path) -> PathBuf {
+        match self {
+            ViewImages::Folder(dir) => dir.to_path_buf(),
+            ViewImages::Scene => scene_path.to_path_buf(),
+        }
+    }
+
     fn read(&self, desc: &ViewDesc, scene_path: &Path) -> Result<images::Image, Error> {
         match self {
             ViewImages::Folder(dir) => {
@@ -137,6 +172,8 @@ pub fn views_report_of(
     let scene = owned.build()?;
 
     let mut groups = vec![Sums::default(); group_names.len()];
+    // The views each group has pure pixels in, to name them where its figures are undefined.
+    let mut seen_in: Vec<Vec<&str>> = vec![Vec::new(); group_names.len()];
     let mut per_view = Vec::new();
     let mut all = Sums::default();
     for (desc, view) in descs.iter().zip(&views) {
@@ -148,46 +185,98 @@ pub fn views_report_of(
         let mut sums = Sums::default();
         for (i, label) in labels.iter().enumerate() {
             if let Some(Surface::Group(g)) = label {
-                groups[*g as usize].add(a.pixels[i], b.pixels[i]);
+                let g = *g as usize;
+                groups[g].add(a.pixels[i], b.pixels[i]);
                 sums.add(a.pixels[i], b.pixels[i]);
                 all.add(a.pixels[i], b.pixels[i]);
+                if seen_in[g].last() != Some(&desc.name.as_str()) {
+                    seen_in[g].push(&desc.name);
+                }
             }
         }
-        per_view.push(sums.row(&desc.name));
+        per_view.push(sums.row(&desc.name, &format!("view '{}'", desc.name)));
     }
+    // Nothing at all to compare is an error, not a table of undefined figures.
+    let all = all.row("image", "every view");
+    if all.pixels == 0 {
+        return Err(Error::input(
+            scene_path,
+            "no pixel of any view sees one group over its whole footprint: nothing to compare",
+        ));
+    }
+    if all.undefined.is_some() {
+        return Err(Error::input(
+            a.origin(scene_path),
+            format!(
+                "the reference (A) is 0 over all {} pure pixels of the views: no difference can be given relative to it",
+                all.pixels
+            ),
+        ));
+    }
+    let groups = groups
+        .iter()
+        .zip(&group_names)
+        .zip(&seen_in)
+        .map(|((s, name), views)| {
+            let what = match views.as_slice() {
+                [] => format!("group '{name}'"),
+                views => format!("group '{name}' (in views {})", views.join(", ")),
+            };
+            s.row(name, &what)
+        })
+        .collect();
     Ok(ViewsReport {
-        groups: groups
-            .iter()
-            .zip(&group_names)
-            .map(|(s, n)| s.row(n))
-            .collect(),
+        groups,
         views: per_view,
-        all: all.row("image"),
+        all,
     })
 }
 
+impl ViewsReport {
+    /// Why some rows have no relative figures, one line per row (groups, then views).
+    pub fn undefined(&self) -> Vec<&str> {
+        self.groups
+            .iter()
+            .chain(&self.views)
+            .filter_map(|r| r.undefined.as_deref())
+            .collect()
+    }
+}
+
+/// The table, with `-` for the relative figures a row does not have and a note under it
+/// for each such row, saying why.
 fn print_views_table(report: &ViewsReport) {
     println!(
         "{:<16} {:>8} {:>11} {:>11} {:>10} {:>9}",
         "group", "pixels", "mean A", "mean B", "rel mean", "rel RMS"
     );
+    let percent = |v: f64, sign: bool| match (v.is_finite(), sign) {
+        (false, _) => "-".to_string(),
+        (true, true) => format!("{:+.2}%", 100.0 * v),
+        (true, false) => format!("{:.2}%", 100.0 * v),
+    };
     let line = |r: &ViewsRow| {
         println!(
-            "{:<16} {:>8} {:>11.5} {:>11.5} {:>+9.2}% {:>8.2}%",
+            "{:<16} {:>8} {:>11.5} {:>11.5} {:>10} {:>9}",
             r.name,
             r.pixels,
             r.mean_a,
             r.mean_b,
-            100.0 * r.rel_mean_diff,
-            100.0 * r.rel_rms
+            percent(r.rel_mean_diff, true),
+            percent(r.rel_rms, false)
         )
     };
     report.groups.iter().for_each(line);
     println!("{:<16}", "-- views");
     report.views.iter().for_each(line);
     line(&report.all);
+    for note in report.undefined() {
+        println!("note: {note}");
+    }
 }
 
+/// `relume compare views`: the table, and `json` if given. The JSON may replace none of
+/// the run's inputs (the scene's files, the images compared), checked before the work.
 pub fn compare_views(
     scene: &Path,
     dir_a: &Path,
@@ -195,14 +284,31 @@ pub fn compare_views(
     json: Option<&Path>,
     threads: Option<usize>,
 ) -> Result<(), Error> {
+    let desc = scene_file::load_scene(scene)?;
+    let mut inputs = desc.input_files();
+    for v in &desc.views {
+        let image = format!("{}.exr", v.name);
+        inputs.push((
+            dir_a.join(&image),
+            format!("the reference image of view '{}' (A)", v.name),
+        ));
+        inputs.push((
+            dir_b.join(&image),
+            format!("the compared image of view '{}' (B)", v.name),
+        ));
+    }
+    let mut set = OutputSet::keeping(inputs);
+    if let Some(path) = json {
+        set.check_target(path)?;
+    }
     let report = views_report(scene, dir_a, dir_b, threads)?;
     print_views_table(&report);
     if let Some(path) = json {
         let text =
             serde_json::to_string_pretty(&report).map_err(|e| Error::Usage(e.to_string()))?;
-        fsutil::write_atomic(path, text.as_bytes())?;
+        set.add(path, text.as_bytes())?;
     }
-    Ok(())
+    set.commit()
 }
 
 /// Errors of one recovered material against the truth; `None` where the parameter does not
@@ -351,9 +457,34 @@ fn map_psnrs(truth: &Path, recovered: &Path) -> Result<(Option<f64>, Option<f64>
     Ok((map_psnr(&t, &r), ceiling))
 }
 
+/// Each group of the truth against `materials` (its row `(missing)` where `materials` has
+/// no entry for it). Errors: a file that does not parse, and one whose groups do not fit
+/// the truth's ([`check_groups`], [`Groups::Within`]).
 pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRow>, Error> {
     let t = materials_file::load_materials(truth)?;
     let m = materials_file::load_materials(materials)?;
+    materials_rows(&t, &m)
+}
+
+/// The groups of a materials file, in its order.
+fn groups_of(m: &MaterialsDesc) -> Vec<&str> {
+    m.materials.iter().map(|d| d.group.as_str()).collect()
+}
+
+/// [`materials_report`] of files already read.
+fn materials_rows(t: &MaterialsDesc, m: &MaterialsDesc) -> Result<Vec<MaterialRow>, Error> {
+    // A recovery writes no entry for a group no pixel sees: the truth may have more
+    // groups, but a group the truth lacks means a file of another scene, whose groups
+    // were dropped in silence ("2 of 11 classes right").
+    check_groups(
+        &m.path,
+        &groups_of(m),
+        "the truth",
+        &t.path,
+        &groups_of(t),
+        Groups::Within,
+        "a file of another scene?",
+    )?;
     let by_group: BTreeMap<&str, &MaterialDesc> =
         m.materials.iter().map(|d| (d.group.as_str(), d)).collect();
     let mut rows = Vec::new();
@@ -403,8 +534,16 @@ fn angle_between_axes_deg(a: [f32; 3], b: [f32; 3]) -> f64 {
     libm::acos(cos.min(1.0)).to_degrees()
 }
 
+/// `relume compare materials`: the table, and `json` if given. The JSON may replace none
+/// of the run's inputs (either materials file or their maps), checked before the work.
 pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) -> Result<(), Error> {
-    let rows = materials_report(truth, materials)?;
+    let t = materials_file::load_materials(truth)?;
+    let m = materials_file::load_materials(materials)?;
+    let mut set = OutputSet::keeping([t.input_files(), m.input_files()].concat());
+    if let Some(path) = json {
+        set.check_target(path)?;
+    }
+    let rows = materials_rows(&t, &m)?;
     let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.2}%", 100.0 * v));
     let db = |v: Option<f64>| v.map_or("-".to_string(), |p| format!("{p:.1}dB"));
     println!(
@@ -443,7 +582,98 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
     println!("{}", class_summary(&rows));
     if let Some(path) = json {
         let text = serde_json::to_string_pretty(&rows).map_err(|e| Error::Usage(e.to_string()))?;
-        fsutil::write_atomic(path, text.as_bytes())?;
+        set.add(path, text.as_bytes())?;
+    }
+    set.commit()
+}
+
+/// How the groups of a file must match those it is judged against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Groups {
+    /// Exactly the same groups: a truth and the scene it is the truth of.
+    Same,
+    /// Some or all of them, and no other: a recovery's materials (none is written for a
+    /// group no pixel sees) against the truth.
+    Within,
+}
+
+/// An input error on `file` when its `groups` do not match `their`, the groups of `what`
+/// (`"the truth"`, `"the scene"`) at `other`: a file of another scene would be judged
+/// against the wrong groups, or for a few groups only, and give meaningless figures. The
+/// error names the groups missing on each side and ends with `hint`.
+pub fn check_groups(
+    file: &Path,
+    groups: &[&str],
+    what: &str,
+    other: &Path,
+    their: &[&str],
+    rule: Groups,
+    hint: &str,
+) -> Result<(), Error> {
+    let only_here: Vec<&str> = groups
+        .iter()
+        .filter(|g| !their.contains(g))
+        .copied()
+        .collect();
+    let only_there: Vec<&str> = their
+        .iter()
+        .filter(|g| !groups.contains(g))
+        .copied()
+        .collect();
+    let fits = only_here.is_empty()
+        && match rule {
+            Groups::Same => only_there.is_empty(),
+            Groups::Within => !groups.is_empty() || their.is_empty(),
+        };
+    if fits {
+        return Ok(());
+    }
+    let list = |names: &[&str]| {
+        names
+            .iter()
+            .map(|g| format!("'{g}'"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut sides = Vec::new();
+    if !only_here.is_empty() {
+        sides.push(format!("only in this file: {}", list(&only_here)));
+    }
+    if !only_there.is_empty() {
+        sides.push(format!("only in {what}: {}", list(&only_there)));
+    }
+    Err(Error::input(
+        file,
+        format!(
+            "its groups are not those of {what} {}: {} ({hint})",
+            other.display(),
+            sides.join("; ")
+        ),
+    ))
+}
+
+/// The checks `relume compare uncertainty` makes before its work (its comparison is
+/// `coverage::compare_uncertainty`): no report given twice, which would pool its
+/// parameters twice and claim a coverage over more recoveries than were made; and no
+/// `json` that would replace an input (the truth, its maps, a report).
+pub fn check_uncertainty_run(
+    truth: &Path,
+    reports: &[PathBuf],
+    json: Option<&Path>,
+) -> Result<(), Error> {
+    for (i, report) in reports.iter().enumerate() {
+        if let Some(first) = reports[..i].iter().find(|r| fsutil::same_file(r, report)) {
+            return Err(Error::Usage(format!(
+                "{} is given twice as a report (also as {}): its parameters would be pooled twice",
+                report.display(),
+                first.display()
+            )));
+        }
+    }
+    if let Some(path) = json {
+        let mut inputs = materials_file::load_materials(truth)?.input_files();
+        inputs.extend(reports.iter().map(|r| (r.clone(), "a report".to_string())));
+        OutputSet::keeping(inputs).check_target(path)?;
     }
     Ok(())
 }
@@ -528,5 +758,137 @@ mod tests {
         );
         let grey = image(4, 4, |_, _| 0.5);
         assert!((map_psnr(&checker, &grey).unwrap() - ceiling).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_row_without_pixels_or_with_a_black_reference_has_no_relative_figures_and_says_why() {
+        let mut sums = Sums::default();
+        let empty = sums.row("lamp", "group 'lamp'");
+        assert!(empty.rel_mean_diff.is_nan() && empty.rel_rms.is_nan());
+        assert_eq!(
+            empty.undefined.as_deref(),
+            Some("group 'lamp': no pure pixel, nothing to compare")
+        );
+        sums.add([0.0; 3], [0.5; 3]);
+        sums.add([0.0; 3], [0.25; 3]);
+        let black = sums.row("floor", "group 'floor' (in views px)");
+        assert!(black.rel_mean_diff.is_nan(), "{black:?}");
+        let why = black.undefined.clone().unwrap();
+        assert!(
+            why.starts_with("group 'floor' (in views px): the reference (A) is 0 over its 2"),
+            "{why}"
+        );
+        // In JSON: null and the reason, never NaN; a defined row has no reason.
+        let json = serde_json::to_string(&black).unwrap();
+        assert!(
+            json.contains("\"rel_mean_diff\":null") && json.contains("\"undefined\":"),
+            "{json}"
+        );
+        let mut lit = Sums::default();
+        lit.add([1.0; 3], [1.5; 3]);
+        let row = lit.row("floor", "group 'floor'");
+        assert_eq!((row.rel_mean_diff, row.rel_rms), (0.5, 0.5));
+        let json = serde_json::to_string(&row).unwrap();
+        assert!(
+            json.contains("\"rel_mean_diff\":0.5") && !json.contains("undefined"),
+            "{json}"
+        );
+    }
+
+    #[test]
+    fn groups_that_do_not_match_are_named_on_each_side() {
+        let (file, truth) = (Path::new("m.toml"), Path::new("t.toml"));
+        let check = |groups: &[&str], rule| {
+            check_groups(
+                file,
+                groups,
+                "the truth",
+                truth,
+                &["floor", "walls", "desk"],
+                rule,
+                "a file of another scene?",
+            )
+            .map_err(|e| e.to_string())
+        };
+        assert!(check(&["desk", "floor", "walls"], Groups::Same).is_ok());
+        // A recovery that left a group out is judged; as the truth of a scene it is not.
+        assert!(check(&["floor", "desk"], Groups::Within).is_ok());
+        let e = check(&["floor", "desk"], Groups::Same).unwrap_err();
+        assert_eq!(
+            e,
+            "m.toml: its groups are not those of the truth t.toml: only in the truth: 'walls' (a file of another scene?)"
+        );
+        let e = check(&["floor", "sofa", "lamp"], Groups::Within).unwrap_err();
+        assert!(
+            e.contains("only in this file: 'sofa', 'lamp'; only in the truth: 'walls', 'desk'"),
+            "{e}"
+        );
+        // A file with no group at all has nothing to judge.
+        let e = check(&[], Groups::Within).unwrap_err();
+        assert!(
+            e.contains("only in the truth: 'floor', 'walls', 'desk'"),
+            "{e}"
+        );
+    }
+
+    /// A materials file of `groups`, all diffuse grey, in `dir`.
+    fn materials_file_of(dir: &Path, name: &str, groups: &[&str]) -> PathBuf {
+        let mut text = String::from("format = 1\n");
+        for g in groups {
+            text += &format!(
+                "\n[[material]]\ngroup = \"{g}\"\nmodel = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]\n"
+            );
+        }
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    #[test]
+    fn materials_of_another_scene_are_refused_and_a_partial_recovery_is_judged() {
+        let dir = tempfile::tempdir().unwrap();
+        let truth = materials_file_of(dir.path(), "t.toml", &["floor", "walls"]);
+        let other = materials_file_of(dir.path(), "o.toml", &["floor", "sofa"]);
+        let e = materials_report(&truth, &other).unwrap_err().to_string();
+        assert!(
+            e.contains("o.toml")
+                && e.contains("only in this file: 'sofa'")
+                && e.contains("only in the truth: 'walls'"),
+            "{e}"
+        );
+        let partial = materials_file_of(dir.path(), "p.toml", &["walls"]);
+        let rows = materials_report(&truth, &partial).unwrap();
+        assert_eq!(rows.len(), 2);
+        assert_eq!((rows[0].model.as_deref(), rows[0].class_ok), (None, false));
+        assert!(rows[1].class_ok);
+    }
+
+    #[test]
+    fn compare_json_that_would_replace_an_input_is_refused_before_the_work() {
+        let dir = tempfile::tempdir().unwrap();
+        let truth = materials_file_of(dir.path(), "t.toml", &["floor"]);
+        let before = std::fs::read(&truth).unwrap();
+        let e = compare_materials(&truth, &truth, Some(&truth))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("t.toml")
+                && e.contains("would replace a materials file, an input of this run"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read(&truth).unwrap(), before);
+        // compare uncertainty: a report as the JSON, and a report given twice.
+        let report = dir.path().join("report.json");
+        std::fs::write(&report, "{\"groups\": []}").unwrap();
+        let reports = [report.clone()];
+        let e = check_uncertainty_run(&truth, &reports, Some(&report))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("would replace a report"), "{e}");
+        let twice = [report.clone(), dir.path().join(".").join("report.json")];
+        let e = check_uncertainty_run(&truth, &twice, None).unwrap_err();
+        assert_eq!(e.exit_code(), 2);
+        assert!(e.to_string().contains("given twice as a report"), "{e}");
+        check_uncertainty_run(&truth, &reports, Some(&dir.path().join("out.json"))).unwrap();
     }
 }

@@ -282,6 +282,17 @@ fn resolved(path: &Path) -> Option<PathBuf> {
         .map(|d| d.join(name))
 }
 
+/// Whether `a` and `b` name the same file by any spelling (links, `..`): the file itself
+/// resolved when both exist, else its folder as [`OutputSet::check_target`] resolves it
+/// (an output not written yet). An input given twice would be counted twice, and two
+/// outputs of one name would leave only the later.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    if let (Ok(a), Ok(b)) = (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        return a == b;
+    }
+    matches!((resolved(a), resolved(b)), (Some(a), Some(b)) if a == b)
+}
+
 /// The folder a file at `path` is in (`.` for a bare file name).
 fn folder_of(path: &Path) -> &Path {
     match path.parent() {

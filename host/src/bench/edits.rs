@@ -15,11 +15,15 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
+use crate::assemble::{self, MaterialSource};
 use crate::bench::{field, Csv};
-use crate::compare::{self, ViewImages, ViewsReport};
+use crate::compare::{self, Groups, ViewImages, ViewsReport};
 use crate::error::Error;
 use crate::fsutil::{self, OutputSet};
+use crate::images;
+use crate::materials_file::{self, MaterialsDesc};
 use crate::render_cmd::{self, RenderArgs};
+use crate::scene_file;
 
 /// The issue's goal: an edit rendered from the recovered model is within 1.2x the error of
 /// the same edit rendered with the true materials.
@@ -126,14 +130,12 @@ pub fn run(args: &EditsArgs) -> Result<Vec<EditOutcome>, Error> {
             w[0]
         )));
     }
+    let set = prepare(args)?;
     fsutil::create_dir(&args.out)?;
     let mut outcomes = Vec::new();
     for scene in &args.edits {
         let name = edit_name(scene);
-        let added = scene
-            .parent()
-            .map(|d| d.join(ADDED_MATERIALS))
-            .filter(|p| p.is_file() && p != scene);
+        let added = added_materials(scene);
         let arm = |materials: &Path, label: &str| -> Result<ArmError, Error> {
             let out = args.out.join(&name).join(label);
             eprintln!("{name}: rendering with the {label} materials");
@@ -171,11 +173,96 @@ pub fn run(args: &EditsArgs) -> Result<Vec<EditOutcome>, Error> {
             group_mean_ratio,
         });
     }
-    write_outputs(&args.out, &outcomes)?;
+    write_outputs(set, &args.out, &outcomes)?;
     Ok(outcomes)
 }
 
-fn write_outputs(out: &Path, outcomes: &[EditOutcome]) -> Result<(), Error> {
+/// The materials file beside an edit's scene.toml, for the objects it adds, if any.
+fn added_materials(scene: &Path) -> Option<PathBuf> {
+    scene
+        .parent()
+        .map(|d| d.join(ADDED_MATERIALS))
+        .filter(|p| p.is_file() && p != scene)
+}
+
+/// The checks made before the first render, which otherwise met a truth of another scene
+/// or a missing reference image only after minutes of rendering: each edit's groups get
+/// their materials from the recovered and the true file (and its added materials),
+/// exactly (a group-set mismatch names the groups on each side); each edit renders with
+/// both (every other error of a material); its views name reference images that exist;
+/// and no output replaces an input. Returns the set for the CSV and the JSON.
+fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
+    let recovered = materials_file::load_materials(&args.recovered)?;
+    let truth = materials_file::load_materials(&args.truth)?;
+    let mut inputs = [recovered.input_files(), truth.input_files()].concat();
+    let mut outputs = Vec::new();
+    let hint = format!(
+        "a file of another scene? A group only the edit has takes its material from {ADDED_MATERIALS} beside its scene.toml"
+    );
+    for scene in &args.edits {
+        let desc = scene_file::load_scene(scene)?;
+        let added = match added_materials(scene) {
+            Some(path) => Some(materials_file::load_materials(&path)?),
+            None => None,
+        };
+        let added_groups: Vec<&str> = added
+            .iter()
+            .flat_map(|a| a.materials.iter().map(|m| m.group.as_str()))
+            .collect();
+        let own: Vec<&str> = desc
+            .groups
+            .iter()
+            .map(|g| g.name.as_str())
+            .filter(|g| !added_groups.contains(g))
+            .collect();
+        for file in [&truth, &recovered] {
+            let groups: Vec<&str> = file.materials.iter().map(|m| m.group.as_str()).collect();
+            compare::check_groups(
+                &file.path,
+                &groups,
+                "the edit",
+                scene,
+                &own,
+                Groups::Same,
+                &hint,
+            )?;
+            let files: Vec<MaterialsDesc> =
+                std::iter::once(file.clone()).chain(added.clone()).collect();
+            assemble::load_and_assemble(scene, MaterialSource::Files(&files))?;
+        }
+        for v in &desc.views {
+            let Some(image) = &v.image else {
+                return Err(Error::input(
+                    scene,
+                    format!(
+                        "view '{}' names no image: an edit's views are its reference",
+                        v.name
+                    ),
+                ));
+            };
+            std::fs::metadata(image).map_err(|e| Error::io(image, e))?;
+        }
+        let name = edit_name(scene);
+        for arm in ["recovered", "truth"] {
+            let dir = args.out.join(&name).join(arm);
+            outputs.extend(
+                desc.views
+                    .iter()
+                    .flat_map(|v| images::exr_and_preview_paths(&dir, &v.name)),
+            );
+            // What render_cmd names RENDER_JSON.
+            outputs.push(dir.join("render.json"));
+        }
+        inputs.extend(desc.input_files());
+        inputs.extend(added.iter().flat_map(|a| a.input_files()));
+    }
+    outputs.extend(["edits.csv", "edits.json"].map(|f| args.out.join(f)));
+    let set = OutputSet::keeping(inputs);
+    set.check_targets(outputs)?;
+    Ok(set)
+}
+
+fn write_outputs(mut set: OutputSet, out: &Path, outcomes: &[EditOutcome]) -> Result<(), Error> {
     let mut csv = Csv::new(&[
         "edit",
         "pixels",
@@ -200,7 +287,6 @@ fn write_outputs(out: &Path, outcomes: &[EditOutcome]) -> Result<(), Error> {
             o.within_goal.to_string(),
         ]);
     }
-    let mut set = OutputSet::default();
     set.add(&out.join("edits.csv"), csv.to_text().as_bytes())?;
     let json = serde_json::to_string_pretty(outcomes).map_err(|e| Error::Usage(e.to_string()))?;
     set.add(&out.join("edits.json"), json.as_bytes())?;
@@ -214,17 +300,25 @@ pub fn print_table(outcomes: &[EditOutcome]) {
         "{:<12} {:>7} {:>22} {:>7} {:>24} {:>7}  goal {RATIO_GOAL}x",
         "edit", "pixels", "rel RMS rec / truth", "ratio", "group mean rec / truth", "ratio"
     );
+    // A ratio against an error of 0 is undefined (and not a pass): `-`, not `NaN`.
+    let ratio = |r: f64| {
+        if r.is_finite() {
+            format!("{r:.2}")
+        } else {
+            "-".into()
+        }
+    };
     for o in outcomes {
         println!(
-            "{:<12} {:>7} {:>10.2}% / {:>6.2}% {:>7.2} {:>11.2}% / {:>7.2}% {:>7.2}  {}",
+            "{:<12} {:>7} {:>10.2}% / {:>6.2}% {:>7} {:>11.2}% / {:>7.2}% {:>7}  {}",
             o.edit,
             o.pixels,
             100.0 * o.recovered.rel_rms,
             100.0 * o.truth.rel_rms,
-            o.rms_ratio,
+            ratio(o.rms_ratio),
             100.0 * o.recovered.group_mean_err,
             100.0 * o.truth.group_mean_err,
-            o.group_mean_ratio,
+            ratio(o.group_mean_ratio),
             if o.within_goal { "met" } else { "missed" }
         );
     }
@@ -235,7 +329,7 @@ pub fn print_table(outcomes: &[EditOutcome]) {
             .groups
             .iter()
             .zip(&o.truth.views.groups)
-            .filter(|(r, _)| r.pixels > 0)
+            .filter(|(r, t)| r.rel_mean_diff.is_finite() && t.rel_mean_diff.is_finite())
             .map(|(r, t)| (r.name.clone(), r.rel_mean_diff, t.rel_mean_diff))
             .collect();
         added.sort_by(|a, b| (b.1.abs() - b.2.abs()).total_cmp(&(a.1.abs() - a.2.abs())));
@@ -264,5 +358,59 @@ mod tests {
         assert!(!meets_goal(ratio(0.1, 0.0), 1.0));
         assert!(meets_goal(1.2, 0.5));
         assert!(!meets_goal(1.0, 1.21));
+    }
+
+    /// An edit of the bundled scene in `dir/<name>/scene.toml`: the scene as it is, with
+    /// paths to its geometry and panorama (the references).
+    fn cornell_edit(dir: &Path, name: &str) -> PathBuf {
+        let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+        let text = std::fs::read_to_string(cornell.join("scene.toml"))
+            .unwrap()
+            .replace(
+                "\"geometry.obj\"",
+                &format!("{:?}", cornell.join("geometry.obj")),
+            )
+            .replace(
+                "\"views/",
+                &format!("\"{}/", cornell.join("views").display()),
+            );
+        std::fs::create_dir_all(dir.join(name)).unwrap();
+        let scene = dir.join(name).join("scene.toml");
+        std::fs::write(&scene, text).unwrap();
+        scene
+    }
+
+    #[test]
+    fn a_truth_of_another_scene_or_an_output_over_an_input_is_refused_before_any_render() {
+        let dir = tempfile::tempdir().unwrap();
+        let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+        let edit = cornell_edit(dir.path(), "same");
+        let other = dir.path().join("other.toml");
+        let text = std::fs::read_to_string(cornell.join("materials.toml")).unwrap();
+        std::fs::write(&other, text.replace("\"sphere\"", "\"statue\"")).unwrap();
+        let args = |truth: &Path| EditsArgs {
+            edits: vec![edit.clone()],
+            recovered: cornell.join("materials.toml"),
+            truth: truth.to_path_buf(),
+            out: dir.path().join("out"),
+            spp: 1,
+            seed: 1,
+            threads: Some(1),
+        };
+        let e = run(&args(&other)).err().unwrap().to_string();
+        assert!(
+            e.contains("other.toml: its groups are not those of the edit")
+                && e.contains("only in this file: 'statue'; only in the edit: 'sphere'"),
+            "{e}"
+        );
+        assert!(!dir.path().join("out").exists(), "nothing rendered");
+        // The truth where the run writes its JSON.
+        let inside = dir.path().join("out/edits.json");
+        std::fs::create_dir_all(inside.parent().unwrap()).unwrap();
+        std::fs::write(&inside, &text).unwrap();
+        let e = run(&args(&inside)).err().unwrap().to_string();
+        assert!(e.contains("would replace a materials file"), "{e}");
+        assert!(!dir.path().join("out/same").exists(), "nothing rendered");
+        assert_eq!(std::fs::read_to_string(&inside).unwrap(), text);
     }
 }

@@ -16,13 +16,15 @@ pub mod stability;
 pub mod tradeoff;
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::compare;
+use crate::compare::{self, Groups};
 use crate::error::Error;
-use crate::materials_file::{self, MaterialDesc};
+use crate::fsutil::OutputSet;
+use crate::materials_file::{self, MaterialDesc, MaterialsDesc};
 use crate::recover::{self, RecoverArgs};
+use crate::scene_file::SceneDesc;
 
 /// One group of one recovery, against the truth.
 #[derive(Clone, Debug)]
@@ -171,6 +173,57 @@ pub fn recover_and_judge(args: &RecoverArgs, truth: &Path) -> Result<Judged, Err
     })
 }
 
+/// An input error on the truth unless its groups are exactly the scene's: a truth of
+/// another scene ran for minutes and judged its recoveries against nothing.
+pub fn check_truth_of(scene: &SceneDesc, truth: &MaterialsDesc) -> Result<(), Error> {
+    let groups: Vec<&str> = truth.materials.iter().map(|m| m.group.as_str()).collect();
+    let theirs: Vec<&str> = scene.groups.iter().map(|g| g.name.as_str()).collect();
+    compare::check_groups(
+        &truth.path,
+        &groups,
+        "the scene",
+        &scene.path,
+        &theirs,
+        Groups::Same,
+        "a truth of another scene?",
+    )
+}
+
+/// The output set of a recovery bench (`scene` judged against `truth`), once no file in
+/// `outputs` would replace an input of the bench: the scene's files or the truth's. Each
+/// recovery keeps its own scene's files only; the truth, its to judge by, is the bench's.
+/// Checked before the first run, not when a run or the final tables meet it.
+pub fn prepare_outputs(
+    scene: &SceneDesc,
+    truth: &MaterialsDesc,
+    outputs: Vec<PathBuf>,
+) -> Result<OutputSet, Error> {
+    let set = OutputSet::keeping([scene.input_files(), truth.input_files()].concat());
+    set.check_targets(outputs)?;
+    Ok(set)
+}
+
+/// The files a recovery of `scene` into `out` writes or may remove (an earlier run's
+/// maps), as `recover` names them.
+pub fn recovery_outputs(out: &Path, scene: &SceneDesc) -> Vec<PathBuf> {
+    let views: Vec<String> = scene.views.iter().map(|v| v.name.clone()).collect();
+    let groups: Vec<String> = scene.groups.iter().map(|g| g.name.clone()).collect();
+    recover::output_files(out, &views, &groups)
+}
+
+/// The files a copy of `scene` derived into `out` (perturbed, box-averaged) writes, as
+/// `downsample::write_derived_scene` names them.
+pub fn derived_scene_outputs(out: &Path, scene: &SceneDesc) -> Vec<PathBuf> {
+    let mut files = vec![out.join("scene.toml")];
+    files.extend(
+        scene
+            .views
+            .iter()
+            .map(|v| out.join("views").join(format!("{}.exr", v.name))),
+    );
+    files
+}
+
 /// A CSV table: a header and rows of already formatted fields.
 pub struct Csv {
     pub header: Vec<String>,
@@ -213,9 +266,11 @@ impl Csv {
     }
 }
 
-/// A CSV field for an optional number: empty when absent.
+/// A CSV field for an optional number: empty when absent or undefined (not finite), never
+/// `NaN`.
 pub fn field(v: Option<f64>) -> String {
-    v.map_or(String::new(), |v| format!("{v:.6}"))
+    v.filter(|v| v.is_finite())
+        .map_or(String::new(), |v| format!("{v:.6}"))
 }
 
 /// A table cell for an optional fraction, as a percentage.
@@ -292,5 +347,58 @@ mod tests {
         assert!((s.param_err.unwrap() - 0.145).abs() < 1e-12);
         assert!((s.image_err.unwrap() - 0.03).abs() < 1e-12);
         assert!((s.image_err_weighted.unwrap() - 0.02).abs() < 1e-12);
+    }
+
+    #[test]
+    fn csv_fields_of_undefined_numbers_are_empty() {
+        assert_eq!(field(Some(f64::NAN)), "");
+        assert_eq!(field(Some(f64::INFINITY)), "");
+    }
+
+    fn cornell() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell")
+    }
+
+    #[test]
+    fn a_truth_of_another_scene_is_refused_naming_the_groups_on_each_side() {
+        let scene = crate::scene_file::load_scene(&cornell().join("scene.toml")).unwrap();
+        let mut truth = materials_file::load_materials(&cornell().join("materials.toml")).unwrap();
+        check_truth_of(&scene, &truth).unwrap();
+        truth.materials.retain(|m| m.group != "box");
+        truth.materials[0].group = "sofa".into();
+        let e = check_truth_of(&scene, &truth).unwrap_err().to_string();
+        assert!(
+            e.contains("materials.toml: its groups are not those of the scene")
+                && e.contains("only in this file: 'sofa'; only in the scene: 'floor', 'box'"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_bench_output_over_its_truth_is_refused_before_the_first_run() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = crate::scene_file::load_scene(&cornell().join("scene.toml")).unwrap();
+        // The truth where a run's materials.toml, or a map of its, would go.
+        let run = dir.path().join("runs/a");
+        std::fs::create_dir_all(run.join("textures")).unwrap();
+        std::fs::copy(cornell().join("materials.toml"), run.join("materials.toml")).unwrap();
+        let truth = materials_file::load_materials(&run.join("materials.toml")).unwrap();
+        let e = prepare_outputs(&scene, &truth, recovery_outputs(&run, &scene))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("runs/a/materials.toml") && e.contains("a materials file"),
+            "{e}"
+        );
+        let elsewhere = recovery_outputs(&dir.path().join("runs/b"), &scene);
+        assert!(elsewhere.contains(&dir.path().join("runs/b/textures/box.cal")));
+        assert!(elsewhere.contains(&dir.path().join("runs/b/errors/px.png")));
+        prepare_outputs(&scene, &truth, elsewhere).unwrap();
+        let e = prepare_outputs(&scene, &truth, derived_scene_outputs(&cornell(), &scene))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("would replace the scene file"), "{e}");
     }
 }

@@ -11,15 +11,21 @@ use rayon::prelude::*;
 use relume_core::geometry::Ray;
 use relume_core::scene::Scene;
 
+use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
-use crate::fsutil;
+use crate::fsutil::{self, OutputSet};
 use crate::parallel;
+use crate::scene_file;
 
 /// Rays handed to one worker at a time: large enough that scheduling costs nothing.
 const RAYS_PER_CHUNK: usize = 4096;
 
 /// Two hits agree when their distances agree to this relative tolerance (rays/README.md).
 pub const T_AGREEMENT: f32 = 1e-4;
+
+/// How far from 1 a ray's direction may be in length: f32 rounding of a unit vector, with
+/// room to spare (the reference sets are within 1e-7).
+pub const UNIT_TOLERANCE: f64 = 1e-3;
 
 pub struct BenchRaysArgs {
     pub scene: PathBuf,
@@ -113,8 +119,20 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>, Error> {
             ));
         }
         let direction = Vec3::new(v[3], v[4], v[5]);
-        if direction.length_squared() == 0.0 {
-            return Err(Error::input(path, format!("ray {i} has a zero direction")));
+        // A hit's t is a distance only along a unit direction: another length gives t's
+        // that cannot agree with the reference's, and figures for other rays.
+        let length = v[3..]
+            .iter()
+            .map(|&c| c as f64 * c as f64)
+            .sum::<f64>()
+            .sqrt();
+        if (length - 1.0).abs() > UNIT_TOLERANCE {
+            return Err(Error::input(
+                path,
+                format!(
+                    "ray {i} has a direction of length {length}, not 1: the format gives unit directions"
+                ),
+            ));
         }
         rays.push(Ray::new(Vec3::new(v[0], v[1], v[2]), direction));
     }
@@ -134,15 +152,20 @@ pub fn read_hits(path: &Path) -> Result<Vec<FileHit>, Error> {
         .collect())
 }
 
-/// Writes hits in the reference format, atomically.
-pub fn write_hits(path: &Path, hits: &[FileHit]) -> Result<(), Error> {
+/// Hits in the reference format.
+fn hits_bytes(hits: &[FileHit]) -> Vec<u8> {
     let mut bytes = Vec::with_capacity(8 + 8 * hits.len());
     bytes.extend_from_slice(&(hits.len() as u64).to_le_bytes());
     for h in hits {
         bytes.extend_from_slice(&h.t.to_le_bytes());
         bytes.extend_from_slice(&h.triangle.to_le_bytes());
     }
-    fsutil::write_atomic(path, &bytes)
+    bytes
+}
+
+/// Writes hits in the reference format, atomically.
+pub fn write_hits(path: &Path, hits: &[FileHit]) -> Result<(), Error> {
+    fsutil::write_atomic(path, &hits_bytes(hits))
 }
 
 fn trace(scene: &Scene, rays: &[Ray], out: &mut [FileHit]) {
@@ -157,10 +180,10 @@ fn trace(scene: &Scene, rays: &[Ray], out: &mut [FileHit]) {
     }
 }
 
-/// Best time in seconds over `repeats` runs after one warm-up.
+/// Best time in seconds over `repeats` (at least 1) runs after one warm-up.
 fn best_of(repeats: usize, mut run: impl FnMut()) -> f64 {
     run();
-    (0..repeats.max(1))
+    (0..repeats)
         .map(|_| {
             let start = Instant::now();
             run();
@@ -184,13 +207,60 @@ pub fn agreement(path: &Path, ours: &[FileHit], reference: &[FileHit]) -> Result
         .count())
 }
 
-/// Runs the benchmark, prints the figures and writes the requested files.
-pub fn bench_rays(args: &BenchRaysArgs, scene: &Scene) -> Result<BenchRaysResult, Error> {
+/// The output set of a run, with every check that needs no work made: at least one timed
+/// run, and no output that would replace an input (the scene's files, the rays, the
+/// reference hits read) or the other output.
+fn prepare(args: &BenchRaysArgs, reference: Option<&Path>) -> Result<OutputSet, Error> {
+    if args.repeats == 0 {
+        return Err(Error::Usage("--repeats must be at least 1".into()));
+    }
+    let mut inputs = scene_file::load_scene(&args.scene)?.input_files();
+    inputs.push((args.rays.clone(), "the ray file".into()));
+    inputs.extend(reference.map(|r| (r.to_path_buf(), "the reference hits".into())));
+    let set = OutputSet::keeping(inputs);
+    set.check_targets(args.hits_out.iter().chain(&args.json_out).cloned())?;
+    if let (Some(hits), Some(json)) = (&args.hits_out, &args.json_out) {
+        if fsutil::same_file(hits, json) {
+            return Err(Error::Usage(format!(
+                "--hits and --json both name {}: the JSON would replace the hits",
+                json.display()
+            )));
+        }
+    }
+    Ok(set)
+}
+
+/// Runs the benchmark, prints the figures and writes the requested files as one set. Every
+/// input is read and checked before the timing: the rays, the reference hits (given, or
+/// the .hits beside the .rays when there is one) and the scene.
+pub fn run(args: &BenchRaysArgs) -> Result<BenchRaysResult, Error> {
+    let reference_path = args
+        .reference_hits
+        .clone()
+        .unwrap_or_else(|| args.rays.with_extension("hits"));
+    let reference_path =
+        (args.reference_hits.is_some() || reference_path.is_file()).then_some(reference_path);
+    let mut set = prepare(args, reference_path.as_deref())?;
     let rays = read_rays(&args.rays)?;
+    let reference = match &reference_path {
+        Some(path) => {
+            let hits = read_hits(path)?;
+            if hits.len() != rays.len() {
+                return Err(Error::input(
+                    path,
+                    format!("{} reference hits for {} rays", hits.len(), rays.len()),
+                ));
+            }
+            Some((path, hits))
+        }
+        None => None,
+    };
+    let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::GeometryOnly)?;
+    let scene = owned.build()?;
     let mut hits = vec![FileHit::MISS; rays.len()];
 
     let one = parallel::thread_pool(Some(1))?;
-    let seconds_1 = one.install(|| best_of(args.repeats, || trace(scene, &rays, &mut hits)));
+    let seconds_1 = one.install(|| best_of(args.repeats, || trace(&scene, &rays, &mut hits)));
 
     let all = parallel::thread_pool(args.threads)?;
     let threads_all = all.current_num_threads();
@@ -198,22 +268,13 @@ pub fn bench_rays(args: &BenchRaysArgs, scene: &Scene) -> Result<BenchRaysResult
         best_of(args.repeats, || {
             rays.par_chunks(RAYS_PER_CHUNK)
                 .zip(hits.par_chunks_mut(RAYS_PER_CHUNK))
-                .for_each(|(r, h)| trace(scene, r, h));
+                .for_each(|(r, h)| trace(&scene, r, h));
         })
     });
 
-    let reference_path = args
-        .reference_hits
-        .clone()
-        .unwrap_or_else(|| args.rays.with_extension("hits"));
-    let agreement = if args.reference_hits.is_some() || reference_path.is_file() {
-        let reference = read_hits(&reference_path)?;
-        Some((
-            agreement(&reference_path, &hits, &reference)?,
-            reference.len(),
-        ))
-    } else {
-        None
+    let agreement = match &reference {
+        Some((path, reference)) => Some((agreement(path, &hits, reference)?, reference.len())),
+        None => None,
     };
 
     let mrays = |s: f64| rays.len() as f64 / s.max(1e-12) / 1e6;
@@ -231,16 +292,16 @@ pub fn bench_rays(args: &BenchRaysArgs, scene: &Scene) -> Result<BenchRaysResult
         "  {} threads: {:8.3} Mrays/s",
         threads_all, result.mrays_all
     );
-    if let Some((agree, n)) = result.agreement {
+    if let (Some((agree, n)), Some((path, _))) = (result.agreement, &reference) {
         println!(
             "  hits agree with {}: {agree}/{n} ({:.4}%)",
-            reference_path.display(),
+            path.display(),
             100.0 * agree as f64 / n.max(1) as f64
         );
     }
 
     if let Some(path) = &args.hits_out {
-        write_hits(path, &hits)?;
+        set.add(path, &hits_bytes(&hits))?;
     }
     if let Some(path) = &args.json_out {
         let mut json = serde_json::json!({
@@ -251,9 +312,10 @@ pub fn bench_rays(args: &BenchRaysArgs, scene: &Scene) -> Result<BenchRaysResult
         if let Some((agree, n)) = result.agreement {
             json["agreement"] = serde_json::json!({ "agreeing": agree, "compared": n });
         }
-        let text = serde_json::to_string_pretty(&json).expect("JSON of numbers");
-        fsutil::write_atomic(path, text.as_bytes())?;
+        let text = serde_json::to_string_pretty(&json).map_err(|e| Error::Usage(e.to_string()))?;
+        set.add(path, text.as_bytes())?;
     }
+    set.commit()?;
     Ok(result)
 }
 
@@ -304,5 +366,77 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("missing.rays"), "{e}");
+    }
+
+    /// A ray file of `directions`, all from the origin.
+    fn ray_file(path: &Path, directions: &[[f32; 3]]) {
+        let mut bytes = (directions.len() as u64).to_le_bytes().to_vec();
+        for d in directions {
+            for v in [0.0, 0.0, 0.0, d[0], d[1], d[2]] {
+                bytes.extend_from_slice(&f32::to_le_bytes(v));
+            }
+        }
+        std::fs::write(path, bytes).unwrap();
+    }
+
+    #[test]
+    fn directions_must_be_unit_length_within_the_tolerance() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.rays");
+        let s = std::f32::consts::FRAC_1_SQRT_2;
+        ray_file(&path, &[[1.0, 0.0, 0.0], [0.0, s, s], [0.0, 0.0, -1.0005]]);
+        assert_eq!(read_rays(&path).unwrap().len(), 3);
+        ray_file(&path, &[[1.0, 0.0, 0.0], [0.0, 2.0, 0.0]]);
+        let e = read_rays(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("x.rays") && e.contains("ray 1 has a direction of length 2, not 1"),
+            "{e}"
+        );
+        ray_file(&path, &[[0.0, 0.0, 0.0]]);
+        let e = read_rays(&path).unwrap_err().to_string();
+        assert!(e.contains("ray 0 has a direction of length 0"), "{e}");
+    }
+
+    fn cornell() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/scene.toml")
+    }
+
+    #[test]
+    fn no_repeats_and_outputs_over_inputs_are_refused_before_the_timing() {
+        let dir = tempfile::tempdir().unwrap();
+        let rays = dir.path().join("x.rays");
+        ray_file(&rays, &[[1.0, 0.0, 0.0]]);
+        let before = std::fs::read(&rays).unwrap();
+        let args = |hits: Option<&str>, json: Option<&str>, repeats| BenchRaysArgs {
+            scene: cornell(),
+            rays: rays.clone(),
+            hits_out: hits.map(|h| dir.path().join(h)),
+            json_out: json.map(|j| dir.path().join(j)),
+            reference_hits: None,
+            threads: Some(1),
+            repeats,
+        };
+        let e = run(&args(None, None, 0)).err().unwrap();
+        assert!(
+            e.to_string().contains("--repeats") && e.exit_code() == 2,
+            "{e}"
+        );
+        for (hits, json) in [(Some("x.rays"), None), (None, Some("x.rays"))] {
+            let e = run(&args(hits, json, 1)).err().unwrap().to_string();
+            assert!(e.contains("would replace the ray file"), "{e}");
+        }
+        let e = run(&args(Some("o.bin"), Some("o.bin"), 1)).err().unwrap();
+        assert!(e.to_string().contains("--hits and --json both name"), "{e}");
+        assert_eq!(std::fs::read(&rays).unwrap(), before);
+        // The hits written become the reference beside the rays, which a later run keeps.
+        let result = run(&args(Some("x.hits"), Some("x.json"), 1)).unwrap();
+        assert_eq!(result.agreement, None);
+        let e = run(&args(Some("x.hits"), None, 1))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("would replace the reference hits"), "{e}");
+        let result = run(&args(None, None, 1)).unwrap();
+        assert_eq!(result.agreement, Some((1, 1)));
     }
 }

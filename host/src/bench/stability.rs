@@ -11,12 +11,15 @@ use std::path::PathBuf;
 
 use super::chart::{Axis, Chart, ChartPoint, Panel, Series};
 use super::perturb::{self, Perturbation};
-use super::{field, pct, recover_and_judge, Csv, GroupOutcome, Judged};
+use super::{
+    check_truth_of, derived_scene_outputs, field, pct, prepare_outputs, recover_and_judge,
+    recovery_outputs, Csv, GroupOutcome, Judged,
+};
 use crate::error::Error;
-use crate::fsutil::{self, OutputSet};
+use crate::fsutil;
 use crate::materials_file::{self, MaterialDesc, Model};
 use crate::recover::{Effort, RecoverArgs};
-use crate::scene_file;
+use crate::scene_file::{self, SceneDesc};
 
 /// The target for the relative spread of a recovered parameter over seeds.
 pub const SEED_SPREAD_TARGET: f64 = 0.005;
@@ -142,6 +145,8 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
             ));
         }
     }
+    check_truth_of(&desc, &truth)?;
+    let mut set = prepare_outputs(&desc, &truth, outputs(args, &desc))?;
     fsutil::create_dir(&args.out)?;
     let budget = args.effort.budget();
     let mut runs: Vec<StabilityRun> = Vec::new();
@@ -151,7 +156,7 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
                    perturbation: Option<Perturbation>,
                    limit: Option<(String, u32)>|
      -> Result<StabilityRun, Error> {
-        let id = format!("{}_{}", family.name(), size);
+        let id = run_id(family, size);
         let scene = match perturbation {
             Some(p) => {
                 perturb::write_perturbed(&args.scene, &p, &args.out.join("scenes").join(&id))?
@@ -208,14 +213,9 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
             runs.push(recover(family, size, args.seed, Some(p), None)?);
         }
     }
-    let all_sizes_divide = |side: u32| {
-        desc.views
-            .iter()
-            .all(|v| v.size[0].is_multiple_of(side) && v.size[1].is_multiple_of(side))
-    };
     for size in sizes(Family::Resolution, args.quick) {
         let side = size as u32;
-        if side >= view_side || !all_sizes_divide(side) {
+        if !resolution_applies(&desc, side) {
             continue;
         }
         let p = Perturbation {
@@ -238,7 +238,6 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
     }
 
     let spread = seed_spread(&runs, &truth.materials);
-    let mut set = OutputSet::default();
     set.add(
         &args.out.join("stability.csv"),
         runs_csv(&runs, &baseline).to_text().as_bytes(),
@@ -262,6 +261,71 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
     print_runs(&runs, &baseline, &group);
     print_verdict(&runs, &baseline, &spread);
     Ok(runs)
+}
+
+/// The folder name of a run (under runs/) and of its perturbed scene (under scenes/).
+fn run_id(family: Family, size: f64) -> String {
+    format!("{}_{}", family.name(), size)
+}
+
+/// Whether the resolution family has a point at `side` pixels: smaller than the views,
+/// and dividing every view's size.
+fn resolution_applies(desc: &SceneDesc, side: u32) -> bool {
+    let view_side = desc.views.first().map_or(0, |v| v.size[0]);
+    side > 0
+        && side < view_side
+        && desc
+            .views
+            .iter()
+            .all(|v| v.size[0].is_multiple_of(side) && v.size[1].is_multiple_of(side))
+}
+
+/// Every file the study may write: each run and perturbed scene (the pixel family's
+/// runs, which depend on the baseline, all of its sizes), the CSVs and the chart.
+fn outputs(args: &StabilityArgs, desc: &SceneDesc) -> Vec<PathBuf> {
+    let mut points: Vec<(Family, f64, bool)> = sizes(Family::Seed, args.quick)
+        .into_iter()
+        .map(|k| (Family::Seed, (args.seed + k as u64) as f64, false))
+        .collect();
+    for family in [Family::Noise, Family::Exposure, Family::Light] {
+        points.extend(
+            sizes(family, args.quick)
+                .into_iter()
+                .map(|s| (family, s, true)),
+        );
+    }
+    points.extend(
+        sizes(Family::Resolution, args.quick)
+            .into_iter()
+            .filter(|&s| resolution_applies(desc, s as u32))
+            .map(|s| (Family::Resolution, s, true)),
+    );
+    points.extend(
+        sizes(Family::Pixels, args.quick)
+            .into_iter()
+            .map(|s| (Family::Pixels, s, false)),
+    );
+    let mut files = Vec::new();
+    for (family, size, perturbed) in points {
+        let id = run_id(family, size);
+        files.extend(recovery_outputs(&args.out.join("runs").join(&id), desc));
+        if perturbed {
+            files.extend(derived_scene_outputs(
+                &args.out.join("scenes").join(&id),
+                desc,
+            ));
+        }
+    }
+    files.extend(
+        [
+            "stability.csv",
+            "seed-spread.csv",
+            "stability.svg",
+            "stability.png",
+        ]
+        .map(|f| args.out.join(f)),
+    );
+    files
 }
 
 /// The largest group (by pure pixels in the baseline) that is not diffuse in the truth, or
@@ -870,5 +934,37 @@ mod tests {
             material("cup", Model::Diffuse, 0.5, 0.0),
         ];
         assert_eq!(limited_group(&judged, &all_diffuse), "floor");
+    }
+
+    #[test]
+    fn the_outputs_checked_before_the_study_cover_every_run_and_perturbed_scene() {
+        let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+        let args = StabilityArgs {
+            scene: cornell.join("scene.toml"),
+            truth: cornell.join("materials.toml"),
+            out: PathBuf::from("out"),
+            seed: 4,
+            threads: None,
+            effort: Effort::Fast,
+            quick: true,
+            group: None,
+        };
+        let desc = scene_file::load_scene(&args.scene).unwrap();
+        let files = outputs(&args, &desc);
+        for file in [
+            "out/runs/seed_4/report.json",
+            "out/runs/seed_6/materials.toml",
+            "out/runs/noise_1/materials.toml",
+            "out/scenes/noise_1/scene.toml",
+            "out/scenes/exposure_-5/views/px.exr",
+            "out/scenes/resolution_16/scene.toml",
+            "out/runs/pixels_16/materials.toml",
+            "out/seed-spread.csv",
+        ] {
+            assert!(files.contains(&PathBuf::from(file)), "{file} not checked");
+        }
+        // The seed and pixel families recover from the scene itself: no scene of theirs.
+        assert!(!files.contains(&PathBuf::from("out/scenes/seed_4/scene.toml")));
+        assert_eq!(run_id(Family::Exposure, -5.0), "exposure_-5");
     }
 }

@@ -12,12 +12,15 @@ use std::path::PathBuf;
 
 use super::chart::{Axis, Chart, ChartPoint, Panel, Series};
 use super::perturb::{self, Perturbation};
-use super::{field, pct, recover_and_judge, Csv, Summary};
+use super::{
+    check_truth_of, derived_scene_outputs, field, pct, prepare_outputs, recover_and_judge,
+    recovery_outputs, Csv, Summary,
+};
 use crate::error::Error;
-use crate::fsutil::{self, OutputSet};
+use crate::fsutil;
 use crate::materials_file;
 use crate::recover::{Budget, Effort, Optimiser, RecoverArgs};
-use crate::scene_file;
+use crate::scene_file::{self, SceneDesc};
 
 pub struct TradeoffArgs {
     pub scene: PathBuf,
@@ -151,13 +154,15 @@ pub struct TradeoffRow {
 /// table and returns the rows.
 pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
     let desc = scene_file::load_scene(&args.scene)?;
-    materials_file::load_materials(&args.truth)?;
+    let truth = materials_file::load_materials(&args.truth)?;
+    check_truth_of(&desc, &truth)?;
     let view_side = desc.views.first().map_or(0, |v| v.size[0]);
     if view_side == 0 {
         return Err(Error::input(&args.scene, "has no view to recover from"));
     }
-    fsutil::create_dir(&args.out)?;
     let points = sweep(args.effort, args.quick, view_side);
+    let mut set = prepare_outputs(&desc, &truth, outputs(args, &desc, &points))?;
+    fsutil::create_dir(&args.out)?;
     // Points with the same knobs share one run.
     let mut done: BTreeMap<String, (String, f64, Option<f64>, Summary)> = BTreeMap::new();
     let mut rows = Vec::new();
@@ -174,7 +179,7 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
                     point.value
                 );
                 let scene = scene_for(args, point.factor)?;
-                let run = format!("runs/{}", point.id());
+                let run = run_dir(point);
                 let judged = recover_and_judge(
                     &RecoverArgs {
                         scene,
@@ -212,7 +217,6 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
             summary,
         });
     }
-    let mut set = OutputSet::default();
     set.add(
         &args.out.join("tradeoff.csv"),
         csv(&rows).to_text().as_bytes(),
@@ -229,12 +233,36 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
     Ok(rows)
 }
 
+/// Every file the sweep of `points` may write: each point's run and box-averaged scene
+/// (points that share a run write one of these), the CSV and the chart.
+fn outputs(args: &TradeoffArgs, desc: &SceneDesc, points: &[SweepPoint]) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    for point in points {
+        files.extend(recovery_outputs(&args.out.join(run_dir(point)), desc));
+        if point.factor != 1 {
+            files.extend(derived_scene_outputs(&scene_dir(args, point.factor), desc));
+        }
+    }
+    files.extend(["tradeoff.csv", "tradeoff.svg", "tradeoff.png"].map(|f| args.out.join(f)));
+    files
+}
+
+/// A point's run folder, relative to the output.
+fn run_dir(point: &SweepPoint) -> String {
+    format!("runs/{}", point.id())
+}
+
+/// The folder of the scene box-averaged by `factor`.
+fn scene_dir(args: &TradeoffArgs, factor: u32) -> PathBuf {
+    args.out.join(format!("scenes/factor-{factor}"))
+}
+
 /// The scene a point recovers from: the given one, or its box-averaged copy under out/.
 fn scene_for(args: &TradeoffArgs, factor: u32) -> Result<PathBuf, Error> {
     if factor == 1 {
         return Ok(args.scene.clone());
     }
-    let dir = args.out.join(format!("scenes/factor-{factor}"));
+    let dir = scene_dir(args, factor);
     perturb::write_perturbed(
         &args.scene,
         &Perturbation {
@@ -504,5 +532,32 @@ mod tests {
             .iter()
             .filter(|p| p.knob == "resolution")
             .all(|p| p.factor == 1));
+    }
+
+    #[test]
+    fn the_outputs_checked_before_the_sweep_cover_every_run_and_scaled_scene() {
+        let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+        let args = TradeoffArgs {
+            scene: cornell.join("scene.toml"),
+            truth: cornell.join("materials.toml"),
+            out: PathBuf::from("out"),
+            seed: 1,
+            threads: None,
+            effort: Effort::Fast,
+            quick: true,
+        };
+        let desc = scene_file::load_scene(&args.scene).unwrap();
+        let points = sweep(args.effort, args.quick, 32);
+        let files = outputs(&args, &desc, &points);
+        for file in [
+            "out/runs/effort-fast/materials.toml",
+            "out/runs/resolution-16/views/px.exr",
+            "out/scenes/factor-2/scene.toml",
+            "out/scenes/factor-2/views/nz.exr",
+            "out/tradeoff.png",
+        ] {
+            assert!(files.contains(&PathBuf::from(file)), "{file} not checked");
+        }
+        assert!(!files.contains(&PathBuf::from("out/scenes/factor-1/scene.toml")));
     }
 }

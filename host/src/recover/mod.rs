@@ -60,6 +60,7 @@ use crate::images::{self, Image};
 use crate::parallel;
 use crate::scene_file::GroupKind;
 pub use model::GroupModel;
+pub use output::output_files;
 use pixels::PurePixel;
 use report::keep_rule;
 pub use report::{ComparisonReport, GroupReport, RecoverReport, StageReport};

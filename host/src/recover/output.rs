@@ -53,18 +53,27 @@ pub(super) fn prepare(
 ) -> Result<OutputSet, Error> {
     let mut set = OutputSet::keeping(inputs);
     // None of the files it may write or remove may replace an input (the set checks again
-    // as each is written). Which groups get maps depends on the recovery, so every group's
-    // map files are checked.
-    set.check_targets([MATERIALS_TOML, MATERIALS_RAD, REPORT_JSON].map(|f| out.join(f)))?;
-    set.check_targets([VIEWS_DIR, ERRORS_DIR].iter().flat_map(|dir| {
-        view_names
-            .iter()
-            .flat_map(move |name| images::exr_and_preview_paths(&out.join(dir), name))
-    }))?;
-    set.check_targets(group_names.iter().flat_map(|name| map_files(out, name)))?;
+    // as each is written).
+    set.check_targets(output_files(out, view_names, group_names))?;
     set.create_dir(&out.join(VIEWS_DIR))?;
     set.create_dir(&out.join(ERRORS_DIR))?;
     Ok(set)
+}
+
+/// Every file a recovery into `out` may write or remove: its materials and report, each
+/// view's render and error image with their previews, and every group's map files (which
+/// groups get maps depends on the recovery; an earlier run's are removed).
+pub fn output_files(out: &Path, view_names: &[String], group_names: &[String]) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = [MATERIALS_TOML, MATERIALS_RAD, REPORT_JSON]
+        .map(|f| out.join(f))
+        .into();
+    for dir in [VIEWS_DIR, ERRORS_DIR] {
+        for name in view_names {
+            files.extend(images::exr_and_preview_paths(&out.join(dir), name));
+        }
+    }
+    files.extend(group_names.iter().flat_map(|name| map_files(out, name)));
+    files
 }
 
 /// The files and folders of a recovery's output folder.

@@ -1,0 +1,557 @@
+//! Bad inputs to `relume compare` and `relume bench` through the real binary: each is
+//! refused before the work with the input (3) or usage (2) code, names the file and what
+//! is wrong, never panics, and leaves every file as it was; figures that mean nothing are
+//! said to, never printed as NaN.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use common::{relume, workspace};
+
+const INPUT: i32 = 3;
+const USAGE: i32 = 2;
+
+/// A copy of the bundled scene in a fresh temp dir: `c/` (scene.toml, geometry.obj,
+/// materials.toml, views/), `B/` (a copy of its views, to compare with), `rep.json` (a
+/// report for one group), `x.rays` (three unit rays from inside the room) and `other.toml`
+/// (materials of another scene: groups sofa and desk).
+struct Case {
+    dir: tempfile::TempDir,
+}
+
+impl Case {
+    fn new() -> Case {
+        let dir = tempfile::tempdir().unwrap();
+        let cornell = workspace().join("scenes/cornell");
+        for sub in ["c/views", "B"] {
+            std::fs::create_dir_all(dir.path().join(sub)).unwrap();
+        }
+        for file in ["scene.toml", "geometry.obj", "materials.toml"] {
+            std::fs::copy(cornell.join(file), dir.path().join("c").join(file)).unwrap();
+        }
+        for view in ["px", "nx", "py", "ny", "pz", "nz"] {
+            let from = cornell.join(format!("views/{view}.exr"));
+            std::fs::copy(&from, dir.path().join(format!("c/views/{view}.exr"))).unwrap();
+            std::fs::copy(&from, dir.path().join(format!("B/{view}.exr"))).unwrap();
+        }
+        std::fs::write(
+            dir.path().join("rep.json"),
+            r#"{"groups": [{"group": "floor", "model": "diffuse", "uncertainty": [{"parameter": "color_r", "value": 0.5, "sigma": 0.01}]}]}"#,
+        )
+        .unwrap();
+        write_rays(
+            &dir.path().join("x.rays"),
+            &[[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+        );
+        std::fs::write(
+            dir.path().join("other.toml"),
+            "format = 1\n\n[[material]]\ngroup = \"sofa\"\nmodel = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]\n\n[[material]]\ngroup = \"desk\"\nmodel = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]\n",
+        )
+        .unwrap();
+        Case { dir }
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    /// Runs relume in the case's folder.
+    fn run(&self, args: &[&str]) -> Output {
+        relume(self.dir.path(), args)
+    }
+
+    /// Writes an edit of the scene, `<name>/scene.toml`, whose references are its views.
+    fn edit(&self, name: &str) -> String {
+        let text = std::fs::read_to_string(self.path("c/scene.toml"))
+            .unwrap()
+            .replace("\"geometry.obj\"", "\"../c/geometry.obj\"")
+            .replace("\"views/", "\"../c/views/");
+        std::fs::create_dir_all(self.path(name)).unwrap();
+        std::fs::write(self.path(name).join("scene.toml"), text).unwrap();
+        format!("{name}/scene.toml")
+    }
+}
+
+/// A ray file: `u64 count`, then origin and direction as six f32, all from the room's
+/// middle.
+fn write_rays(path: &Path, directions: &[[f32; 3]]) {
+    let mut bytes = (directions.len() as u64).to_le_bytes().to_vec();
+    for d in directions {
+        for v in [1.5, 0.9, 1.3, d[0], d[1], d[2]] {
+            bytes.extend_from_slice(&f32::to_le_bytes(v));
+        }
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// Every file under `dir` with its bytes, sorted.
+fn files_and_bytes(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let bytes = std::fs::read(&path).unwrap();
+                out.push((path, bytes));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Checks that `run` exited with `code`, did not panic and said every one of `has` on
+/// stderr; returns stderr.
+fn fails(run: &Output, code: i32, has: &[&str]) -> String {
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert_eq!(run.status.code(), Some(code), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    for h in has {
+        assert!(stderr.contains(h), "{h:?} not in: {stderr}");
+    }
+    stderr
+}
+
+/// `--json` and `--hits` outputs, and the files a bench writes, that would replace an
+/// input of the run (the scene's files, the images compared, a materials file, a report,
+/// the rays, the truth) are refused before the work, naming the file and what it is;
+/// they were written over the input with exit 0. The truth put where a bench's first
+/// recovery, or its JSON, would go was replaced after minutes of work.
+#[test]
+fn compare_and_bench_outputs_never_replace_their_inputs() {
+    let case = Case::new();
+    let edit = case.edit("e");
+    for dir in ["out/runs/effort-fast", "out/runs/seed_1"] {
+        std::fs::create_dir_all(case.path(dir)).unwrap();
+        std::fs::copy(
+            case.path("c/materials.toml"),
+            case.path(&format!("{dir}/materials.toml")),
+        )
+        .unwrap();
+    }
+    std::fs::copy(case.path("c/materials.toml"), case.path("out/edits.json")).unwrap();
+    let before = files_and_bytes(case.dir.path());
+    let views = ["compare", "views", "c/scene.toml", "c/views", "B", "--json"];
+    let rays = ["bench", "rays", "c/scene.toml", "--rays", "x.rays"];
+    let runs: Vec<(Vec<&str>, &str, &str)> = vec![
+        (
+            [&views[..], &["c/geometry.obj"]].concat(),
+            "c/geometry.obj",
+            "the scene's geometry",
+        ),
+        (
+            [&views[..], &["c/scene.toml"]].concat(),
+            "c/scene.toml",
+            "the scene file",
+        ),
+        (
+            [&views[..], &["c/views/px.exr"]].concat(),
+            "c/views/px.exr",
+            "the image of view 'px'",
+        ),
+        (
+            [&views[..], &["B/nz.exr"]].concat(),
+            "B/nz.exr",
+            "the compared image of view 'nz' (B)",
+        ),
+        (
+            vec![
+                "compare",
+                "materials",
+                "c/materials.toml",
+                "other.toml",
+                "--json",
+                "c/materials.toml",
+            ],
+            "c/materials.toml",
+            "a materials file",
+        ),
+        (
+            vec![
+                "compare",
+                "uncertainty",
+                "c/materials.toml",
+                "rep.json",
+                "--json",
+                "rep.json",
+            ],
+            "rep.json",
+            "a report",
+        ),
+        (
+            [&rays[..], &["--hits", "x.rays"]].concat(),
+            "x.rays",
+            "the ray file",
+        ),
+        (
+            [&rays[..], &["--json", "x.rays"]].concat(),
+            "x.rays",
+            "the ray file",
+        ),
+        (
+            [&rays[..], &["--json", "c/geometry.obj"]].concat(),
+            "c/geometry.obj",
+            "the scene's geometry",
+        ),
+        (
+            vec![
+                "bench",
+                "tradeoff",
+                "c/scene.toml",
+                "--truth",
+                "out/runs/effort-fast/materials.toml",
+                "--out",
+                "out",
+                "--quick",
+            ],
+            "out/runs/effort-fast/materials.toml",
+            "a materials file",
+        ),
+        (
+            vec![
+                "bench",
+                "stability",
+                "c/scene.toml",
+                "--truth",
+                "out/runs/seed_1/materials.toml",
+                "--out",
+                "out",
+                "--quick",
+            ],
+            "out/runs/seed_1/materials.toml",
+            "a materials file",
+        ),
+        (
+            vec![
+                "bench",
+                "edits",
+                &edit,
+                "--recovered",
+                "c/materials.toml",
+                "--truth",
+                "out/edits.json",
+                "--out",
+                "out",
+                "--spp",
+                "1",
+            ],
+            "out/edits.json",
+            "a materials file",
+        ),
+    ];
+    for (args, file, what) in runs {
+        let run = case.run(&args);
+        let expected = format!("{file}: this output would replace {what}, an input of this run");
+        fails(&run, INPUT, &[&expected]);
+        assert!(
+            files_and_bytes(case.dir.path()) == before,
+            "{args:?} changed the files"
+        );
+    }
+    // Two outputs of one name: the second replaced the first.
+    let run = case.run(&[&rays[..], &["--hits", "o.bin", "--json", "o.bin"]].concat());
+    fails(&run, USAGE, &["--hits and --json both name o.bin"]);
+    assert!(!case.path("o.bin").exists());
+}
+
+/// A truth of another scene ran a bench for minutes (edits failed only after its first
+/// render) and judged every recovery against groups it does not have. It is refused at
+/// once, naming the groups missing on each side, and nothing is written.
+#[test]
+fn a_bench_given_the_truth_of_another_scene_refuses_it_before_any_work() {
+    let case = Case::new();
+    let edit = case.edit("e");
+    let runs: [Vec<&str>; 3] = [
+        vec![
+            "bench",
+            "tradeoff",
+            "c/scene.toml",
+            "--truth",
+            "other.toml",
+            "--out",
+            "out",
+            "--quick",
+        ],
+        vec![
+            "bench",
+            "stability",
+            "c/scene.toml",
+            "--truth",
+            "other.toml",
+            "--out",
+            "out",
+            "--quick",
+        ],
+        vec![
+            "bench",
+            "edits",
+            &edit,
+            "--recovered",
+            "c/materials.toml",
+            "--truth",
+            "other.toml",
+            "--out",
+            "out",
+            "--spp",
+            "1",
+        ],
+    ];
+    for args in runs {
+        let start = std::time::Instant::now();
+        let run = case.run(&args);
+        let stderr = fails(
+            &run,
+            INPUT,
+            &[
+                "other.toml: its groups are not those of the",
+                "only in this file: 'sofa', 'desk'",
+                "'floor', 'ceiling', 'wall_red'",
+            ],
+        );
+        assert!(
+            start.elapsed().as_secs() < 60,
+            "{args:?} worked before it refused: {stderr}"
+        );
+        assert!(!case.path("out").exists(), "{args:?} wrote outputs");
+    }
+}
+
+/// `compare materials` dropped the groups only the compared file has, and gave "2 of 11"
+/// with exit 0 for a file of another scene. Such a file is refused naming the groups on
+/// each side; a recovery that left a group out (none is written for an unseen group) is
+/// still judged, that group `(missing)`.
+#[test]
+fn compare_materials_refuses_a_file_of_another_scene_and_judges_a_partial_one() {
+    let case = Case::new();
+    let run = case.run(&["compare", "materials", "c/materials.toml", "other.toml"]);
+    fails(
+        &run,
+        INPUT,
+        &[
+            "other.toml: its groups are not those of the truth c/materials.toml",
+            "only in this file: 'sofa', 'desk'; only in the truth: 'floor', 'ceiling'",
+        ],
+    );
+    assert!(
+        run.stdout.is_empty(),
+        "no table for a file of another scene"
+    );
+    let truth = std::fs::read_to_string(case.path("c/materials.toml")).unwrap();
+    let at = truth.find("[[material]]\ngroup = \"mirror\"").unwrap();
+    std::fs::write(case.path("partial.toml"), &truth[..at]).unwrap();
+    let run = case.run(&["compare", "materials", "c/materials.toml", "partial.toml"]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{stdout}");
+    assert!(
+        stdout.contains("(missing)") && stdout.contains("classes right: 8 of 9 (wrong: mirror)"),
+        "{stdout}"
+    );
+}
+
+/// The same report twice pooled its parameters twice, claiming a coverage over two
+/// recoveries: refused, naming it, under any spelling of its path.
+#[test]
+fn compare_uncertainty_refuses_a_report_given_twice() {
+    let case = Case::new();
+    for second in ["rep.json", "./c/../rep.json"] {
+        let run = case.run(&[
+            "compare",
+            "uncertainty",
+            "c/materials.toml",
+            "rep.json",
+            second,
+        ]);
+        fails(
+            &run,
+            USAGE,
+            &[&format!(
+                "{second} is given twice as a report (also as rep.json)"
+            )],
+        );
+        assert!(run.stdout.is_empty());
+    }
+    let run = case.run(&["compare", "uncertainty", "c/materials.toml", "rep.json"]);
+    assert!(run.status.success());
+}
+
+/// `--repeats 0` printed figures of no timed run; a ray whose direction is not of unit
+/// length (the format's) gave distances that cannot agree with the reference's.
+#[test]
+fn bench_rays_refuses_no_repeats_and_directions_that_are_not_unit() {
+    let case = Case::new();
+    let run = case.run(&[
+        "bench",
+        "rays",
+        "c/scene.toml",
+        "--rays",
+        "x.rays",
+        "--repeats",
+        "0",
+    ]);
+    fails(&run, USAGE, &["--repeats"]);
+    assert!(run.stdout.is_empty());
+    write_rays(
+        &case.path("long.rays"),
+        &[[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 3.0, 4.0]],
+    );
+    let run = case.run(&["bench", "rays", "c/scene.toml", "--rays", "long.rays"]);
+    fails(
+        &run,
+        INPUT,
+        &["long.rays: ray 2 has a direction of length 5, not 1"],
+    );
+    assert!(run.stdout.is_empty());
+    let run = case.run(&[
+        "bench",
+        "rays",
+        "c/scene.toml",
+        "--rays",
+        "x.rays",
+        "--repeats",
+        "1",
+    ]);
+    assert!(run.status.success());
+}
+
+/// Two quads, `floor` and `shelf`, each seen alone by a view from above (`a`, `b`), and a
+/// lamp that neither view sees.
+const TWO_VIEWS: &str = r#"format = 1
+name = "two"
+geometry = ["geo.obj"]
+hide = []
+
+[[view]]
+name = "a"
+position = [0.5, 0.5, 1.0]
+direction = [0.0, 0.0, -1.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = [50.0, 50.0]
+size = [8, 8]
+
+[[view]]
+name = "b"
+position = [5.5, 0.5, 1.0]
+direction = [0.0, 0.0, -1.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = [50.0, 50.0]
+size = [8, 8]
+
+[[light]]
+object = "lamp"
+radiance = [1.0, 1.0, 1.0]
+
+[[group]]
+name = "floor"
+kind = "plastic"
+objects = ["floor"]
+
+[[group]]
+name = "shelf"
+kind = "plastic"
+objects = ["shelf"]
+"#;
+
+const TWO_QUADS: &str = "o floor
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+f 1 2 3 4
+o shelf
+v 5 0 0
+v 6 0 0
+v 6 1 0
+v 5 1 0
+f 5 6 7 8
+o lamp
+v 20 0 5
+v 21 0 5
+v 20 1 5
+f 9 11 10
+";
+
+/// An 8x8 image of one value.
+fn flat(path: &Path, value: f32) {
+    let image = relume::images::Image {
+        width: 8,
+        height: 8,
+        pixels: vec![[value; 3]; 64],
+    };
+    relume::images::write_exr(path, &image).unwrap();
+}
+
+/// A reference whose mean over a group and a view is 0 printed `NaN%` (JSON null, no
+/// word why) with exit 0. The table has `-` there and a note naming the group and the
+/// view; the JSON has null and the same reason; a reference black over every pixel
+/// compared is an error naming it.
+#[test]
+fn compare_views_says_where_the_reference_is_zero_instead_of_printing_nan() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), TWO_VIEWS).unwrap();
+    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
+    for sub in ["A", "B", "black"] {
+        std::fs::create_dir(dir.path().join(sub)).unwrap();
+    }
+    flat(&dir.path().join("A/a.exr"), 0.0);
+    flat(&dir.path().join("A/b.exr"), 1.0);
+    flat(&dir.path().join("B/a.exr"), 0.5);
+    flat(&dir.path().join("B/b.exr"), 1.1);
+    flat(&dir.path().join("black/a.exr"), 0.0);
+    flat(&dir.path().join("black/b.exr"), 0.0);
+    let run = relume(
+        dir.path(),
+        &[
+            "compare",
+            "views",
+            "scene.toml",
+            "A",
+            "B",
+            "--json",
+            "out.json",
+        ],
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{stdout}");
+    assert!(!stdout.to_lowercase().contains("nan"), "{stdout}");
+    let floor = stdout.lines().find(|l| l.starts_with("floor ")).unwrap();
+    let last: Vec<&str> = floor.split_whitespace().rev().take(2).collect();
+    assert_eq!(last, ["-", "-"], "{floor}");
+    assert!(
+        stdout.contains(
+            "note: group 'floor' (in views a): the reference (A) is 0 over its 64 pure pixels"
+        ) && stdout.contains("note: view 'a': the reference (A) is 0"),
+        "{stdout}"
+    );
+    let shelf = stdout.lines().find(|l| l.starts_with("shelf ")).unwrap();
+    assert!(shelf.contains("+10.00%"), "{shelf}");
+    let text = std::fs::read_to_string(dir.path().join("out.json")).unwrap();
+    assert!(!text.contains("NaN"), "{text}");
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let floor = &json["groups"][0];
+    assert!(floor["rel_mean_diff"].is_null() && floor["rel_rms"].is_null());
+    assert!(
+        floor["undefined"]
+            .as_str()
+            .unwrap()
+            .contains("the reference (A) is 0"),
+        "{floor}"
+    );
+    assert!(json["groups"][1].get("undefined").is_none());
+
+    let run = relume(
+        dir.path(),
+        &["compare", "views", "scene.toml", "black", "B"],
+    );
+    fails(
+        &run,
+        INPUT,
+        &["black: the reference (A) is 0 over all 128 pure pixels"],
+    );
+    assert!(run.stdout.is_empty());
+}
