@@ -619,6 +619,30 @@ fn case_with_panorama_in(folder: &str) -> Case {
     case
 }
 
+/// Runs `relume recover` of `case` into `out` (relative to the case) at effort fast, with a
+/// group the scene does not have in `--limit-group-pixels`, an error recovery meets only
+/// after its first renders: an error that names no `nosuch` came before the work. Returns
+/// the exit code and stderr.
+fn recover_naming_no_group(case: &Case, out: &str) -> (Option<i32>, String) {
+    let scene = case.path("scene.toml");
+    let args = [
+        "recover",
+        path_str(&scene),
+        "--out",
+        out,
+        "--effort",
+        "fast",
+    ];
+    let run = relume(
+        case.dir.path(),
+        &[&args[..], &["--limit-group-pixels", "nosuch=10"]].concat(),
+    );
+    (
+        run.status.code(),
+        String::from_utf8_lossy(&run.stderr).into_owned(),
+    )
+}
+
 /// Runs `relume recover` of `case` into `out` at effort fast with `extra` arguments,
 /// expects the I/O exit code and no panic, and returns stderr.
 fn recover_fails(case: &Case, out: &Path, extra: &[&str]) -> String {
@@ -641,22 +665,8 @@ fn recover_fails(case: &Case, out: &Path, extra: &[&str]) -> String {
 #[test]
 fn a_recovery_whose_output_folder_cannot_be_made_fails_at_once() {
     let case = case_with_panorama();
-    let out = case.path("m.toml/recovered");
-    let scene = case.path("scene.toml");
-    let args = [
-        "recover",
-        path_str(&scene),
-        "--out",
-        path_str(&out),
-        "--effort",
-        "fast",
-    ];
-    let run = relume(
-        case.dir.path(),
-        &[&args[..], &["--limit-group-pixels", "nosuch=10"]].concat(),
-    );
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    let (code, stderr) = recover_naming_no_group(&case, "m.toml/recovered");
+    assert_eq!(code, Some(INPUT), "{stderr}");
     assert!(
         stderr.contains("m.toml: is a file, not a folder") && !stderr.contains("nosuch"),
         "{stderr}"
@@ -758,21 +768,8 @@ fn a_panorama_where_a_groups_map_would_go_is_refused_before_the_recovery() {
     )
     .unwrap();
     let before = files_and_bytes(case.dir.path());
-    let scene = case.path("scene.toml");
-    let args = [
-        "recover",
-        path_str(&scene),
-        "--out",
-        "rec",
-        "--effort",
-        "fast",
-    ];
-    let run = relume(
-        case.dir.path(),
-        &[&args[..], &["--limit-group-pixels", "nosuch=10"]].concat(),
-    );
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    let (code, stderr) = recover_naming_no_group(&case, "rec");
+    assert_eq!(code, Some(INPUT), "{stderr}");
     assert!(
         stderr.contains("rec/textures/floor.exr")
             && stderr.contains("would replace the image of view 'front', an input of this run")
