@@ -590,8 +590,33 @@ pub mod toml_src {
                 .replace("expected f64", "expected a number")
                 .replace("expected i64", "expected an integer");
             match e.span() {
-                Some(span) => self.at(span, message),
+                Some(span) => {
+                    let hint = self.duplicate_hint(&message, span.clone());
+                    self.at(span, message + &hint)
+                }
                 None => Error::input(&self.path, message),
+            }
+        }
+
+        /// What the toml crate's bare "duplicate key" means at `span`: a table header
+        /// `[view]` written twice where a list `[[view]]` was meant, or a key given twice.
+        fn duplicate_hint(&self, message: &str, span: Range<usize>) -> String {
+            if !message.contains("duplicate key") {
+                return String::new();
+            }
+            let line = self.line_of(span.start);
+            let text = self.text.lines().nth(line - 1).unwrap_or("").trim();
+            if let Some(name) = text
+                .strip_prefix('[')
+                .filter(|t| !t.starts_with('['))
+                .and_then(|t| t.split(']').next())
+            {
+                let name = name.trim();
+                return format!(": a table [{name}] may appear once; each entry of a list is written [[{name}]]");
+            }
+            match text.split('=').next().map(str::trim) {
+                Some(key) if !key.is_empty() => format!(": `{key}` is given twice"),
+                _ => String::new(),
             }
         }
 
@@ -845,6 +870,26 @@ objects = ["quad"]
     #[test]
     fn syntax_errors_give_the_line() {
         bad("name = \"front\"", "name = \"front", 7, &["scene.toml:7:"]);
+    }
+
+    #[test]
+    fn a_duplicate_key_says_which_and_a_table_written_twice_says_how_to_write_a_list() {
+        bad(
+            "format = 1",
+            "format = 1\nformat = 1",
+            2,
+            &["duplicate key", "`format` is given twice"],
+        );
+        // Two views written [view] instead of [[view]].
+        bad(
+            "[[view]]",
+            "[view]\nname = \"x\"\n\n[view]",
+            9,
+            &[
+                "duplicate key",
+                "a table [view] may appear once; each entry of a list is written [[view]]",
+            ],
+        );
     }
 
     #[test]
