@@ -7,7 +7,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{path_str, relume};
+use common::{files_and_bytes, files_in, path_str, relume};
 
 const SCENE: &str = r#"format = 1
 name = "tiny"
@@ -178,31 +178,6 @@ impl Case {
         );
         stderr
     }
-}
-
-/// Every file under `dir` (recursively), sorted.
-fn files_in(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    if let Ok(entries) = std::fs::read_dir(dir) {
-        for e in entries.flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                out.extend(files_in(&p));
-            } else {
-                out.push(p);
-            }
-        }
-    }
-    out.sort();
-    out
-}
-
-/// Every file under `dir` with its bytes, sorted by path.
-fn files_and_bytes(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    files_in(dir)
-        .into_iter()
-        .map(|f| (f.clone(), std::fs::read(&f).unwrap()))
-        .collect()
 }
 
 const INPUT: i32 = 3;

@@ -9,7 +9,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::{relume, workspace};
+use common::{files_and_bytes, relume, workspace};
 
 const INPUT: i32 = 3;
 const USAGE: i32 = 2;
@@ -85,25 +85,6 @@ fn write_rays(path: &Path, directions: &[[f32; 3]]) {
         }
     }
     std::fs::write(path, bytes).unwrap();
-}
-
-/// Every file under `dir` with its bytes, sorted.
-fn files_and_bytes(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_dir() {
-                stack.push(path);
-            } else {
-                let bytes = std::fs::read(&path).unwrap();
-                out.push((path, bytes));
-            }
-        }
-    }
-    out.sort();
-    out
 }
 
 /// Checks that `run` exited with `code`, did not panic and said every one of `has` on

@@ -2,7 +2,7 @@
 //! linear EXR and one tone-mapped PNG preview per view, and `render.json` with the
 //! settings and timing.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::Vec3;
@@ -36,6 +36,17 @@ pub struct RenderSummary {
     pub seconds: f64,
     /// What a user should look at although the render succeeded.
     pub warnings: Vec<String>,
+}
+
+/// The files a render of `views` into `out` writes: each view's EXR and preview, and
+/// render.json.
+pub fn output_files<'a>(out: &Path, views: impl IntoIterator<Item = &'a str>) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = views
+        .into_iter()
+        .flat_map(|name| images::exr_and_preview_paths(out, name))
+        .collect();
+    files.push(out.join(RENDER_JSON));
+    files
 }
 
 pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
@@ -93,12 +104,10 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     // the panorama's folder would put itself over the views' images), and the folder must
     // be made.
     let mut set = OutputSet::keeping(inputs);
-    set.check_targets(
-        selected
-            .iter()
-            .flat_map(|&i| images::exr_and_preview_paths(&args.out, &view_descs[i].name))
-            .chain([args.out.join(RENDER_JSON)]),
-    )?;
+    set.check_targets(output_files(
+        &args.out,
+        selected.iter().map(|&i| view_descs[i].name.as_str()),
+    ))?;
     set.create_dir(&args.out)?;
     let mut seconds = 0.0;
     let mut samples = 0u64;

@@ -20,7 +20,6 @@ use crate::bench::{field, Csv};
 use crate::compare::{self, Groups, ViewImages, ViewsReport};
 use crate::error::Error;
 use crate::fsutil::{self, OutputSet};
-use crate::images;
 use crate::materials_file::{self, MaterialsDesc};
 use crate::render_cmd::{self, RenderArgs};
 use crate::scene_file;
@@ -244,14 +243,10 @@ fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
         }
         let name = edit_name(scene);
         for arm in ["recovered", "truth"] {
-            let dir = args.out.join(&name).join(arm);
-            outputs.extend(
-                desc.views
-                    .iter()
-                    .flat_map(|v| images::exr_and_preview_paths(&dir, &v.name)),
-            );
-            // What render_cmd names RENDER_JSON.
-            outputs.push(dir.join("render.json"));
+            outputs.extend(render_cmd::output_files(
+                &args.out.join(&name).join(arm),
+                desc.views.iter().map(|v| v.name.as_str()),
+            ));
         }
         inputs.extend(desc.input_files());
         inputs.extend(added.iter().flat_map(|a| a.input_files()));
