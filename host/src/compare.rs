@@ -327,11 +327,25 @@ pub struct MaterialRow {
     pub roughness_v_rel_err: Option<f64>,
     /// Angle between the u directions, sign ignored (d and -d are the same material).
     pub direction_err_deg: Option<f64>,
-    /// PSNR of the diffuse map over all texels, peak = the truth's maximum.
+    /// PSNR of the diffuse map over all texels, peak = the truth's maximum. Infinite for a
+    /// map equal to the truth's, written `"inf"` in JSON (see [`psnr_json`]).
+    #[serde(serialize_with = "psnr_json")]
     pub diffuse_map_psnr_db: Option<f64>,
     /// The same PSNR for the truth area-averaged to the recovered map's size: the most a
     /// map of that resolution can reach.
+    #[serde(serialize_with = "psnr_json")]
     pub diffuse_map_psnr_ceiling_db: Option<f64>,
+}
+
+/// A PSNR in JSON: a number, `"inf"` for a map equal to the truth's (JSON has no
+/// infinity, and serde_json would write `null`, which here means "no map"), `null` when
+/// there is no map to compare.
+fn psnr_json<S: serde::Serializer>(psnr: &Option<f64>, out: S) -> Result<S::Ok, S::Error> {
+    match psnr {
+        Some(db) if db.is_infinite() && *db > 0.0 => out.serialize_str("inf"),
+        Some(db) => out.serialize_f64(*db),
+        None => out.serialize_none(),
+    }
 }
 
 fn rel(a: f64, truth: f64) -> f64 {
@@ -467,7 +481,7 @@ pub fn materials_report(truth: &Path, materials: &Path) -> Result<Vec<MaterialRo
 }
 
 /// The groups of a materials file, in its order.
-fn groups_of(m: &MaterialsDesc) -> Vec<&str> {
+pub(crate) fn groups_of(m: &MaterialsDesc) -> Vec<&str> {
     m.materials.iter().map(|d| d.group.as_str()).collect()
 }
 
@@ -758,6 +772,23 @@ mod tests {
         );
         let grey = image(4, 4, |_, _| 0.5);
         assert!((map_psnr(&checker, &grey).unwrap() - ceiling).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_map_equal_to_the_truths_is_written_inf_in_json_not_the_null_of_no_map() {
+        let row = |psnr, ceiling| MaterialRow {
+            diffuse_map_psnr_db: psnr,
+            diffuse_map_psnr_ceiling_db: ceiling,
+            ..MaterialRow::default()
+        };
+        let json = |r: MaterialRow| serde_json::to_value(r).unwrap();
+        let exact = json(row(Some(f64::INFINITY), Some(f64::INFINITY)));
+        assert_eq!(exact["diffuse_map_psnr_db"], "inf");
+        assert_eq!(exact["diffuse_map_psnr_ceiling_db"], "inf");
+        let coarse = json(row(Some(22.5), Some(25.75)));
+        assert_eq!(coarse["diffuse_map_psnr_db"], 22.5);
+        assert_eq!(coarse["diffuse_map_psnr_ceiling_db"], 25.75);
+        assert!(json(row(None, None))["diffuse_map_psnr_db"].is_null());
     }
 
     #[test]
