@@ -911,7 +911,7 @@ fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
         ),
         (
             group("sofa", "color_r", "0.01"),
-            "group 'sofa' is not in the truth",
+            "only in this file: 'sofa'; only in the truth: 'floor' (a report of another scene?)",
         ),
         (
             format!(
