@@ -194,48 +194,36 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
         })
     };
 
-    for k in sizes(Family::Seed, args.quick) {
-        let seed = args.seed + k as u64;
-        runs.push(recover(Family::Seed, seed as f64, seed, None, None)?);
+    // The group the pixel family limits, chosen on the baseline (the first seed's run).
+    let limited = |baseline: &Judged| {
+        let group = match &args.group {
+            Some(g) => g.clone(),
+            None => limited_group(baseline, &truth.materials),
+        };
+        let pixels = baseline.group(&group).map_or(0, |g| g.pure_pixels);
+        (group, pixels)
+    };
+    let mut limit_of_pixels: Option<(String, u32)> = None;
+    for point in plan(args, &desc) {
+        let mut limit = None;
+        if point.family == Family::Pixels {
+            let (group, pixels) = limit_of_pixels.get_or_insert_with(|| limited(&runs[0].judged));
+            if point.size as u32 >= *pixels {
+                continue;
+            }
+            limit = Some((group.clone(), point.size as u32));
+        }
+        let run = recover(
+            point.family,
+            point.size,
+            point.seed,
+            point.perturbation,
+            limit,
+        )?;
+        runs.push(run);
     }
     let baseline = runs[0].judged.clone();
-    for family in [Family::Noise, Family::Exposure, Family::Light] {
-        for size in sizes(family, args.quick) {
-            let mut p = Perturbation::NONE;
-            match family {
-                Family::Noise => {
-                    p.noise = size / 100.0;
-                    p.noise_seed = args.seed;
-                }
-                Family::Exposure => p.exposure = (1.0 + size / 100.0) as f32,
-                _ => p.light = (1.0 + size / 100.0) as f32,
-            }
-            runs.push(recover(family, size, args.seed, Some(p), None)?);
-        }
-    }
-    for size in sizes(Family::Resolution, args.quick) {
-        let side = size as u32;
-        if !resolution_applies(&desc, side) {
-            continue;
-        }
-        let p = Perturbation {
-            factor: view_side / side,
-            ..Perturbation::NONE
-        };
-        runs.push(recover(Family::Resolution, size, args.seed, Some(p), None)?);
-    }
-    let group = match &args.group {
-        Some(g) => g.clone(),
-        None => limited_group(&baseline, &truth.materials),
-    };
-    let group_pixels = baseline.group(&group).map_or(0, |g| g.pure_pixels);
-    for size in sizes(Family::Pixels, args.quick) {
-        if size as u32 >= group_pixels {
-            continue;
-        }
-        let limit = Some((group.clone(), size as u32));
-        runs.push(recover(Family::Pixels, size, args.seed, None, limit)?);
-    }
+    let (group, group_pixels) = limit_of_pixels.unwrap_or_else(|| limited(&baseline));
 
     let spread = seed_spread(&runs, &truth.materials);
     set.add(
@@ -280,36 +268,70 @@ fn resolution_applies(desc: &SceneDesc, side: u32) -> bool {
             .all(|v| v.size[0].is_multiple_of(side) && v.size[1].is_multiple_of(side))
 }
 
-/// Every file the study may write: each run and perturbed scene (the pixel family's
-/// runs, which depend on the baseline, all of its sizes), the CSVs and the chart.
-fn outputs(args: &StabilityArgs, desc: &SceneDesc) -> Vec<PathBuf> {
-    let mut points: Vec<(Family, f64, bool)> = sizes(Family::Seed, args.quick)
+/// One recovery of the study: its family and size (the x of its chart), its seed, and
+/// how its scene differs from the study's (`None`: the scene itself).
+struct Point {
+    family: Family,
+    size: f64,
+    seed: u64,
+    perturbation: Option<Perturbation>,
+}
+
+/// Every recovery the study may make, in order, the seeds first (the first is the
+/// baseline). The pixel family's points are all listed: which of them run depends on the
+/// baseline's pixels of the limited group. [`run`] recovers them and [`outputs`] checks
+/// their files before the first, so the two cannot disagree.
+fn plan(args: &StabilityArgs, desc: &SceneDesc) -> Vec<Point> {
+    let point = |family, size, seed, perturbation| Point {
+        family,
+        size,
+        seed,
+        perturbation,
+    };
+    let mut points: Vec<Point> = sizes(Family::Seed, args.quick)
         .into_iter()
-        .map(|k| (Family::Seed, (args.seed + k as u64) as f64, false))
+        .map(|k| args.seed + k as u64)
+        .map(|seed| point(Family::Seed, seed as f64, seed, None))
         .collect();
     for family in [Family::Noise, Family::Exposure, Family::Light] {
-        points.extend(
-            sizes(family, args.quick)
-                .into_iter()
-                .map(|s| (family, s, true)),
-        );
+        for size in sizes(family, args.quick) {
+            let mut p = Perturbation::NONE;
+            match family {
+                Family::Noise => {
+                    p.noise = size / 100.0;
+                    p.noise_seed = args.seed;
+                }
+                Family::Exposure => p.exposure = (1.0 + size / 100.0) as f32,
+                _ => p.light = (1.0 + size / 100.0) as f32,
+            }
+            points.push(point(family, size, args.seed, Some(p)));
+        }
     }
-    points.extend(
-        sizes(Family::Resolution, args.quick)
-            .into_iter()
-            .filter(|&s| resolution_applies(desc, s as u32))
-            .map(|s| (Family::Resolution, s, true)),
-    );
-    points.extend(
-        sizes(Family::Pixels, args.quick)
-            .into_iter()
-            .map(|s| (Family::Pixels, s, false)),
-    );
+    let view_side = desc.views.first().map_or(0, |v| v.size[0]);
+    for size in sizes(Family::Resolution, args.quick) {
+        let side = size as u32;
+        if resolution_applies(desc, side) {
+            let p = Perturbation {
+                factor: view_side / side,
+                ..Perturbation::NONE
+            };
+            points.push(point(Family::Resolution, size, args.seed, Some(p)));
+        }
+    }
+    for size in sizes(Family::Pixels, args.quick) {
+        points.push(point(Family::Pixels, size, args.seed, None));
+    }
+    points
+}
+
+/// Every file the study may write: each point's run and perturbed scene, the CSVs and the
+/// chart.
+fn outputs(args: &StabilityArgs, desc: &SceneDesc) -> Vec<PathBuf> {
     let mut files = Vec::new();
-    for (family, size, perturbed) in points {
-        let id = run_id(family, size);
+    for point in plan(args, desc) {
+        let id = run_id(point.family, point.size);
         files.extend(recovery_outputs(&args.out.join("runs").join(&id), desc));
-        if perturbed {
+        if point.perturbation.is_some() {
             files.extend(derived_scene_outputs(
                 &args.out.join("scenes").join(&id),
                 desc,
@@ -965,6 +987,14 @@ mod tests {
         }
         // The seed and pixel families recover from the scene itself: no scene of theirs.
         assert!(!files.contains(&PathBuf::from("out/scenes/seed_4/scene.toml")));
+        // The run loop walks the same plan; its first point is the baseline, the first seed
+        // on the scene itself, which the pixel family's limited group is chosen on.
+        let points = plan(&args, &desc);
+        let first = &points[0];
+        assert_eq!((first.family, first.seed), (Family::Seed, 4));
+        assert!(first.perturbation.is_none());
+        let last = points.last().unwrap();
+        assert_eq!(last.family, Family::Pixels);
         assert_eq!(run_id(Family::Exposure, -5.0), "exposure_-5");
     }
 }
