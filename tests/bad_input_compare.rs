@@ -9,7 +9,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::{files_and_bytes, relume, workspace};
+use common::{copy_cornell, files_and_bytes, relume};
 
 const INPUT: i32 = 3;
 const USAGE: i32 = 2;
@@ -25,17 +25,15 @@ struct Case {
 impl Case {
     fn new() -> Case {
         let dir = tempfile::tempdir().unwrap();
-        let cornell = workspace().join("scenes/cornell");
-        for sub in ["c/views", "B"] {
-            std::fs::create_dir_all(dir.path().join(sub)).unwrap();
-        }
-        for file in ["scene.toml", "geometry.obj", "materials.toml"] {
-            std::fs::copy(cornell.join(file), dir.path().join("c").join(file)).unwrap();
-        }
+        copy_cornell(&dir.path().join("c"));
+        std::fs::create_dir_all(dir.path().join("B")).unwrap();
         for view in ["px", "nx", "py", "ny", "pz", "nz"] {
-            let from = cornell.join(format!("views/{view}.exr"));
-            std::fs::copy(&from, dir.path().join(format!("c/views/{view}.exr"))).unwrap();
-            std::fs::copy(&from, dir.path().join(format!("B/{view}.exr"))).unwrap();
+            let file = format!("{view}.exr");
+            std::fs::copy(
+                dir.path().join("c/views").join(&file),
+                dir.path().join("B").join(&file),
+            )
+            .unwrap();
         }
         std::fs::write(
             dir.path().join("rep.json"),

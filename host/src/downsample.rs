@@ -44,18 +44,35 @@ fn list(v: &[f32]) -> String {
     format!("[{}]", items.join(", "))
 }
 
+/// `s` as a TOML string. (Rust's `{:?}` is not TOML: it writes `\u{200b}` for a zero-width
+/// space, which TOML reads as an error, so a derived scene.toml could not be read back.)
 fn quoted(s: &str) -> String {
-    format!("{:?}", s)
+    toml::Value::String(s.to_string()).to_string()
+}
+
+/// `path` as a TOML string; a path that is not UTF-8 cannot be written in scene.toml (its
+/// display form would name another file).
+fn quoted_path(scene: &Path, path: &Path) -> Result<String, Error> {
+    match path.to_str() {
+        Some(s) => Ok(quoted(s)),
+        None => Err(Error::input(
+            scene,
+            format!(
+                "{} is not valid UTF-8: a derived scene.toml cannot name it",
+                path.display()
+            ),
+        )),
+    }
 }
 
 /// scene.toml text for `desc`, with absolute paths (the file lives elsewhere).
-pub(crate) fn scene_toml(desc: &SceneDesc) -> String {
+pub(crate) fn scene_toml(desc: &SceneDesc) -> Result<String, Error> {
     let mut t = String::new();
     let paths: Vec<String> = desc
         .geometry
         .iter()
-        .map(|p| quoted(&p.display().to_string()))
-        .collect();
+        .map(|p| quoted_path(&desc.path, p))
+        .collect::<Result<_, _>>()?;
     let hide: Vec<String> = desc.hide.iter().map(|h| quoted(h)).collect();
     let _ = writeln!(
         t,
@@ -67,7 +84,7 @@ pub(crate) fn scene_toml(desc: &SceneDesc) -> String {
     for v in &desc.views {
         let _ = writeln!(t, "\n[[view]]\nname = {}", quoted(&v.name));
         if let Some(image) = &v.image {
-            let _ = writeln!(t, "image = {}", quoted(&image.display().to_string()));
+            let _ = writeln!(t, "image = {}", quoted_path(&desc.path, image)?);
         }
         let _ = writeln!(
             t,
@@ -103,7 +120,7 @@ pub(crate) fn scene_toml(desc: &SceneDesc) -> String {
             objects.join(", ")
         );
     }
-    t
+    Ok(t)
 }
 
 /// Writes `out/scene.toml` and `out/views/<view>.exr`, the panorama of `scene` box-averaged
@@ -179,7 +196,7 @@ pub fn write_derived_scene(
         .iter()
         .map(|g| std::fs::canonicalize(g).map_err(|e| Error::io(g, e)))
         .collect::<Result<_, _>>()?;
-    set.add(&scene_path, scene_toml(&desc).as_bytes())?;
+    set.add(&scene_path, scene_toml(&desc)?.as_bytes())?;
     set.commit()?;
     Ok(scene_path)
 }

@@ -16,8 +16,8 @@
 //! Ranges: colour components and specularity in [0, 1]; roughness, roughness_u and roughness_v
 //! in (0, 1] (reflectance.md keeps Ward's model to (0, 0.3]; larger values are accepted so
 //! that a recovery can report them, the core checks what it renders); direction_u is
-//! finite and not zero. A diffuse map must exist (relative to the file's folder). Each group
-//! has at most one material per file.
+//! finite and not zero. A diffuse map must exist (relative to the file's folder) and be a
+//! file, not a folder. Each group has at most one material per file.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -387,13 +387,14 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
         }
         if let (Some(p), Some(s)) = (&desc.diffuse_map, &m.diffuse_map) {
             if !p.is_file() {
+                let what = if p.is_dir() {
+                    "is a folder, not an image"
+                } else {
+                    "does not exist"
+                };
                 return Err(file.at(
                     s.span(),
-                    format!(
-                        "group '{}': diffuse_map {} does not exist",
-                        desc.group,
-                        p.display()
-                    ),
+                    format!("group '{}': diffuse_map {} {what}", desc.group, p.display()),
                 ));
             }
         }

@@ -54,6 +54,18 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         return Err(Error::Usage("--spp must be at least 1".into()));
     }
     // Read and check every input before writing anything.
+    for (i, m) in args.materials.iter().enumerate() {
+        if let Some(first) = args.materials[..i]
+            .iter()
+            .find(|f| crate::fsutil::same_file(f, m))
+        {
+            return Err(Error::Usage(format!(
+                "{} is given twice to --materials (also as {}): each of its groups would have two materials",
+                m.display(),
+                first.display()
+            )));
+        }
+    }
     let mut files = Vec::new();
     for m in &args.materials {
         files.push(materials_file::load_materials(m)?);
@@ -61,9 +73,11 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::Files(&files))?;
     for name in &args.views {
         if !owned.desc.views.iter().any(|v| &v.name == name) {
+            let names: Vec<&str> = owned.desc.views.iter().map(|v| v.name.as_str()).collect();
             return Err(Error::Usage(format!(
-                "--view {name}: {} has no such view",
-                args.scene.display()
+                "--view {name}: {} has no such view (its views: {})",
+                args.scene.display(),
+                names.join(", ")
             )));
         }
     }

@@ -409,15 +409,21 @@ pub fn check_objects(desc: &SceneDesc, objects: &[ObjObject]) -> Result<(), Erro
     let mut defined: HashMap<&str, &Path> = HashMap::new();
     for o in objects {
         if let Some(first) = defined.get(o.name.as_str()) {
-            return Err(Error::input(
-                &o.file,
-                format!(
-                    "object '{}' is defined twice: in {} and in {}",
-                    o.name,
-                    first.display(),
-                    o.file.display()
-                ),
-            ));
+            // Each definition at its `o` (or `g`) line, so that either can be found.
+            let at = |file: &Path| match crate::obj::object_line(file, &o.name) {
+                Some(line) => format!("{}:{line}", file.display()),
+                None => file.display().to_string(),
+            };
+            let msg = format!(
+                "object '{}' is defined twice: in {} and in {}",
+                o.name,
+                at(first),
+                at(&o.file)
+            );
+            return Err(match crate::obj::object_line(&o.file, &o.name) {
+                Some(line) => Error::at_line(&o.file, line, msg),
+                None => Error::input(&o.file, msg),
+            });
         }
         defined.insert(&o.name, &o.file);
     }
@@ -461,6 +467,18 @@ pub fn check_objects(desc: &SceneDesc, objects: &[ObjObject]) -> Result<(), Erro
     }
     for (hi, h) in desc.hide.iter().enumerate() {
         if !defined.contains_key(h.as_str()) {
+            // `hide` lists objects: a group's name there hides nothing, say which to list.
+            if let Some(g) = desc.groups.iter().find(|g| &g.name == h) {
+                let objects: Vec<String> = g.objects.iter().map(|o| format!("'{o}'")).collect();
+                let msg = format!(
+                    "'{h}' in `hide` is a group, not an object: `hide` lists OBJ objects (to hide group '{h}', list its objects {})",
+                    objects.join(", ")
+                );
+                return Err(match lines.hide(hi) {
+                    Some(l) => Error::at_line(&desc.path, l, msg),
+                    None => Error::input(&desc.path, msg),
+                });
+            }
             return Err(missing(h, "in `hide`".into(), lines.hide(hi)));
         }
     }

@@ -78,3 +78,17 @@ pub fn files_and_bytes(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
         .map(|f| (f.clone(), std::fs::read(&f).unwrap()))
         .collect()
 }
+
+/// The bundled scene's files (scene.toml, geometry.obj, materials.toml, views/) copied to
+/// `to`, for a test to break one of them.
+pub fn copy_cornell(to: &Path) {
+    let cornell = workspace().join("scenes/cornell");
+    std::fs::create_dir_all(to.join("views")).unwrap();
+    for file in ["scene.toml", "geometry.obj", "materials.toml"] {
+        std::fs::copy(cornell.join(file), to.join(file)).unwrap();
+    }
+    for view in ["px", "nx", "py", "ny", "pz", "nz"] {
+        let file = format!("views/{view}.exr");
+        std::fs::copy(cornell.join(&file), to.join(&file)).unwrap();
+    }
+}

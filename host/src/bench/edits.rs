@@ -201,7 +201,21 @@ fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
     for scene in &args.edits {
         let desc = scene_file::load_scene(scene)?;
         let added = match added_materials(scene) {
-            Some(path) => Some(materials_file::load_materials(&path)?),
+            Some(path) => {
+                // Given as well as --recovered or --truth, its groups would have two
+                // materials, or the whole file would look like one of another scene.
+                for (flag, given) in [("--recovered", &args.recovered), ("--truth", &args.truth)] {
+                    if fsutil::same_file(&path, given) {
+                        return Err(Error::Usage(format!(
+                            "{flag} {} is also {}, which gives the materials of the objects edit {} adds (read from beside its scene.toml): give {flag} a file of its own",
+                            given.display(),
+                            path.display(),
+                            scene.display()
+                        )));
+                    }
+                }
+                Some(materials_file::load_materials(&path)?)
+            }
             None => None,
         };
         let added_groups: Vec<&str> = added

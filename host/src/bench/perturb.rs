@@ -219,7 +219,7 @@ mod tests {
             radiance: lit.radiance.map(|r| 0.5 * r),
         });
         let scene = dir.path().join("two-lights.toml");
-        std::fs::write(&scene, downsample::scene_toml(&desc)).unwrap();
+        std::fs::write(&scene, downsample::scene_toml(&desc).unwrap()).unwrap();
         let p = Perturbation {
             light: 1.1,
             ..Perturbation::NONE

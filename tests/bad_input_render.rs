@@ -1,0 +1,313 @@
+//! Bad inputs to `relume render` and the scene-deriving benches through the real binary, on
+//! a copy of the bundled scene (scenes/cornell) broken in one place: the same materials
+//! file given twice, a diffuse map that is a folder, `hide` naming a group, an object
+//! defined again in an extra OBJ, `--view` naming no view, a name TOML must escape in a
+//! downsampled scene, and an edit's own materials file given as `--truth`. Each is refused
+//! with its exit code and a message that names the file (and line) and what is wrong,
+//! never a panic, and leaves no output; the downsampled scene is one that can be read back.
+
+#[path = "common/mod.rs"]
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use common::{copy_cornell, files_and_bytes, relume, relume_ok};
+
+const USAGE: i32 = 2;
+const INPUT: i32 = 3;
+
+/// A copy of the bundled scene (scene.toml, geometry.obj, materials.toml, views/) in
+/// `sub` of a fresh temp dir.
+struct Case {
+    dir: tempfile::TempDir,
+    sub: String,
+}
+
+impl Case {
+    fn new() -> Case {
+        Case::in_folder("c")
+    }
+
+    fn in_folder(sub: &str) -> Case {
+        let dir = tempfile::tempdir().unwrap();
+        copy_cornell(&dir.path().join(sub));
+        Case {
+            dir,
+            sub: sub.to_string(),
+        }
+    }
+
+    /// `name` in the scene's folder.
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(&self.sub).join(name)
+    }
+
+    /// Replaces the first `from` by `to` in the scene's file `name`.
+    fn edit(&self, name: &str, from: &str, to: &str) -> &Case {
+        let text = std::fs::read_to_string(self.path(name)).unwrap();
+        assert!(text.contains(from), "test setup: {from:?} not in {name}");
+        std::fs::write(self.path(name), text.replacen(from, to, 1)).unwrap();
+        self
+    }
+
+    /// Runs relume in the scene's folder.
+    fn run(&self, args: &[&str]) -> Output {
+        relume(&self.path(""), args)
+    }
+
+    /// Runs relume in the scene's folder, expects exit `code`, no panic, every string of
+    /// `has` on stderr and every file as it was; returns stderr.
+    fn fails(&self, args: &[&str], code: i32, has: &[&str]) -> String {
+        let before = files_and_bytes(self.dir.path());
+        let run = self.run(args);
+        let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+        let show = format!("relume {args:?}: status {:?}\n{stderr}", run.status);
+        assert_eq!(run.status.code(), Some(code), "{show}");
+        assert!(!stderr.contains("panicked"), "{show}");
+        for s in has {
+            assert!(stderr.contains(s), "expected {s:?} on stderr\n{show}");
+        }
+        assert!(
+            files_and_bytes(self.dir.path()) == before,
+            "{show}\nthe run changed the files"
+        );
+        stderr
+    }
+}
+
+/// `render scene.toml --materials <materials...> --out out --spp 1`.
+fn render_args<'a>(materials: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec!["render", "scene.toml", "--materials"];
+    args.extend(materials);
+    args.extend(["--out", "out", "--spp", "1"]);
+    args
+}
+
+/// The scene's materials split in two files, `a.toml` (the first four groups) and
+/// `b.toml` (the rest).
+fn split_materials(case: &Case) {
+    let text = std::fs::read_to_string(case.path("materials.toml")).unwrap();
+    let entries: Vec<&str> = text.split("[[material]]").skip(1).collect();
+    let file = |part: &[&str]| {
+        let body: String = part.iter().map(|e| format!("[[material]]{e}")).collect();
+        format!("format = 1\n\n{body}")
+    };
+    std::fs::write(case.path("a.toml"), file(&entries[..4])).unwrap();
+    std::fs::write(case.path("b.toml"), file(&entries[4..])).unwrap();
+}
+
+/// One file given twice to `--materials` (by one spelling or two) gave "group 'floor' has
+/// two materials: here and at a.toml:4", naming one line as both: now the file is named
+/// as given twice, a usage error.
+#[test]
+fn a_materials_file_given_twice_is_named_as_such() {
+    let case = Case::new();
+    split_materials(&case);
+    // The split files render: the error below is the repetition's.
+    relume_ok(&case.path(""), &render_args(&["a.toml", "b.toml"]));
+    std::fs::remove_dir_all(case.path("out")).unwrap();
+    for again in ["a.toml", "./a.toml"] {
+        let stderr = case.fails(
+            &render_args(&["a.toml", "b.toml", again]),
+            USAGE,
+            &[&format!(
+                "{again} is given twice to --materials (also as a.toml)"
+            )],
+        );
+        assert!(!stderr.contains("has two materials"), "{stderr}");
+    }
+}
+
+/// A `diffuse_map` that names a folder was said not to exist.
+#[test]
+fn a_diffuse_map_that_is_a_folder_is_named_as_a_folder() {
+    let case = Case::new();
+    case.edit(
+        "materials.toml",
+        "model = \"diffuse\"\ncolor = [0.5, 0.42, 0.32]",
+        "model = \"textured-diffuse\"\ndiffuse_map = \"maps\"",
+    );
+    std::fs::create_dir(case.path("maps")).unwrap();
+    let stderr = case.fails(
+        &render_args(&["materials.toml"]),
+        INPUT,
+        &[
+            "materials.toml:7",
+            "group 'floor': diffuse_map maps is a folder, not an image",
+        ],
+    );
+    assert!(!stderr.contains("does not exist"), "{stderr}");
+}
+
+/// `hide` lists OBJ objects: a group's name there was "not in the geometry", which reads as
+/// if the group were missing; now the message says it is a group and which objects to list.
+#[test]
+fn a_group_named_in_hide_is_said_to_be_a_group() {
+    let case = Case::new();
+    case.edit("scene.toml", "hide = []", "hide = [\"walls_white\"]");
+    case.fails(
+        &render_args(&["materials.toml"]),
+        INPUT,
+        &[
+            "scene.toml:4",
+            "'walls_white' in `hide` is a group, not an object",
+            "list its objects 'wall_back', 'wall_front'",
+        ],
+    );
+    // An unknown name is still "not in the geometry".
+    case.edit(
+        "scene.toml",
+        "hide = [\"walls_white\"]",
+        "hide = [\"chair\"]",
+    );
+    case.fails(
+        &render_args(&["materials.toml"]),
+        INPUT,
+        &[
+            "scene.toml:4",
+            "object 'chair' (in `hide`) is not in the geometry",
+        ],
+    );
+}
+
+/// An extra OBJ that defines an object again was refused naming both files but no line:
+/// now each definition's `o` line.
+#[test]
+fn an_object_defined_again_in_an_extra_obj_is_named_at_both_lines() {
+    let case = Case::new();
+    std::fs::write(
+        case.path("extra.obj"),
+        "# a second box\no box\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    case.edit(
+        "scene.toml",
+        "geometry = [\"geometry.obj\"]",
+        "geometry = [\"geometry.obj\", \"extra.obj\"]",
+    );
+    let box_line = std::fs::read_to_string(case.path("geometry.obj"))
+        .unwrap()
+        .lines()
+        .position(|l| l == "o box")
+        .unwrap()
+        + 1;
+    case.fails(
+        &render_args(&["materials.toml"]),
+        INPUT,
+        &[
+            "extra.obj:2:",
+            &format!(
+                "object 'box' is defined twice: in geometry.obj:{box_line} and in extra.obj:2"
+            ),
+        ],
+    );
+}
+
+/// `--view` naming no view of the scene says which views it has.
+#[test]
+fn a_view_flag_naming_no_view_lists_the_views() {
+    let case = Case::new();
+    let mut args = render_args(&["materials.toml"]);
+    args.extend(["--view", "front"]);
+    case.fails(
+        &args,
+        USAGE,
+        &["--view front: scene.toml has no such view (its views: px, nx, py, ny, pz, nz)"],
+    );
+}
+
+/// `bench downsample` wrote the derived scene.toml's strings with Rust's escapes, which
+/// are not TOML's: a zero-width space (U+200B) in the scene's name or folder came out as
+/// `\u{200b}`, and the scene it wrote could not be read back. Now it can, and names the
+/// same files.
+#[test]
+fn a_downsampled_scene_with_a_name_toml_must_escape_reads_back() {
+    let case = Case::in_folder("cornell\u{200b}copy");
+    case.edit(
+        "scene.toml",
+        "name = \"cornell\"",
+        "name = \"cornell\\u200bcopy\\u0001\"",
+    );
+    relume_ok(
+        &case.path(""),
+        &[
+            "bench",
+            "downsample",
+            "scene.toml",
+            "--factor",
+            "2",
+            "--out",
+            "half",
+        ],
+    );
+    let derived = case.path("half/scene.toml");
+    let text = std::fs::read_to_string(&derived).unwrap();
+    assert!(!text.contains("\\u{"), "{text}");
+    let out = relume_ok(
+        &case.path(""),
+        &[
+            "render",
+            "half/scene.toml",
+            "--materials",
+            "materials.toml",
+            "--out",
+            "half-render",
+            "--spp",
+            "1",
+        ],
+    );
+    assert!(out.status.success());
+    assert!(case.path("half-render/px.exr").is_file());
+    // The derived scene names the folder's files by their true names.
+    let geometry = std::fs::canonicalize(case.path("geometry.obj")).unwrap();
+    assert!(text.contains(geometry.to_str().unwrap()), "{text}");
+}
+
+/// An edit's own materials file (beside its scene.toml, for the objects it adds) given
+/// also as `--truth` was refused as "a file of another scene", listing every group as
+/// only in this file: now the repetition is named.
+#[test]
+fn an_edits_own_materials_given_as_truth_is_named() {
+    let case = Case::new();
+    let text = std::fs::read_to_string(case.path("scene.toml"))
+        .unwrap()
+        .replace("\"geometry.obj\"", "\"../geometry.obj\"")
+        .replace("\"views/", "\"../views/");
+    std::fs::create_dir(case.path("e")).unwrap();
+    std::fs::write(case.path("e/scene.toml"), text).unwrap();
+    std::fs::copy(case.path("materials.toml"), case.path("e/materials.toml")).unwrap();
+    let edits = |truth: &str| -> Vec<String> {
+        [
+            "bench",
+            "edits",
+            "e/scene.toml",
+            "--recovered",
+            "materials.toml",
+            "--truth",
+            truth,
+            "--out",
+            "out",
+            "--spp",
+            "1",
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let args = edits("e/materials.toml");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let stderr = case.fails(
+        &args,
+        USAGE,
+        &["--truth e/materials.toml is also e/materials.toml, which gives the materials of the objects edit e/scene.toml adds"],
+    );
+    assert!(!stderr.contains("only in this file"), "{stderr}");
+}
+
+/// The helper's own check: a case's files are where the tests expect them.
+#[test]
+fn the_case_renders_as_it_is() {
+    let case = Case::new();
+    relume_ok(&case.path(""), &render_args(&["materials.toml"]));
+    assert!(Path::new(&case.path("out/render.json")).is_file());
+}
