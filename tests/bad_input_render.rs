@@ -204,6 +204,31 @@ fn an_object_defined_again_in_an_extra_obj_is_named_at_both_lines() {
     );
 }
 
+/// A folder given where a text input goes (a materials file, the scene) gave the system's
+/// "Is a directory (os error 21)" with exit 4, as if the machine were at fault: now it is
+/// bad input, named as a folder.
+#[test]
+fn a_folder_given_as_a_text_input_is_named_as_a_folder() {
+    let case = Case::new();
+    case.fails(
+        &render_args(&["views"]),
+        INPUT,
+        &["views: is a folder, not a file"],
+    );
+    case.fails(
+        &[
+            "render",
+            "views",
+            "--materials",
+            "materials.toml",
+            "--out",
+            "out",
+        ],
+        INPUT,
+        &["views: is a folder, not a file"],
+    );
+}
+
 /// `--view` naming no view of the scene says which views it has.
 #[test]
 fn a_view_flag_naming_no_view_lists_the_views() {

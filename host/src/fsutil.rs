@@ -315,6 +315,10 @@ impl Drop for OutputSet {
 /// editor's, invisible in an error message). Bytes that are not UTF-8 are an error at
 /// their line and byte.
 pub fn read_text(path: &Path) -> Result<String, Error> {
+    if path.is_dir() {
+        // The system's "Is a directory (os error 21)" reads as a fault of the machine.
+        return Err(Error::input(path, "is a folder, not a file"));
+    }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     match String::from_utf8(bytes) {
         Ok(text) => Ok(match text.strip_prefix('\u{feff}') {
