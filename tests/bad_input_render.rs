@@ -229,6 +229,28 @@ fn a_folder_given_as_a_text_input_is_named_as_a_folder() {
     );
 }
 
+/// A view's image that is a folder was the system's "Is a directory (os error 21)" with
+/// exit 4 in `recover` and `bench downsample`: now bad input naming it as a folder.
+#[test]
+fn a_view_image_that_is_a_folder_is_named_as_a_folder() {
+    let case = Case::new();
+    std::fs::remove_file(case.path("views/px.exr")).unwrap();
+    std::fs::create_dir(case.path("views/px.exr")).unwrap();
+    let recover = ["recover", "scene.toml", "--out", "out"];
+    let downsample = [
+        "bench",
+        "downsample",
+        "scene.toml",
+        "--factor",
+        "2",
+        "--out",
+        "half",
+    ];
+    for args in [&recover[..], &downsample[..]] {
+        case.fails(args, INPUT, &["views/px.exr: is a folder, not an image"]);
+    }
+}
+
 /// `--view` naming no view of the scene says which views it has.
 #[test]
 fn a_view_flag_naming_no_view_lists_the_views() {

@@ -62,6 +62,11 @@ pub fn read_image(path: &Path, exposure: f32) -> Result<Image, Error> {
             ))
         }
     };
+    // A folder is bad input (a path that names the wrong thing), as for text inputs; a
+    // missing file stays an I/O error naming it, as for every input.
+    if path.is_dir() {
+        return Err(Error::input(path, "is a folder, not an image"));
+    }
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let metadata = file.metadata().map_err(|e| Error::io(path, e))?;
     if metadata.is_file() && metadata.len() == 0 {
@@ -1153,11 +1158,14 @@ mod tests {
                 );
             }
         }
-        // A failed read of something that is there stays an I/O error.
+        // A folder is named as one, as bad input.
         let folder = dir.path().join("folder.exr");
         std::fs::create_dir(&folder).unwrap();
         let e = read_image(&folder, 1.0).unwrap_err();
-        assert!(matches!(e, Error::Io { .. }), "{e}");
+        assert!(matches!(e, Error::Input { .. }), "{e}");
+        assert!(e
+            .to_string()
+            .contains("folder.exr: is a folder, not an image"));
     }
 
     #[test]
