@@ -76,6 +76,17 @@ impl Case {
     }
 }
 
+/// `bench downsample` of the case's scene by 2 into `half/`.
+const DOWNSAMPLE: [&str; 7] = [
+    "bench",
+    "downsample",
+    "scene.toml",
+    "--factor",
+    "2",
+    "--out",
+    "half",
+];
+
 /// `render scene.toml --materials <materials...> --out out --spp 1`.
 fn render_args<'a>(materials: &[&'a str]) -> Vec<&'a str> {
     let mut args = vec!["render", "scene.toml", "--materials"];
@@ -237,16 +248,7 @@ fn a_view_image_that_is_a_folder_is_named_as_a_folder() {
     std::fs::remove_file(case.path("views/px.exr")).unwrap();
     std::fs::create_dir(case.path("views/px.exr")).unwrap();
     let recover = ["recover", "scene.toml", "--out", "out"];
-    let downsample = [
-        "bench",
-        "downsample",
-        "scene.toml",
-        "--factor",
-        "2",
-        "--out",
-        "half",
-    ];
-    for args in [&recover[..], &downsample[..]] {
+    for args in [&recover[..], &DOWNSAMPLE[..]] {
         case.fails(args, INPUT, &["views/px.exr: is a folder, not an image"]);
     }
 }
@@ -276,18 +278,7 @@ fn a_downsampled_scene_with_a_name_toml_must_escape_reads_back() {
         "name = \"cornell\"",
         "name = \"cornell\\u200bcopy\\u0001\"",
     );
-    relume_ok(
-        &case.path(""),
-        &[
-            "bench",
-            "downsample",
-            "scene.toml",
-            "--factor",
-            "2",
-            "--out",
-            "half",
-        ],
-    );
+    relume_ok(&case.path(""), &DOWNSAMPLE);
     let derived = case.path("half/scene.toml");
     let text = std::fs::read_to_string(&derived).unwrap();
     assert!(!text.contains("\\u{"), "{text}");
