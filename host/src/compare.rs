@@ -328,7 +328,7 @@ pub struct MaterialRow {
     /// Angle between the u directions, sign ignored (d and -d are the same material).
     pub direction_err_deg: Option<f64>,
     /// PSNR of the diffuse map over all texels, peak = the truth's maximum. Infinite for a
-    /// map equal to the truth's, written `"inf"` in JSON (see [`psnr_json`]).
+    /// map equal to the truth's, written `"inf"` in JSON.
     #[serde(serialize_with = "psnr_json")]
     pub diffuse_map_psnr_db: Option<f64>,
     /// The same PSNR for the truth area-averaged to the recovered map's size: the most a
