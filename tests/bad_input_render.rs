@@ -130,6 +130,29 @@ fn a_materials_file_given_twice_is_named_as_such() {
     }
 }
 
+/// A materials file with no `[[material]]` among several was accepted without a word:
+/// the render goes on (the others give every group its material) and says the file
+/// changes nothing, on stderr and in render.json.
+#[test]
+fn a_materials_file_without_materials_is_named_in_a_warning() {
+    let case = Case::new();
+    split_materials(&case);
+    std::fs::write(case.path("empty.toml"), "format = 1\n").unwrap();
+    let out = relume_ok(
+        &case.path(""),
+        &render_args(&["a.toml", "empty.toml", "b.toml"]),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let warning = "empty.toml has no [[material]]: it changes nothing";
+    assert!(stderr.contains(warning), "{stderr}");
+    let summary = std::fs::read_to_string(case.path("out/render.json")).unwrap();
+    assert!(summary.contains(warning), "{summary}");
+    // Files that each give materials draw no such warning.
+    let out = relume_ok(&case.path(""), &render_args(&["a.toml", "b.toml"]));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("has no [[material]]"), "{stderr}");
+}
+
 /// A `diffuse_map` that names a folder was said not to exist.
 #[test]
 fn a_diffuse_map_that_is_a_folder_is_named_as_a_folder() {

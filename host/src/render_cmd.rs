@@ -147,6 +147,19 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     }
     progress.finish_and_clear();
     let mut warnings = fallbacks;
+    // A file that gives no material changes nothing: most likely the wrong file was given.
+    warnings.extend(
+        args.materials
+            .iter()
+            .zip(&files)
+            .filter(|(_, file)| file.materials.is_empty())
+            .map(|(path, _)| {
+                format!(
+                    "{} has no [[material]]: it changes nothing (the wrong file?)",
+                    path.display()
+                )
+            }),
+    );
     if black_views.len() == selected.len() {
         warnings.push(format!(
             "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away?)",
