@@ -276,6 +276,46 @@ fn a_view_image_that_is_a_folder_is_named_as_a_folder() {
     }
 }
 
+/// Errors about a view found after the scene is read (a size the downsampling factor does
+/// not divide, no image where the panorama is needed) named the scene and the view but
+/// not the line: now the line of the view's `size`, or of its `name` where it has no
+/// `image`.
+#[test]
+fn errors_about_a_view_name_its_line() {
+    let case = Case::new();
+    let factor_3 = [
+        "bench",
+        "downsample",
+        "scene.toml",
+        "--factor",
+        "3",
+        "--out",
+        "third",
+    ];
+    case.fails(
+        &factor_3,
+        INPUT,
+        &[
+            "scene.toml:13:",
+            "view 'px' is 32x32, not a multiple of factor 3",
+        ],
+    );
+    case.edit("scene.toml", "image = \"views/nx.exr\"\n", "");
+    case.fails(
+        &["recover", "scene.toml", "--out", "out"],
+        INPUT,
+        &[
+            "scene.toml:17:",
+            "view 'nx' has no image: recover needs the panorama",
+        ],
+    );
+    case.fails(
+        &DOWNSAMPLE,
+        INPUT,
+        &["scene.toml:17:", "view 'nx' has no image"],
+    );
+}
+
 /// `--view` naming no view of the scene says which views it has.
 #[test]
 fn a_view_flag_naming_no_view_lists_the_views() {

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use crate::error::Error;
 use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
-use crate::scene_file::{self, GroupKind, SceneDesc};
+use crate::scene_file::{self, GroupKind, SceneDesc, ViewKey};
 
 /// Box-averages `image` by `factor` (its size must be a multiple of it).
 pub fn box_average(image: &Image, factor: u32) -> Image {
@@ -166,14 +166,18 @@ pub fn write_derived_scene(
         std::fs::canonicalize(&views_dir).map_err(|e| Error::io(&views_dir, e))?;
     for (vi, v) in desc.views.iter_mut().enumerate() {
         let Some(path) = v.image.clone() else {
-            return Err(Error::input(
+            return Err(scene_file::view_error(
                 scene,
+                vi,
+                ViewKey::Image,
                 format!("view '{}' has no image to {doing}", v.name),
             ));
         };
         if !(v.size[0].is_multiple_of(factor) && v.size[1].is_multiple_of(factor)) {
-            return Err(Error::input(
+            return Err(scene_file::view_error(
                 scene,
+                vi,
+                ViewKey::Size,
                 format!(
                     "view '{}' is {}x{}, not a multiple of factor {factor}",
                     v.name, v.size[0], v.size[1]

@@ -533,6 +533,33 @@ impl SceneLines {
     fn hide(&self, h: usize) -> Option<usize> {
         self.line(self.raw.as_ref()?.hide.get(h))
     }
+    /// View `v`'s `size` or `image` line, else its `name` line (an `image` it lacks).
+    fn view(&self, v: usize, key: ViewKey) -> Option<usize> {
+        let view = self.raw.as_ref()?.views.get(v)?.get_ref();
+        match key {
+            ViewKey::Size => self.line(Some(&view.size)),
+            ViewKey::Image => self.line(view.image.as_ref()),
+        }
+        .or_else(|| self.line(Some(&view.name)))
+    }
+}
+
+/// Which line of a view an error found after loading points at.
+#[derive(Clone, Copy)]
+pub enum ViewKey {
+    Size,
+    /// Its `image`, or its `name` when it has none.
+    Image,
+}
+
+/// An input error about view `v` (its index in the file) of the scene file `scene`, at
+/// the line of its `key`: for the commands that check views after loading (recover, bench
+/// downsample and edits).
+pub fn view_error(scene: &Path, v: usize, key: ViewKey, msg: String) -> Error {
+    match SceneLines::read(scene).view(v, key) {
+        Some(line) => Error::at_line(scene, line, msg),
+        None => Error::input(scene, msg),
+    }
 }
 
 /// Reading TOML with positions, shared by scene.toml and materials.toml: byte spans to

@@ -243,10 +243,12 @@ fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
                 std::iter::once(file.clone()).chain(added.clone()).collect();
             assemble::load_and_assemble(scene, MaterialSource::Files(&files))?;
         }
-        for v in &desc.views {
+        for (vi, v) in desc.views.iter().enumerate() {
             let Some(image) = &v.image else {
-                return Err(Error::input(
+                return Err(scene_file::view_error(
                     scene,
+                    vi,
+                    scene_file::ViewKey::Image,
                     format!(
                         "view '{}' names no image: an edit's views are its reference",
                         v.name

@@ -58,7 +58,7 @@ use crate::assemble::{self, MaterialSource, OwnedScene};
 use crate::error::Error;
 use crate::images::{self, Image};
 use crate::parallel;
-use crate::scene_file::GroupKind;
+use crate::scene_file::{self, GroupKind};
 pub use model::GroupModel;
 pub use output::output_files;
 use pixels::PurePixel;
@@ -605,10 +605,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let start = Instant::now();
     let (desc, objects) = assemble::load_scene(&args.scene)?;
     let mut real = Vec::with_capacity(desc.views.len());
-    for v in &desc.views {
+    for (vi, v) in desc.views.iter().enumerate() {
         let Some(path) = &v.image else {
-            return Err(Error::input(
+            return Err(scene_file::view_error(
                 &desc.path,
+                vi,
+                scene_file::ViewKey::Image,
                 format!("view '{}' has no image: recover needs the panorama", v.name),
             ));
         };
