@@ -378,25 +378,19 @@ fn an_edits_own_materials_given_as_truth_is_named() {
     std::fs::create_dir(case.path("e")).unwrap();
     std::fs::write(case.path("e/scene.toml"), text).unwrap();
     std::fs::copy(case.path("materials.toml"), case.path("e/materials.toml")).unwrap();
-    let edits = |truth: &str| -> Vec<String> {
-        [
-            "bench",
-            "edits",
-            "e/scene.toml",
-            "--recovered",
-            "materials.toml",
-            "--truth",
-            truth,
-            "--out",
-            "out",
-            "--spp",
-            "1",
-        ]
-        .map(String::from)
-        .to_vec()
-    };
-    let args = edits("e/materials.toml");
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let args = [
+        "bench",
+        "edits",
+        "e/scene.toml",
+        "--recovered",
+        "materials.toml",
+        "--truth",
+        "e/materials.toml",
+        "--out",
+        "out",
+        "--spp",
+        "1",
+    ];
     let stderr = case.fails(
         &args,
         USAGE,

@@ -675,14 +675,12 @@ pub fn check_uncertainty_run(
     reports: &[PathBuf],
     json: Option<&Path>,
 ) -> Result<(), Error> {
-    for (i, report) in reports.iter().enumerate() {
-        if let Some(first) = reports[..i].iter().find(|r| fsutil::same_file(r, report)) {
-            return Err(Error::Usage(format!(
-                "{} is given twice as a report (also as {}): its parameters would be pooled twice",
-                report.display(),
-                first.display()
-            )));
-        }
+    if let Some((report, first)) = fsutil::given_twice(reports) {
+        return Err(Error::Usage(format!(
+            "{} is given twice as a report (also as {}): its parameters would be pooled twice",
+            report.display(),
+            first.display()
+        )));
     }
     if let Some(path) = json {
         let mut inputs = materials_file::load_materials(truth)?.input_files();

@@ -293,6 +293,18 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     matches!((resolved(a), resolved(b)), (Some(a), Some(b)) if a == b)
 }
 
+/// The first of `paths` that names, by any spelling ([`same_file`]), a file an earlier
+/// one names, with that earlier one: `(again, first)`. For the commands that take a list
+/// of inputs, where one given twice would be counted twice.
+pub fn given_twice(paths: &[PathBuf]) -> Option<(&PathBuf, &PathBuf)> {
+    paths.iter().enumerate().find_map(|(i, again)| {
+        paths[..i]
+            .iter()
+            .find(|first| same_file(first, again))
+            .map(|first| (again, first))
+    })
+}
+
 /// The folder a file at `path` is in (`.` for a bare file name).
 fn folder_of(path: &Path) -> &Path {
     match path.parent() {

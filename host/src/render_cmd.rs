@@ -54,17 +54,12 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         return Err(Error::Usage("--spp must be at least 1".into()));
     }
     // Read and check every input before writing anything.
-    for (i, m) in args.materials.iter().enumerate() {
-        if let Some(first) = args.materials[..i]
-            .iter()
-            .find(|f| crate::fsutil::same_file(f, m))
-        {
-            return Err(Error::Usage(format!(
-                "{} is given twice to --materials (also as {}): each of its groups would have two materials",
-                m.display(),
-                first.display()
-            )));
-        }
+    if let Some((m, first)) = crate::fsutil::given_twice(&args.materials) {
+        return Err(Error::Usage(format!(
+            "{} is given twice to --materials (also as {}): each of its groups would have two materials",
+            m.display(),
+            first.display()
+        )));
     }
     let mut files = Vec::new();
     for m in &args.materials {
