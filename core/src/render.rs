@@ -253,7 +253,9 @@ pub fn radiance(
 
 /// What the whole footprint of pixel `(x, y)` sees, tested with `n_sub x n_sub` rays on a
 /// grid over the pixel's square (edges included): `Some(surface)` when every ray hits the
-/// same group or light, `None` on silhouettes and where a ray escapes.
+/// same group, or the emitting (front) side of the same light; `None` on silhouettes, where
+/// a ray escapes and where a ray sees a light's back, which is black: such a pixel does
+/// not show the light's radiance.
 pub fn pixel_surface(scene: &Scene, view: &View, x: u32, y: u32, n_sub: u32) -> Option<Surface> {
     let n = n_sub.max(2);
     let mut seen: Option<Surface> = None;
@@ -263,7 +265,12 @@ pub fn pixel_surface(scene: &Scene, view: &View, x: u32, y: u32, n_sub: u32) -> 
             let fy = y as f32 + j as f32 / (n - 1) as f32;
             let ray = view.ray(fx, fy);
             let hit = scene.intersect(&ray, f32::INFINITY)?;
-            let surface = scene.triangles.get(hit.triangle as usize)?.surface;
+            let tri = scene.triangles.get(hit.triangle as usize)?;
+            let surface = tri.surface;
+            if matches!(surface, Surface::Light(_)) && tri.normal_area2().dot(ray.direction) >= 0.0
+            {
+                return None;
+            }
             match seen {
                 None => seen = Some(surface),
                 Some(s) if s != surface => return None,
@@ -418,6 +425,55 @@ mod tests {
                 "albedo {albedo}: mean {mean:.5} +- {se:.5}, expected {expected:.5} (f = {f:.4})"
             );
         }
+    }
+
+    /// A pixel wholly on a light is labelled with it only from the emitting side: from
+    /// behind the light is black, so the pixel shows nothing of its radiance.
+    #[test]
+    fn a_light_is_a_pixels_surface_only_from_its_front() {
+        let triangles = furnace_sphere(16, 32, 40.0);
+        let materials = [SurfaceMaterial {
+            material: Material::Diffuse {
+                rho_d: Vec3::splat(0.5),
+            },
+            diffuse_map: None,
+        }];
+        let radiance = [Vec3::splat(1.0)];
+        let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
+        let mut nodes = vec![BvhNode::default(); n_nodes];
+        let mut packed = vec![PackedTriangle::default(); n_packed];
+        let mut light_table = vec![LightTriangle::default(); triangles.len()];
+        let scene = Scene::build(
+            &triangles,
+            &materials,
+            &radiance,
+            Textures::default(),
+            SceneStorage {
+                bvh: BvhBuffers {
+                    nodes: &mut nodes,
+                    packed: &mut packed,
+                },
+                light_table: &mut light_table,
+            },
+        )
+        .unwrap();
+        // Narrow views of the cap around +z: from the centre (its front), from above the
+        // sphere looking down (its back), and from the centre looking down (a group).
+        let view = |position: Vec3, direction: Vec3| {
+            View::new(position, direction, Vec3::X, [2.0, 2.0], [3, 3]).unwrap()
+        };
+        let from_inside = view(Vec3::ZERO, Vec3::Z);
+        let from_outside = view(Vec3::new(0.0, 0.0, 3.0), -Vec3::Z);
+        let floor = view(Vec3::ZERO, -Vec3::Z);
+        assert_eq!(
+            pixel_surface(&scene, &from_inside, 1, 1, 4),
+            Some(Surface::Light(0))
+        );
+        assert_eq!(pixel_surface(&scene, &from_outside, 1, 1, 4), None);
+        assert_eq!(
+            pixel_surface(&scene, &floor, 1, 1, 4),
+            Some(Surface::Group(0))
+        );
     }
 
     /// A scene given new materials over its built storage renders exactly as one built

@@ -23,6 +23,7 @@
 
 mod anisotropic;
 mod cache;
+mod calibration;
 mod ladder;
 mod model;
 mod output;
@@ -633,10 +634,22 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let names = owned.group_names.clone();
     let mut warnings = Vec::new();
 
-    let (pure, empty_views) = {
+    let pixels::Labels {
+        pure,
+        lights: light_pixels,
+        empty_views,
+    } = {
         let scene = owned.build()?;
         pixels::find_pure_pixels(&pool, &scene, &views)
     };
+    let light_readings = calibration::read_lights(
+        &light_pixels,
+        &real,
+        &owned.light_names,
+        &owned.light_radiance,
+        &view_names,
+    );
+    warnings.extend(calibration::calibration_warnings(&light_readings));
     let pure = match &args.limit_group_pixels {
         Some((name, limit)) => {
             let Some(g) = names.iter().position(|n| n == name) else {
@@ -827,6 +840,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "SHADOW_FRACTION": fit::SHADOW_FRACTION,
         }),
         panorama_noise_bound: noise_bound,
+        light_readings,
         stages,
         groups: reports,
         warnings,

@@ -92,34 +92,75 @@ pub fn every_kth(pixels: Vec<PurePixel>, at_most: usize) -> Vec<PurePixel> {
     pixels.into_iter().step_by(stride).collect()
 }
 
-/// Every pure pixel of every view, in view and row order, and the views that see none.
-pub fn find_pure_pixels(
-    pool: &rayon::ThreadPool,
-    scene: &Scene,
-    views: &[View],
-) -> (Vec<PurePixel>, Vec<usize>) {
-    let mut pure = Vec::new();
-    let mut empty_views = Vec::new();
+/// A pixel whose whole footprint, and the footprints of its four neighbours, see the
+/// emitting side of one light: its value is the light's radiance, untouched by the blur of
+/// a camera or a filter at the light's edge.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LightPixel {
+    pub view: u32,
+    pub x: u32,
+    pub y: u32,
+    pub light: u16,
+}
+
+/// What the label pass over every view finds.
+pub struct Labels {
+    /// Every pure pixel of every view, in view and row order.
+    pub pure: Vec<PurePixel>,
+    /// Every light pixel (interior to a light), in view and row order.
+    pub lights: Vec<LightPixel>,
+    /// The views with no pure pixel.
+    pub empty_views: Vec<usize>,
+}
+
+/// Labels every pixel of every view by what its whole footprint sees.
+pub fn find_pure_pixels(pool: &rayon::ThreadPool, scene: &Scene, views: &[View]) -> Labels {
+    let mut found = Labels {
+        pure: Vec::new(),
+        lights: Vec::new(),
+        empty_views: Vec::new(),
+    };
     for (vi, view) in views.iter().enumerate() {
         let labels = parallel::map_pixels(pool, view, |x, y| {
             render::pixel_surface(scene, view, x, y, LABEL_RAYS_PER_SIDE)
         });
-        let before = pure.len();
-        for (i, label) in labels.iter().enumerate() {
-            if let Some(Surface::Group(g)) = label {
-                pure.push(PurePixel {
-                    view: vi as u32,
-                    x: i as u32 % view.width,
-                    y: i as u32 / view.width,
-                    group: *g,
-                });
+        let (w, h) = (view.width, view.height);
+        let label = |x: u32, y: u32| labels[(y * w + x) as usize];
+        let before = found.pure.len();
+        for y in 0..h {
+            for x in 0..w {
+                match label(x, y) {
+                    Some(Surface::Group(group)) => found.pure.push(PurePixel {
+                        view: vi as u32,
+                        x,
+                        y,
+                        group,
+                    }),
+                    Some(Surface::Light(light)) => {
+                        let inside = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+                        let here = Some(Surface::Light(light));
+                        if inside
+                            && [(x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1)]
+                                .iter()
+                                .all(|&(nx, ny)| label(nx, ny) == here)
+                        {
+                            found.lights.push(LightPixel {
+                                view: vi as u32,
+                                x,
+                                y,
+                                light,
+                            });
+                        }
+                    }
+                    None => {}
+                }
             }
         }
-        if pure.len() == before {
-            empty_views.push(vi);
+        if found.pure.len() == before {
+            found.empty_views.push(vi);
         }
     }
-    (pure, empty_views)
+    found
 }
 
 /// The pure pixels of group `g`, in their order.

@@ -212,6 +212,10 @@ pub struct RecoverReport {
     /// bound on any well-seen group's bias-only error
     /// (`relume_core::stages::texture::panorama_noise_bound`).
     pub panorama_noise_bound: f64,
+    /// The panorama over each light it sees, against the light's declared radiance: the
+    /// check of the views' exposure and the lights' radiance (empty where no view sees the
+    /// emitting side of a light in whole pixels).
+    pub light_readings: Vec<super::calibration::LightReading>,
     pub stages: Vec<StageReport>,
     pub groups: Vec<GroupReport>,
     pub warnings: Vec<String>,
