@@ -640,7 +640,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         empty_views,
     } = {
         let scene = owned.build()?;
-        pixels::find_pure_pixels(&pool, &scene, &views)
+        pixels::label_views(&pool, &scene, &views)
     };
     let light_readings = calibration::read_lights(
         &light_pixels,

@@ -114,7 +114,7 @@ pub struct Labels {
 }
 
 /// Labels every pixel of every view by what its whole footprint sees.
-pub fn find_pure_pixels(pool: &rayon::ThreadPool, scene: &Scene, views: &[View]) -> Labels {
+pub fn label_views(pool: &rayon::ThreadPool, scene: &Scene, views: &[View]) -> Labels {
     let mut found = Labels {
         pure: Vec::new(),
         lights: Vec::new(),
@@ -126,6 +126,16 @@ pub fn find_pure_pixels(pool: &rayon::ThreadPool, scene: &Scene, views: &[View])
         });
         let (w, h) = (view.width, view.height);
         let label = |x: u32, y: u32| labels[(y * w + x) as usize];
+        // Whether the four neighbours of (x, y) are in the view and all see `surface`.
+        let neighbours_see = |x: u32, y: u32, surface: Surface| {
+            x > 0
+                && y > 0
+                && x + 1 < w
+                && y + 1 < h
+                && [(x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1)]
+                    .iter()
+                    .all(|&(nx, ny)| label(nx, ny) == Some(surface))
+        };
         let before = found.pure.len();
         for y in 0..h {
             for x in 0..w {
@@ -136,23 +146,15 @@ pub fn find_pure_pixels(pool: &rayon::ThreadPool, scene: &Scene, views: &[View])
                         y,
                         group,
                     }),
-                    Some(Surface::Light(light)) => {
-                        let inside = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
-                        let here = Some(Surface::Light(light));
-                        if inside
-                            && [(x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1)]
-                                .iter()
-                                .all(|&(nx, ny)| label(nx, ny) == here)
-                        {
-                            found.lights.push(LightPixel {
-                                view: vi as u32,
-                                x,
-                                y,
-                                light,
-                            });
-                        }
+                    Some(Surface::Light(light)) if neighbours_see(x, y, Surface::Light(light)) => {
+                        found.lights.push(LightPixel {
+                            view: vi as u32,
+                            x,
+                            y,
+                            light,
+                        })
                     }
-                    None => {}
+                    _ => {}
                 }
             }
         }
