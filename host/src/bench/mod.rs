@@ -60,6 +60,8 @@ pub struct Judged {
     /// shared machine does not inflate as it does the wall time.
     pub cpu_seconds: Option<f64>,
     pub groups: Vec<GroupOutcome>,
+    /// The recovery report's warnings.
+    pub warnings: Vec<String>,
 }
 
 /// The figures of one recovery over all groups of the truth.
@@ -170,6 +172,7 @@ pub fn recover_and_judge(args: &RecoverArgs, truth: &Path) -> Result<Judged, Err
         seconds,
         cpu_seconds,
         groups,
+        warnings: report.warnings,
     })
 }
 
@@ -336,6 +339,7 @@ mod tests {
                 outcome(true, Some(0.02), None, 0.01, 300),
                 outcome(false, Some(0.04), Some(0.5), 0.05, 100),
             ],
+            warnings: Vec::new(),
         };
         let s = judged.summary();
         assert_eq!((s.groups, s.classes_right), (2, 1));

@@ -128,6 +128,17 @@ fn same_class(run: &Judged, baseline: &Judged) -> Vec<bool> {
         .collect()
 }
 
+/// The warnings about its whole input in `run`'s report that the baseline's report does
+/// not have: what the report said of the perturbed input. A group's warnings (each begins
+/// `group '<name>'`) are left out: borderline decisions come and go with the seed.
+fn new_input_warnings<'a>(run: &'a Judged, baseline: &Judged) -> Vec<&'a str> {
+    run.warnings
+        .iter()
+        .filter(|w| !w.starts_with("group '") && !baseline.warnings.contains(w))
+        .map(String::as_str)
+        .collect()
+}
+
 /// Runs the study, writes stability.csv, seed-spread.csv and stability.svg (and .png) under
 /// `args.out`, prints the runs and the verdict on the targets.
 pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
@@ -503,12 +514,14 @@ fn runs_csv(runs: &[StabilityRun], baseline: &Judged) -> Csv {
         "param_err",
         "error_final",
         "pure_pixels",
+        "input_warnings",
         "seconds",
         "cpu_seconds",
         "run",
     ]);
     for r in runs {
         let same = same_class(&r.judged, baseline);
+        let warned = new_input_warnings(&r.judged, baseline).len();
         for (g, same) in r.judged.groups.iter().zip(same) {
             csv.push(vec![
                 r.family.name().into(),
@@ -525,6 +538,7 @@ fn runs_csv(runs: &[StabilityRun], baseline: &Judged) -> Csv {
                 field(g.param_err()),
                 field(g.error_final),
                 g.pure_pixels.to_string(),
+                warned.to_string(),
                 format!("{:.3}", r.judged.seconds),
                 field(r.judged.cpu_seconds),
                 r.run.clone(),
@@ -665,8 +679,8 @@ fn chart(runs: &[StabilityRun], baseline: &Judged, ctx: &ChartContext, title: &s
 
 /// The runs as a Markdown table (readable in a terminal, pasted as is into docs/).
 fn print_runs(runs: &[StabilityRun], baseline: &Judged, group: &str) {
-    println!("| family | size | wall s | classes right | as baseline | param | image | changed classes |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("| family | size | wall s | classes right | as baseline | param | image | input warnings | changed classes |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for r in runs {
         let s = r.judged.summary();
         let same = same_class(&r.judged, baseline);
@@ -691,7 +705,7 @@ fn print_runs(runs: &[StabilityRun], baseline: &Judged, group: &str) {
             }
         }
         println!(
-            "| {} | {} | {:.1} | {}/{} | {}/{} | {} | {} | {} |",
+            "| {} | {} | {:.1} | {}/{} | {}/{} | {} | {} | {} | {} |",
             r.family.name(),
             r.size,
             r.judged.seconds,
@@ -701,6 +715,7 @@ fn print_runs(runs: &[StabilityRun], baseline: &Judged, group: &str) {
             same.len(),
             pct(s.param_err),
             pct(s.image_err),
+            new_input_warnings(&r.judged, baseline).len(),
             notes.join(", ")
         );
     }
@@ -811,6 +826,32 @@ fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread]) {
             None => println!("{}: no class changes in the tested range", family.name()),
         }
     }
+    // Whether a user would have been told: the runs whose report warned of its input (the
+    // pixel family's input is whole; its warnings are the limited group's own).
+    for family in Family::ALL
+        .into_iter()
+        .filter(|f| ![Family::Seed, Family::Pixels].contains(f))
+    {
+        let of_family: Vec<&StabilityRun> = runs.iter().filter(|r| r.family == family).collect();
+        if of_family.is_empty() {
+            continue;
+        }
+        let warned: Vec<String> = of_family
+            .iter()
+            .filter(|r| !new_input_warnings(&r.judged, baseline).is_empty())
+            .map(|r| r.size.to_string())
+            .collect();
+        println!(
+            "{}: the report warned of its input in {} of {} runs{}",
+            family.name(),
+            warned.len(),
+            of_family.len(),
+            match warned.is_empty() {
+                true => String::new(),
+                false => format!(" (at {})", warned.join(", ")),
+            }
+        );
+    }
 }
 
 #[cfg(test)]
@@ -852,6 +893,7 @@ mod tests {
                 seconds: 1.0,
                 cpu_seconds: None,
                 groups,
+                warnings: Vec::new(),
             },
         }
     }
@@ -934,6 +976,27 @@ mod tests {
     }
 
     #[test]
+    fn input_warnings_are_those_the_baseline_lacks_leaving_out_groups() {
+        let judged = |warnings: &[&str]| Judged {
+            seconds: 1.0,
+            cpu_seconds: None,
+            groups: Vec::new(),
+            warnings: warnings.iter().map(|w| w.to_string()).collect(),
+        };
+        let baseline = judged(&["8 samples per pixel in the loop", "group 'a': weak lobe"]);
+        let run = judged(&[
+            "light 'lamp' reads 1.050x its declared radiance",
+            "8 samples per pixel in the loop",
+            "group 'b': borderline",
+        ]);
+        assert_eq!(
+            new_input_warnings(&run, &baseline),
+            ["light 'lamp' reads 1.050x its declared radiance"]
+        );
+        assert!(new_input_warnings(&baseline, &baseline).is_empty());
+    }
+
+    #[test]
     fn the_limited_group_is_the_largest_not_diffuse_in_the_truth() {
         let judged = Judged {
             seconds: 1.0,
@@ -943,6 +1006,7 @@ mod tests {
                 outcome("ball", material("ball", Model::Diffuse, 0.5, 0.0), 300),
                 outcome("cup", material("cup", Model::Diffuse, 0.5, 0.0), 200),
             ],
+            warnings: Vec::new(),
         };
         let truth = [
             material("floor", Model::Diffuse, 0.5, 0.0),
