@@ -91,11 +91,32 @@ pub fn read_lights(
     readings
 }
 
-/// A warning for each reading off by more than [`CALIBRATION_TOLERANCE`] in some channel.
-pub fn calibration_warnings(readings: &[LightReading]) -> Vec<String> {
+/// A light declared dark (radiance 0) whose pixels read more than this fraction of the
+/// brightest light's radiance: far brighter than a lamp's glass or shade lit by the room
+/// (the references' groups read 0.2-1.5% of their lamp's radiance on average), so most likely a lamp
+/// that was on when the panorama was taken.
+pub const DARK_LIGHT_LIT: f64 = 0.1;
+
+/// A warning for each reading off by more than [`CALIBRATION_TOLERANCE`] in some channel,
+/// and for each light declared dark that reads more than [`DARK_LIGHT_LIT`] of
+/// `brightest`, the largest channel of any light's declared radiance.
+pub fn calibration_warnings(readings: &[LightReading], brightest: f64) -> Vec<String> {
     let mut warnings = Vec::new();
     for r in readings {
         let Some(worst) = r.worst_ratio() else {
+            let reads = r.measured.iter().copied().fold(0.0, f64::max);
+            if r.declared == [0.0; 3] && brightest > 0.0 && reads > DARK_LIGHT_LIT * brightest {
+                warnings.push(format!(
+                    "light '{}' is declared dark (radiance 0) but reads [{:.3}, {:.3}, {:.3}] in view '{}' over {} pixels wholly inside it, {:.0}% of the brightest light's radiance: if it was on when the panorama was taken, give its radiance; recovery explains the light it sheds with the materials",
+                    r.light,
+                    r.measured[0],
+                    r.measured[1],
+                    r.measured[2],
+                    r.view,
+                    r.pixels,
+                    100.0 * reads / brightest
+                ));
+            }
             continue;
         };
         if (worst - 1.0).abs() <= CALIBRATION_TOLERANCE {
@@ -183,17 +204,52 @@ mod tests {
         };
         let within = 1.0 + 0.9 * CALIBRATION_TOLERANCE;
         let beyond = 1.0 - 1.1 * CALIBRATION_TOLERANCE;
-        let warnings = calibration_warnings(&[
-            reading([Some(within), Some(1.0), Some(2.0 - within)]),
-            reading([None; 3]),
-            reading([Some(1.0), Some(beyond), None]),
-            reading([Some(2.0), Some(2.0), Some(2.0)]),
-        ]);
+        let warnings = calibration_warnings(
+            &[
+                reading([Some(within), Some(1.0), Some(2.0 - within)]),
+                reading([None; 3]),
+                reading([Some(1.0), Some(beyond), None]),
+                reading([Some(2.0), Some(2.0), Some(2.0)]),
+            ],
+            1.0,
+        );
         assert_eq!(warnings.len(), 2, "{warnings:?}");
         assert!(warnings[0].contains(
             "reads 0.978x its declared radiance in view 'up' (R G B 1.000 0.978 - over 7 pixels"
         ));
         assert!(warnings[1].contains("reads 2.000x"), "{}", warnings[1]);
         assert!(warnings[1].contains("exposure or the light's radiance"));
+    }
+
+    #[test]
+    fn a_light_declared_dark_is_warned_of_only_when_it_reads_bright() {
+        let dark = |measured: [f64; 3]| LightReading {
+            light: "bulb".into(),
+            view: "down".into(),
+            pixels: 3,
+            declared: [0.0; 3],
+            measured,
+            ratio: [None; 3],
+        };
+        let brightest = 50.0;
+        let lit = [0.5, 1.2 * DARK_LIGHT_LIT * brightest, 0.5];
+        let warnings = calibration_warnings(
+            &[
+                dark([0.2, 0.3, 0.2]),
+                dark(lit),
+                dark([0.9 * DARK_LIGHT_LIT * brightest; 3]),
+            ],
+            brightest,
+        );
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].contains("light 'bulb' is declared dark")
+                && warnings[0].contains("in view 'down'")
+                && warnings[0].contains("12% of the brightest"),
+            "{}",
+            warnings[0]
+        );
+        // With no light declared bright there is nothing to measure against.
+        assert!(calibration_warnings(&[dark(lit)], 0.0).is_empty());
     }
 }

@@ -649,7 +649,15 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &owned.light_radiance,
         &view_names,
     );
-    warnings.extend(calibration::calibration_warnings(&light_readings));
+    let brightest = owned
+        .light_radiance
+        .iter()
+        .map(|r| r.max_element() as f64)
+        .fold(0.0, f64::max);
+    warnings.extend(calibration::calibration_warnings(
+        &light_readings,
+        brightest,
+    ));
     let pure = match &args.limit_group_pixels {
         Some((name, limit)) => {
             let Some(g) = names.iter().position(|n| n == name) else {
