@@ -257,10 +257,23 @@ fn a_view_too_bright_is_found_from_the_light_it_sees() {
     );
     std::fs::write(scene.join("scene.toml"), text).unwrap();
     let out = tmp.path().join("rec");
-    recover(
-        &scene.join("scene.toml"),
-        &out,
-        &["--effort", "fast", "--seed", "3"],
+    let run = relume_ok(
+        tmp.path(),
+        &[
+            "recover",
+            path_str(&scene.join("scene.toml")),
+            "--out",
+            path_str(&out),
+            "--effort",
+            "fast",
+            "--seed",
+            "3",
+        ],
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        stdout.contains("calibration: light 'light' in view 'pz' reads 1.100 1.100 1.100 x"),
+        "{stdout}"
     );
     let report = report_json(&out);
     let calibration: Vec<&str> = report["warnings"]

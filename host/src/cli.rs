@@ -338,6 +338,16 @@ fn run(command: Command) -> Result<(), Error> {
                     g.settling_decision().unwrap_or("")
                 );
             }
+            match report.light_readings.as_slice() {
+                [] => println!(
+                    "calibration: not checked (no view sees a light's emitting side in whole pixels)"
+                ),
+                readings => {
+                    for r in readings {
+                        println!("calibration: {}", r.describe());
+                    }
+                }
+            }
             for w in &report.warnings {
                 eprintln!("relume: warning: {w}");
             }

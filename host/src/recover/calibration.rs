@@ -32,6 +32,28 @@ pub struct LightReading {
 }
 
 impl LightReading {
+    /// One line for a reader: the light, the view, and the panorama over the declared
+    /// radiance per channel.
+    pub fn describe(&self) -> String {
+        format!(
+            "light '{}' in view '{}' reads {} x its declared radiance (R G B, {} pixels)",
+            self.light,
+            self.view,
+            self.ratios_text(),
+            self.pixels
+        )
+    }
+
+    /// The ratios as `R G B`, `-` for a channel declared dark.
+    fn ratios_text(&self) -> String {
+        let ratios: Vec<String> = self
+            .ratio
+            .iter()
+            .map(|q| q.map_or("-".into(), |q| format!("{q:.3}")))
+            .collect();
+        ratios.join(" ")
+    }
+
     /// The channel furthest from its declared radiance, as `measured / declared`.
     fn worst_ratio(&self) -> Option<f64> {
         self.ratio
@@ -122,16 +144,11 @@ pub fn calibration_warnings(readings: &[LightReading], brightest: f64) -> Vec<St
         if (worst - 1.0).abs() <= CALIBRATION_TOLERANCE {
             continue;
         }
-        let ratios: Vec<String> = r
-            .ratio
-            .iter()
-            .map(|q| q.map_or("-".into(), |q| format!("{q:.3}")))
-            .collect();
         warnings.push(format!(
             "light '{}' reads {worst:.3}x its declared radiance in view '{}' (R G B {} over {} pixels wholly inside it): the view's exposure or the light's radiance is off by that factor, and every recovered reflectance with it; where calibration was off by 10%, diffuse reflectances came out 5-6% off and a class changed (docs/stability.md)",
             r.light,
             r.view,
-            ratios.join(" "),
+            r.ratios_text(),
             r.pixels
         ));
     }
