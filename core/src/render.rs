@@ -338,6 +338,57 @@ mod tests {
         tris
     }
 
+    /// A one-group scene's material: diffuse of albedo `a`.
+    fn diffuse(a: f32) -> [SurfaceMaterial; 1] {
+        [SurfaceMaterial {
+            material: Material::Diffuse {
+                rho_d: Vec3::splat(a),
+            },
+            diffuse_map: None,
+        }]
+    }
+
+    /// The storage a test lends its scene, sized for `triangles` triangles.
+    struct LentStorage {
+        nodes: Vec<BvhNode>,
+        packed: Vec<PackedTriangle>,
+        lights: Vec<LightTriangle>,
+    }
+
+    impl LentStorage {
+        fn new(triangles: usize) -> Self {
+            let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles);
+            LentStorage {
+                nodes: vec![BvhNode::default(); n_nodes],
+                packed: vec![PackedTriangle::default(); n_packed],
+                lights: vec![LightTriangle::default(); triangles],
+            }
+        }
+
+        /// A scene built afresh into this storage.
+        fn build<'a>(
+            &'a mut self,
+            triangles: &'a [Triangle],
+            materials: &'a [SurfaceMaterial],
+            radiance: &'a [Vec3],
+        ) -> Scene<'a> {
+            Scene::build(
+                triangles,
+                materials,
+                radiance,
+                Textures::default(),
+                SceneStorage {
+                    bvh: BvhBuffers {
+                        nodes: &mut self.nodes,
+                        packed: &mut self.packed,
+                    },
+                    light_table: &mut self.lights,
+                },
+            )
+            .unwrap()
+        }
+    }
+
     /// Mean and standard error of the radiance seen from the sphere's centre along
     /// uniformly spread directions that meet the diffuse part.
     fn mean_radiance_from_centre(scene: &Scene, n: u32, settings: &RenderSettings) -> (f64, f64) {
@@ -385,31 +436,10 @@ mod tests {
         let f = area_light / area_total;
         let le = 2.0f64;
         for albedo in [0.3f32, 0.8] {
-            let materials = [SurfaceMaterial {
-                material: Material::Diffuse {
-                    rho_d: Vec3::splat(albedo),
-                },
-                diffuse_map: None,
-            }];
+            let materials = diffuse(albedo);
             let radiance = [Vec3::splat(le as f32)];
-            let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
-            let mut nodes = vec![BvhNode::default(); n_nodes];
-            let mut packed = vec![PackedTriangle::default(); n_packed];
-            let mut light_table = vec![LightTriangle::default(); triangles.len()];
-            let scene = Scene::build(
-                &triangles,
-                &materials,
-                &radiance,
-                Textures::default(),
-                SceneStorage {
-                    bvh: BvhBuffers {
-                        nodes: &mut nodes,
-                        packed: &mut packed,
-                    },
-                    light_table: &mut light_table,
-                },
-            )
-            .unwrap();
+            let mut storage = LentStorage::new(triangles.len());
+            let scene = storage.build(&triangles, &materials, &radiance);
             let settings = RenderSettings {
                 seed: 11,
                 ..RenderSettings::default()
@@ -432,31 +462,9 @@ mod tests {
     #[test]
     fn a_light_is_a_pixels_surface_only_from_its_front() {
         let triangles = furnace_sphere(16, 32, 40.0);
-        let materials = [SurfaceMaterial {
-            material: Material::Diffuse {
-                rho_d: Vec3::splat(0.5),
-            },
-            diffuse_map: None,
-        }];
-        let radiance = [Vec3::splat(1.0)];
-        let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
-        let mut nodes = vec![BvhNode::default(); n_nodes];
-        let mut packed = vec![PackedTriangle::default(); n_packed];
-        let mut light_table = vec![LightTriangle::default(); triangles.len()];
-        let scene = Scene::build(
-            &triangles,
-            &materials,
-            &radiance,
-            Textures::default(),
-            SceneStorage {
-                bvh: BvhBuffers {
-                    nodes: &mut nodes,
-                    packed: &mut packed,
-                },
-                light_table: &mut light_table,
-            },
-        )
-        .unwrap();
+        let (materials, radiance) = (diffuse(0.5), [Vec3::splat(1.0)]);
+        let mut storage = LentStorage::new(triangles.len());
+        let scene = storage.build(&triangles, &materials, &radiance);
         // Narrow views of the cap around +z: from the centre (its front), from above the
         // sphere looking down (its back), and from the centre looking down (a group).
         let view = |position: Vec3, direction: Vec3| {
@@ -481,61 +489,26 @@ mod tests {
     #[test]
     fn new_materials_over_built_storage_render_as_a_fresh_build() {
         let triangles = furnace_sphere(16, 32, 25.0);
-        let diffuse = |a: f32| {
-            [SurfaceMaterial {
-                material: Material::Diffuse {
-                    rho_d: Vec3::splat(a),
-                },
-                diffuse_map: None,
-            }]
-        };
         let (first, second) = (diffuse(0.3), diffuse(0.8));
         let radiance = [Vec3::splat(2.0)];
-        let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
-        let storage = || {
-            (
-                vec![BvhNode::default(); n_nodes],
-                vec![PackedTriangle::default(); n_packed],
-                vec![LightTriangle::default(); triangles.len()],
-            )
-        };
         let settings = RenderSettings {
             seed: 5,
             ..RenderSettings::default()
         };
-        // A fresh build: its counts, and the figure its own scene renders.
-        let build = |materials: &[SurfaceMaterial],
-                     (nodes, packed, lights): &mut (
-            Vec<BvhNode>,
-            Vec<PackedTriangle>,
-            Vec<LightTriangle>,
-        )| {
-            Scene::build(
-                &triangles,
-                materials,
-                &radiance,
-                Textures::default(),
-                SceneStorage {
-                    bvh: BvhBuffers { nodes, packed },
-                    light_table: lights,
-                },
-            )
-            .map(|scene| {
-                (
-                    scene.built_counts(),
-                    mean_radiance_from_centre(&scene, 2000, &settings),
-                )
-            })
-            .unwrap()
-        };
-        let (_, expected) = build(&second, &mut storage());
-        let mut reused_storage = storage();
-        let (counts, _) = build(&first, &mut reused_storage);
+        // A fresh build with the second materials: the figure its own scene renders.
+        let mut fresh_storage = LentStorage::new(triangles.len());
+        let fresh = fresh_storage.build(&triangles, &second, &radiance);
+        let expected = mean_radiance_from_centre(&fresh, 2000, &settings);
+        // A build with the first, whose counts the reused storage keeps.
+        let mut reused_storage = LentStorage::new(triangles.len());
+        let counts = reused_storage
+            .build(&triangles, &first, &radiance)
+            .built_counts();
         fn over<'a>(
             triangles: &'a [Triangle],
             materials: &'a [SurfaceMaterial],
             radiance: &'a [Vec3],
-            s: &'a (Vec<BvhNode>, Vec<PackedTriangle>, Vec<LightTriangle>),
+            s: &'a LentStorage,
             counts: BuiltCounts,
         ) -> Result<Scene<'a>, crate::error::Error> {
             Scene::from_built(
@@ -544,9 +517,9 @@ mod tests {
                 radiance,
                 Textures::default(),
                 BuiltStorage {
-                    nodes: &s.0,
-                    packed: &s.1,
-                    light_table: &s.2,
+                    nodes: &s.nodes,
+                    packed: &s.packed,
+                    light_table: &s.lights,
                     counts,
                 },
             )
@@ -558,11 +531,11 @@ mod tests {
         );
         // Counts beyond the buffers are an error, not a panic.
         let too_many = BuiltStorage {
-            nodes: &reused_storage.0,
-            packed: &reused_storage.1,
-            light_table: &reused_storage.2,
+            nodes: &reused_storage.nodes,
+            packed: &reused_storage.packed,
+            light_table: &reused_storage.lights,
             counts: BuiltCounts {
-                nodes: n_nodes + 1,
+                nodes: reused_storage.nodes.len() + 1,
                 lights: counts.lights,
             },
         };
