@@ -768,6 +768,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         ));
     }
     let renders = output::render_views(&mut rec, final_spp, final_seed)?;
+    let view_readings = calibration::read_views(&rec.pure, &rec.real, &renders, &view_names);
+    warnings.extend(calibration::view_warnings(&view_readings));
 
     // The paper's own texture feature, on the final render's difference image: reported
     // beside the statistic stage 3 decides on, since on our references it does not
@@ -849,6 +851,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         }),
         panorama_noise_bound: noise_bound,
         light_readings,
+        view_readings,
         stages,
         groups: reports,
         warnings,

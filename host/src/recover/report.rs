@@ -216,6 +216,9 @@ pub struct RecoverReport {
     /// check of the views' exposure and the lights' radiance (empty where no view sees the
     /// emitting side of a light in whole pixels).
     pub light_readings: Vec<super::calibration::LightReading>,
+    /// The final render against the panorama over each view's pure pixels: a view whose
+    /// residual lies apart from the others' may have its exposure off.
+    pub view_readings: Vec<super::calibration::ViewReading>,
     pub stages: Vec<StageReport>,
     pub groups: Vec<GroupReport>,
     pub warnings: Vec<String>,
