@@ -124,9 +124,13 @@ pub fn read_lights(
 pub const DARK_LIGHT_LIT: f64 = 0.1;
 
 /// A warning for each reading off by more than [`CALIBRATION_TOLERANCE`] in some channel,
-/// and for each light declared dark that reads more than [`DARK_LIGHT_LIT`] of
-/// `brightest`, the largest channel of any light's declared radiance.
-pub fn calibration_warnings(readings: &[LightReading], brightest: f64) -> Vec<String> {
+/// and for each light declared dark that reads more than [`DARK_LIGHT_LIT`] of the
+/// brightest channel of any light's declared radiance (`light_radiance`).
+pub fn calibration_warnings(readings: &[LightReading], light_radiance: &[Vec3]) -> Vec<String> {
+    let brightest = light_radiance
+        .iter()
+        .map(|r| r.max_element() as f64)
+        .fold(0.0, f64::max);
     let mut warnings = Vec::new();
     for r in readings {
         let Some(worst) = r.worst_ratio() else {
@@ -360,7 +364,7 @@ mod tests {
                 reading([Some(1.0), Some(beyond), None]),
                 reading([Some(2.0), Some(2.0), Some(2.0)]),
             ],
-            1.0,
+            &[Vec3::ONE],
         );
         assert_eq!(warnings.len(), 2, "{warnings:?}");
         assert!(warnings[0].contains(
@@ -450,6 +454,7 @@ mod tests {
             ratio: [None; 3],
         };
         let brightest = 50.0;
+        let lights = [Vec3::ZERO, Vec3::new(20.0, brightest as f32, 30.0)];
         let lit = [0.5, 1.2 * DARK_LIGHT_LIT * brightest, 0.5];
         let warnings = calibration_warnings(
             &[
@@ -457,7 +462,7 @@ mod tests {
                 dark(lit),
                 dark([0.9 * DARK_LIGHT_LIT * brightest; 3]),
             ],
-            brightest,
+            &lights,
         );
         assert_eq!(warnings.len(), 1, "{warnings:?}");
         assert!(
@@ -468,6 +473,6 @@ mod tests {
             warnings[0]
         );
         // With no light declared bright there is nothing to measure against.
-        assert!(calibration_warnings(&[dark(lit)], 0.0).is_empty());
+        assert!(calibration_warnings(&[dark(lit)], &[Vec3::ZERO]).is_empty());
     }
 }

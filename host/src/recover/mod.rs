@@ -649,14 +649,9 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &owned.light_radiance,
         &view_names,
     );
-    let brightest = owned
-        .light_radiance
-        .iter()
-        .map(|r| r.max_element() as f64)
-        .fold(0.0, f64::max);
     warnings.extend(calibration::calibration_warnings(
         &light_readings,
-        brightest,
+        &owned.light_radiance,
     ));
     let pure = match &args.limit_group_pixels {
         Some((name, limit)) => {
@@ -848,6 +843,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "EXCEEDS_SIGMAS": fit::EXCEEDS_SIGMAS,
             "HIGHLIGHT_FRACTION": fit::HIGHLIGHT_FRACTION,
             "SHADOW_FRACTION": fit::SHADOW_FRACTION,
+            "CALIBRATION_TOLERANCE": calibration::CALIBRATION_TOLERANCE,
+            "DARK_LIGHT_LIT": calibration::DARK_LIGHT_LIT,
+            "VIEW_AGREEMENT": calibration::VIEW_AGREEMENT,
+            "VIEW_SIGMAS": calibration::VIEW_SIGMAS,
+            "MIN_VIEW_PIXELS": calibration::MIN_VIEW_PIXELS,
         }),
         panorama_noise_bound: noise_bound,
         light_readings,
