@@ -119,8 +119,8 @@ pub fn read_lights(
 
 /// A light declared dark (radiance 0) whose pixels read more than this fraction of the
 /// brightest light's radiance: far brighter than a lamp's glass or shade lit by the room
-/// (the references' groups read 0.2-1.5% of their lamp's radiance on average), so most likely a lamp
-/// that was on when the panorama was taken.
+/// (the references' groups read 0.2-1.5% of their lamp's radiance on average), so most
+/// likely a lamp that was on when the panorama was taken.
 pub const DARK_LIGHT_LIT: f64 = 0.1;
 
 /// A warning for each reading off by more than [`CALIBRATION_TOLERANCE`] in some channel,
