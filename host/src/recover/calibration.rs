@@ -152,8 +152,14 @@ pub fn calibration_warnings(readings: &[LightReading], light_radiance: &[Vec3]) 
         if (worst - 1.0).abs() <= CALIBRATION_TOLERANCE {
             continue;
         }
+        // A capture can clip a lamp where it clips nothing else: then the light reads low
+        // and the exposure is right.
+        let clipped = match worst < 1.0 {
+            true => "; a reading under 1 can also be a light clipped in the capture",
+            false => "",
+        };
         warnings.push(format!(
-            "light '{}' reads {worst:.3}x its declared radiance in view '{}' (R G B {} over {} pixels wholly inside it): the view's exposure or the light's radiance is off by that factor, and every recovered reflectance with it; where calibration was off by 10%, diffuse reflectances came out 5-6% off and a class changed (docs/stability.md)",
+            "light '{}' reads {worst:.3}x its declared radiance in view '{}' (R G B {} over {} pixels wholly inside it): the view's exposure or the light's radiance is off by that factor, and every recovered reflectance with it; where calibration was off by 10%, diffuse reflectances came out 5-6% off and a class changed (docs/stability.md){clipped}",
             r.light,
             r.view,
             r.ratios_text(),
@@ -370,8 +376,10 @@ mod tests {
         assert!(warnings[0].contains(
             "reads 0.978x its declared radiance in view 'up' (R G B 1.000 0.978 - over 7 pixels"
         ));
+        assert!(warnings[0].ends_with("can also be a light clipped in the capture"));
         assert!(warnings[1].contains("reads 2.000x"), "{}", warnings[1]);
         assert!(warnings[1].contains("exposure or the light's radiance"));
+        assert!(!warnings[1].contains("clipped"));
     }
 
     #[test]
