@@ -281,13 +281,11 @@ fn a_view_too_bright_is_found_from_the_light_it_sees() {
         "{stdout}"
     );
     let report = report_json(&out);
-    let calibration: Vec<&str> = report["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|w| w.as_str())
-        .filter(|w| w.contains("declared radiance"))
-        .collect();
+    let warnings_where = |keep: fn(&str) -> bool| -> Vec<&str> {
+        let all = report["warnings"].as_array().unwrap().iter();
+        all.filter_map(|w| w.as_str()).filter(|w| keep(w)).collect()
+    };
+    let calibration = warnings_where(|w| w.contains("declared radiance"));
     assert_eq!(calibration.len(), 1, "{calibration:?}");
     assert!(
         calibration[0].contains("light 'light' reads 1.100x")
@@ -296,13 +294,7 @@ fn a_view_too_bright_is_found_from_the_light_it_sees() {
     );
     // The view check, which needs no light, finds the same view apart from the others
     // (its residual -5.7% +- 1.0% against a median of +0.1% at seed 3), and no other.
-    let views: Vec<&str> = report["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|w| w.as_str())
-        .filter(|w| w.starts_with("view '"))
-        .collect();
+    let views = warnings_where(|w| w.starts_with("view '"));
     assert_eq!(views.len(), 1, "{views:?}");
     assert!(
         views[0].starts_with("view 'pz'") && views[0].contains("exposure may be off"),
