@@ -77,22 +77,22 @@ pub fn read_lights(
     light_radiance: &[Vec3],
     view_names: &[String],
 ) -> Vec<LightReading> {
+    // Sums per (light, view), in one pass over the pixels.
+    let n_views = view_names.len();
+    let mut sums = vec![([0.0f64; 3], 0u32); light_names.len() * n_views];
+    for p in pixels {
+        let image = &real[p.view as usize];
+        let value = image.pixels[(p.y * image.width + p.x) as usize];
+        let (sum, count) = &mut sums[p.light as usize * n_views + p.view as usize];
+        for c in 0..3 {
+            sum[c] += value[c] as f64;
+        }
+        *count += 1;
+    }
     let mut readings = Vec::new();
     for (l, (name, radiance)) in light_names.iter().zip(light_radiance).enumerate() {
         for (v, view) in view_names.iter().enumerate() {
-            let mut sum = [0.0f64; 3];
-            let mut count = 0u32;
-            for p in pixels
-                .iter()
-                .filter(|p| p.light as usize == l && p.view as usize == v)
-            {
-                let image = &real[v];
-                let value = image.pixels[(p.y * image.width + p.x) as usize];
-                for c in 0..3 {
-                    sum[c] += value[c] as f64;
-                }
-                count += 1;
-            }
+            let (sum, count) = sums[l * n_views + v];
             if count == 0 {
                 continue;
             }
@@ -244,8 +244,10 @@ pub fn read_views(
         .collect()
 }
 
-/// The median of sorted `values`; `None` when there are none.
-fn median_of_sorted(values: &[f64]) -> Option<f64> {
+/// The median of `values` (the mean of the middle two for an even count); `None` when
+/// there are none.
+fn median(mut values: Vec<f64>) -> Option<f64> {
+    values.sort_by(f64::total_cmp);
     let k = values.len();
     match k {
         0 => None,
@@ -265,7 +267,7 @@ pub fn view_warnings(readings: &[ViewReading]) -> Vec<String> {
         .collect();
     let mut warnings = Vec::new();
     for (i, (r, diff)) in compared.iter().enumerate() {
-        let mut others: Vec<f64> = compared
+        let others: Vec<f64> = compared
             .iter()
             .enumerate()
             .filter(|&(j, _)| j != i)
@@ -274,24 +276,23 @@ pub fn view_warnings(readings: &[ViewReading]) -> Vec<String> {
         if others.len() < 2 {
             continue;
         }
-        others.sort_by(f64::total_cmp);
-        let Some(median) = median_of_sorted(&others) else {
+        let Some(typical) = median(others) else {
             continue;
         };
         let sigma = r.rel_mean_diff_sigma.unwrap_or(f64::INFINITY);
-        if (diff - median).abs() <= VIEW_AGREEMENT.max(VIEW_SIGMAS * sigma) {
+        if (diff - typical).abs() <= VIEW_AGREEMENT.max(VIEW_SIGMAS * sigma) {
             continue;
         }
         // The panorama over the render, against the same for the other views: the factor
         // by which this view's exposure may be off.
-        let factor = (1.0 + median) / (1.0 + diff);
+        let factor = (1.0 + typical) / (1.0 + diff);
         warnings.push(format!(
             "view '{}': the recovered model renders its {} pure pixels {:+.1}% (+- {:.1}%) off the panorama, where the other views' median is {:+.1}%: its exposure may be off by about {factor:.3}x (partly absorbed by the groups only it sees)",
             r.view,
             r.pure_pixels,
             100.0 * diff,
             100.0 * sigma,
-            100.0 * median
+            100.0 * typical
         ));
     }
     warnings
