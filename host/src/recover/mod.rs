@@ -511,10 +511,16 @@ fn fit_ward_by(mut fit_at: impl FnMut(f64) -> WardFit) -> (WardFit, f64, u32) {
     (fit, alpha, evaluations)
 }
 
-/// Stage 5 renders the irradiance at this many times the final render's samples: a map
-/// takes the render's noise into its texels (T = I / E, pixel by pixel), where the final
-/// render averages it away; textured groups are small, so this costs little.
+/// Stage 5 renders the irradiance at this many times the final render's samples, and at
+/// least [`MAP_MIN_SPP`]: a map takes the render's noise into its texels (T = I / E, pixel
+/// by pixel), where the final render averages it away; textured groups are small, so this
+/// costs little.
 const MAP_SPP_FACTOR: u32 = 8;
+
+/// The fewest samples per pixel of stage 5's renders. At effort fast (8 x 32 = 256 spp)
+/// the irradiance's noise cost the textured scene's maps at 256 px 0.5 dB of PSNR, for
+/// 6 s more (docs/recovery.md, "Map PSNR"); default and thorough render more already.
+const MAP_MIN_SPP: u32 = 1024;
 
 /// The diffuse refinement's last step renders at this many times the loop's samples.
 const POLISH_SPP_FACTOR: u32 = 8;
@@ -741,7 +747,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &mut rec,
         &mut reports,
         &textured,
-        MAP_SPP_FACTOR * args.budget.final_spp,
+        (MAP_SPP_FACTOR * args.budget.final_spp).max(MAP_MIN_SPP),
         args.seed,
         &cache_settings,
     )?);
