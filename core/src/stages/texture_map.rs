@@ -392,6 +392,83 @@ mod tests {
         assert!(solve_map(&obs, 4, 4, 1.0, map, a, b).is_ok());
     }
 
+    /// A picture with detail at every scale the pixels can hold: a checker of 7 x 7
+    /// squares with a disc over it.
+    fn picture(u: f32, v: f32) -> Vec3 {
+        let square = ((u * 7.0) as i32 + (v * 7.0) as i32) % 2 == 0;
+        let (du, dv) = (u - 0.4, v - 0.6);
+        if du * du + dv * dv < 0.06 {
+            Vec3::new(0.8, 0.3, 0.2)
+        } else if square {
+            Vec3::splat(0.7)
+        } else {
+            Vec3::splat(0.15)
+        }
+    }
+
+    /// The RMS error against [`picture`] of a map solved from the pure pixels of a
+    /// `pixels x pixels` grid of box-filtered pixels that see it turned by `angle`, with
+    /// `side(pure pixels)` texels a side.
+    fn map_error_from_pixels(pixels: u32, angle: f32, side: impl Fn(usize) -> u32) -> f32 {
+        let (c, s) = (libm::cosf(angle), libm::sinf(angle));
+        let n = pixels as f32;
+        let uv_at = |x: f32, y: f32| {
+            let (a, b) = (x / n - 0.5, y / n - 0.5);
+            Vec2::new(0.5 + c * a - s * b, 0.5 - (s * a + c * b))
+        };
+        let inside = |uv: Vec2| (0.0..=1.0).contains(&uv.x) && (0.0..=1.0).contains(&uv.y);
+        let mut obs = Vec::new();
+        for y in 0..pixels {
+            for x in 0..pixels {
+                let (x, y) = (x as f32, y as f32);
+                let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
+                if !corners.iter().all(|(a, b)| inside(uv_at(x + a, y + b))) {
+                    continue;
+                }
+                // The pixel's box filter, by 8 x 8 lookups of the picture.
+                let mut seen = Vec3::ZERO;
+                for k in 0..64 {
+                    let (a, b) = ((k % 8) as f32 + 0.5, (k / 8) as f32 + 0.5);
+                    let uv = uv_at(x + a / 8.0, y + b / 8.0);
+                    seen += picture(uv.x, uv.y);
+                }
+                obs.push(MapObservation {
+                    uv: FOOTPRINT_OFFSETS.map(|[dx, dy]| uv_at(x + dx, y + dy)),
+                    gain: Vec3::ONE,
+                    target: seen / 64.0,
+                    weight: 1.0,
+                });
+            }
+        }
+        let side = side(obs.len());
+        let (map, _) = solve(&obs, side, side);
+        let fine = 200;
+        let mut sum = 0.0;
+        for k in 0..fine * fine {
+            let uv = Vec2::new(
+                ((k % fine) as f32 + 0.5) / fine as f32,
+                ((k / fine) as f32 + 0.5) / fine as f32,
+            );
+            sum += (lookup(&map, side, side, uv) - picture(uv.x, uv.y)).length_squared() / 3.0;
+        }
+        libm::sqrtf(sum / (fine * fine) as f32)
+    }
+
+    #[test]
+    fn two_texels_per_pixel_hold_more_of_a_picture_than_one() {
+        let one_per_pixel = |pure: usize| libm::roundf(libm::sqrtf(pure as f32)) as u32;
+        let error = |angle, side: &dyn Fn(usize) -> u32| map_error_from_pixels(40, angle, side);
+        // The picture turned against the pixels: the texel and pixel grids beat.
+        for angle in [0.13, 0.4] {
+            let (one, two) = (error(angle, &one_per_pixel), error(angle, &map_side));
+            assert!(two < 0.95 * one, "angle {angle}: {two} against {one}");
+        }
+        // Square to the pixels, its texels on them one for one: the one case where a map
+        // of the pixels' own resolution is the better sampling, and not by much.
+        let (one, two) = (error(0.0, &one_per_pixel), error(0.0, &map_side));
+        assert!(two < 1.05 * one, "square: {two} against {one}");
+    }
+
     #[test]
     fn a_pixels_footprint_value_is_its_lookups_mean() {
         // Columns 0 and 1 of a 2x1 map, dark and bright: a footprint over the middle
