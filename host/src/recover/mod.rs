@@ -518,8 +518,9 @@ fn fit_ward_by(mut fit_at: impl FnMut(f64) -> WardFit) -> (WardFit, f64, u32) {
 const MAP_SPP_FACTOR: u32 = 8;
 
 /// The fewest samples per pixel of stage 5's renders. At effort fast (8 x 32 = 256 spp)
-/// the irradiance's noise cost the textured scene's maps at 256 px 0.5 dB of PSNR, for
-/// 6 s more (docs/recovery.md, "Map PSNR"); default and thorough render more already.
+/// the irradiance's noise cost the textured scene's maps at 256 px up to 0.6 dB of PSNR;
+/// this costs 6 s there (docs/recovery.md, "Map PSNR"). Default and thorough render at
+/// least as many already.
 const MAP_MIN_SPP: u32 = 1024;
 
 /// The diffuse refinement's last step renders at this many times the loop's samples.
