@@ -2,6 +2,8 @@
 //! and their evaluation against the panorama, in a fixed partition so that the sums do not
 //! depend on the thread count.
 
+use std::collections::HashSet;
+
 use glam::Vec3;
 use rayon::prelude::*;
 use relume_core::fit::GroupFit;
@@ -373,6 +375,78 @@ pub fn pixel_uvs(
         *uv = triangle.uv_at(hit.b1, hit.b2);
     }
     Some(uvs)
+}
+
+/// The pixels around `pure` (group `g`'s pure pixels) that see the group over part of
+/// their footprint, each with the texture coordinates of its footprint samples: a sample
+/// that misses the group takes the coordinates of one that hits it, so that the mean over
+/// the samples is the mean over those on the group. Pixels with fewer than `min_on` of
+/// the [`FOOTPRINT_SAMPLES`] on the group are left out, and so are those where any of
+/// the [`LABEL_RAYS_PER_SIDE`]^2 rays that labelled the pixel meets neither the group nor
+/// a group that `known` accepts: the rest of such a pixel is rendered under the materials
+/// recovery has, and a light, the void or a group it could not recover (no pure pixel)
+/// would put a radiance it does not know into the map. In the order of `pure`'s
+/// neighbours, each pixel once.
+pub fn border_pixels(
+    scene: &Scene,
+    views: &[View],
+    pure: &[PurePixel],
+    g: u16,
+    min_on: usize,
+    known: impl Fn(u16) -> bool,
+) -> Vec<(PurePixel, [glam::Vec2; FOOTPRINT_SAMPLES])> {
+    let surface_at = |view: &View, x: f32, y: f32| {
+        let hit = scene.intersect(&view.ray(x, y), f32::INFINITY)?;
+        Some((hit, scene.triangles.get(hit.triangle as usize)?))
+    };
+    // The rays of `render::pixel_surface`, edges included, which decided that the pixel
+    // is not pure.
+    let n = LABEL_RAYS_PER_SIDE.max(2);
+    let sub = |k: u32| k as f32 / (n - 1) as f32;
+    let of_group: HashSet<(u32, u32, u32)> = pure.iter().map(|p| (p.view, p.x, p.y)).collect();
+    let mut tried = HashSet::new();
+    let mut found = Vec::new();
+    for p in pure {
+        let view = &views[p.view as usize];
+        let neighbours = (-1i64..=1).flat_map(|dy| (-1i64..=1).map(move |dx| (dx, dy)));
+        for (dx, dy) in neighbours {
+            let (x, y) = (i64::from(p.x) + dx, i64::from(p.y) + dy);
+            if x < 0 || y < 0 || x >= i64::from(view.width) || y >= i64::from(view.height) {
+                continue;
+            }
+            let (x, y) = (x as u32, y as u32);
+            if of_group.contains(&(p.view, x, y)) || !tried.insert((p.view, x, y)) {
+                continue;
+            }
+            let all_known = (0..n * n).all(|k| {
+                let surface = surface_at(view, x as f32 + sub(k % n), y as f32 + sub(k / n));
+                matches!(surface.map(|(_, t)| t.surface),
+                    Some(Surface::Group(h)) if h == g || known(h))
+            });
+            if !all_known {
+                continue;
+            }
+            let mut uvs = [None; FOOTPRINT_SAMPLES];
+            for (uv, [ox, oy]) in uvs.iter_mut().zip(FOOTPRINT_OFFSETS) {
+                let on = surface_at(view, x as f32 + ox, y as f32 + oy)
+                    .filter(|(_, t)| t.surface == Surface::Group(g));
+                *uv = on.map(|(hit, t)| t.uv_at(hit.b1, hit.b2));
+            }
+            let on: Vec<glam::Vec2> = uvs.iter().flatten().copied().collect();
+            if on.len() < min_on.max(1) {
+                continue;
+            }
+            let border = PurePixel {
+                view: p.view,
+                x,
+                y,
+                group: g,
+            };
+            let uvs = std::array::from_fn(|k| uvs[k].unwrap_or(on[k % on.len()]));
+            found.push((border, uvs));
+        }
+    }
+    found
 }
 
 /// Pairs of indices into `pixels` (one group's pure pixels) that are `step` apart along a

@@ -36,11 +36,12 @@ pub(super) fn run(
             None => format!("the {} stand-in's lobe", standin.name()),
         };
         reports[g].decisions.push(format!(
-            "stage 5: {} map {}x{} from {} pixels (T = (I_real - I_specular) / E under {lobe}); {} shadow pixels left out, {} highlight pixels kept, {} texels unseen and filled from neighbours",
+            "stage 5: {} map {}x{} from {} pure pixels and {} on its border (T = (I_real - I_specular) / E under {lobe}); {} shadow pixels left out, {} highlight pixels kept, {} texels unseen and filled from neighbours",
             rec.models[g].name(),
             summary.side,
             summary.side,
             summary.pixels,
+            summary.border_pixels,
             summary.shadows,
             summary.highlights,
             summary.unseen_texels
@@ -52,7 +53,7 @@ pub(super) fn run(
         samples_per_pixel: map_spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![
-            "textured groups: maps solved by least squares at about one texel per pure pixel, under the untextured stand-in's lobe".into(),
+            "textured groups: maps solved by least squares at two texels per pure pixel, from the pure pixels and those on the group's border, under the untextured stand-in's lobe".into(),
         ],
     })
 }

@@ -20,6 +20,11 @@ use super::pixels::{self, PurePixel};
 use super::Recovery;
 use crate::error::Error;
 
+/// A pixel on a textured group's border joins its map when at least this many of its
+/// [`FOOTPRINT_SAMPLES`] see the group: half its footprint. One whose footprint is mostly
+/// another surface would bring that surface's misfit into the map.
+const BORDER_MIN_ON: usize = 2;
+
 /// A recovered diffuse map (row 0 = v 1), square.
 #[derive(Clone, Debug)]
 pub struct RecoveredMap {
@@ -30,7 +35,9 @@ pub struct RecoveredMap {
 /// How a map was recovered, for the report.
 pub struct MapSummary {
     pub side: u32,
+    /// Pure pixels, and pixels on the group's border that the map was also solved from.
     pub pixels: usize,
+    pub border_pixels: usize,
     /// Pixels whose light is mostly the lobe's: kept in the final map, left out of the
     /// first one that a lobe refit reads.
     pub highlights: usize,
@@ -144,14 +151,32 @@ pub fn recover_map(
     seed: u64,
     cache_settings: &RenderSettings,
 ) -> Result<MapSummary, Error> {
-    let pixels = pixels::of_group(&rec.pure, g);
-    let uvs: Vec<Option<[Vec2; FOOTPRINT_SAMPLES]>> =
+    // The pure pixels, then the border's: a picture's edge (the references' grey margins)
+    // lies under pixels that also see its frame, and without them the map's outer texels
+    // are guessed from the inner ones.
+    let mut pixels = pixels::of_group(&rec.pure, g);
+    let pure_count = pixels.len();
+    let counts = pixels::group_counts(&rec.pure, rec.n_groups());
+    let (mut uvs, border): (Vec<Option<[Vec2; FOOTPRINT_SAMPLES]>>, _) =
         rec.with_scene(1, seed, |_, scene, observed, _| {
-            pixels
+            let uvs = pixels
                 .iter()
                 .map(|p| pixels::pixel_uvs(scene, observed.views, p))
-                .collect()
+                .collect();
+            let border = pixels::border_pixels(
+                scene,
+                observed.views,
+                &pixels,
+                g as u16,
+                BORDER_MIN_ON,
+                |h| counts[h as usize] > 0,
+            );
+            (uvs, border)
         })?;
+    for (p, uv) in border {
+        pixels.push(p);
+        uvs.push(Some(uv));
+    }
     // The stand-in's diffuse reflectance, as a constant map to render E against.
     let (rho_d, _) = rec.models[g].reflectances();
     let start = Vec3::new(rho_d[0] as f32, rho_d[1] as f32, rho_d[2] as f32).clamp(
@@ -170,6 +195,7 @@ pub fn recover_map(
     let solve = MapSolve {
         g,
         map,
+        pure_count,
         pixels: &pixels,
         uvs: &uvs,
         start,
@@ -202,8 +228,12 @@ pub fn recover_map(
     let solved = solve.solve(rec, &observed, Highlights::Kept)?;
     Ok(MapSummary {
         side: solved.side,
-        pixels: pixels.len(),
-        highlights: solved.highlight.iter().filter(|&&h| h).count(),
+        pixels: pure_count,
+        border_pixels: solved.border_used,
+        highlights: solved.highlight[..pure_count]
+            .iter()
+            .filter(|&&h| h)
+            .count(),
         shadows: solved.shadows,
         unseen_texels: solved.unseen_texels,
         lobe_refit,
@@ -215,6 +245,8 @@ struct MapSolve<'a> {
     g: usize,
     /// The map's index in `Recovery::maps`.
     map: usize,
+    /// `pixels` holds the group's pure pixels first, this many, then its border's.
+    pure_count: usize,
     pixels: &'a [PurePixel],
     uvs: &'a [Option<[Vec2; FOOTPRINT_SAMPLES]>],
     /// The constant map E is rendered against.
@@ -249,7 +281,9 @@ struct Solved {
     side: u32,
     /// Per pixel of `MapSolve::pixels`: removed as a highlight (its light mostly the lobe's).
     highlight: Vec<bool>,
+    /// Pure pixels left out as shadows, and border pixels the map was solved from.
     shadows: usize,
+    border_used: usize,
     unseen_texels: usize,
 }
 
@@ -285,10 +319,17 @@ impl MapSolve<'_> {
             .zip(specular)
             .map(|(f, s)| ((*f - *s) / self.start).max(Vec3::ZERO))
             .collect();
-        let gain_floor =
-            fit::SHADOW_FRACTION * median(gains.iter().map(|v| luminance(*v) as f64).collect());
+        // The floor is the pure pixels' own: a border pixel's E holds how much of its
+        // footprint the group covers, and one that covers too little to read falls under it.
+        let gain_floor = fit::SHADOW_FRACTION
+            * median(
+                gains[..self.pure_count]
+                    .iter()
+                    .map(|v| luminance(*v) as f64)
+                    .collect(),
+            );
         let mut highlight = vec![false; pixels.len()];
-        let mut shadows = 0;
+        let (mut shadows, mut border_used) = (0, 0);
         let observations: Vec<MapObservation> = pixels
             .iter()
             .enumerate()
@@ -297,9 +338,13 @@ impl MapSolve<'_> {
                 let real = pixels::real_value(&rec.real, &rec.views, p);
                 highlight[i] = luminance(specular[i]) as f64
                     > fit::HIGHLIGHT_FRACTION * luminance(real) as f64;
-                let shadow = (luminance(gains[i]) as f64) <= gain_floor;
-                let left_out = shadow || (highlight[i] && highlights == Highlights::LeftOut);
-                shadows += shadow as usize;
+                let dark = (luminance(gains[i]) as f64) <= gain_floor;
+                let left_out = dark || (highlight[i] && highlights == Highlights::LeftOut);
+                if i < self.pure_count {
+                    shadows += dark as usize;
+                } else {
+                    border_used += !left_out as usize;
+                }
                 Some(MapObservation {
                     uv,
                     gain: gains[i],
@@ -308,7 +353,7 @@ impl MapSolve<'_> {
                 })
             })
             .collect();
-        let side = texture_map::map_side(pixels.len());
+        let side = texture_map::map_side(self.pure_count);
         let n = (side * side) as usize;
         let mut texels = vec![self.start; n];
         let (mut numerator, mut denominator) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
@@ -327,6 +372,7 @@ impl MapSolve<'_> {
             side,
             highlight,
             shadows,
+            border_used,
             unseen_texels,
         })
     }
