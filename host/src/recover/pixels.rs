@@ -385,8 +385,8 @@ pub fn pixel_uvs(
 /// the [`LABEL_RAYS_PER_SIDE`]^2 rays that labelled the pixel meets neither the group nor
 /// a group that `known` accepts: the rest of such a pixel is rendered under the materials
 /// recovery has, and a light, the void or a group it could not recover (no pure pixel)
-/// would put a radiance it does not know into the map. In the order of `pure`'s
-/// neighbours, each pixel once.
+/// would put a radiance it does not know into the map. A pixel whose rays all meet the
+/// group is not a border pixel. In the order of `pure`'s neighbours, each pixel once.
 pub fn border_pixels(
     scene: &Scene,
     views: &[View],
@@ -418,12 +418,19 @@ pub fn border_pixels(
             if of_group.contains(&(p.view, x, y)) || !tried.insert((p.view, x, y)) {
                 continue;
             }
-            let all_known = (0..n * n).all(|k| {
-                let surface = surface_at(view, x as f32 + sub(k % n), y as f32 + sub(k / n));
-                matches!(surface.map(|(_, t)| t.surface),
-                    Some(Surface::Group(h)) if h == g || known(h))
-            });
-            if !all_known {
+            let surfaces: Vec<Option<Surface>> = (0..n * n)
+                .map(|k| {
+                    surface_at(view, x as f32 + sub(k % n), y as f32 + sub(k / n))
+                        .map(|(_, t)| t.surface)
+                })
+                .collect();
+            let all_known = surfaces
+                .iter()
+                .all(|s| matches!(s, Some(Surface::Group(h)) if *h == g || known(*h)));
+            // A pixel all on the group is one `pure` left out on purpose (a subset, as
+            // the stability study's cut groups are), not a border.
+            let on_border = surfaces.iter().any(|s| *s != Some(Surface::Group(g)));
+            if !(all_known && on_border) {
                 continue;
             }
             let mut uvs = [None; FOOTPRINT_SAMPLES];
