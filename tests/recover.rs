@@ -475,12 +475,6 @@ fn living_room_small_gives_its_15_pixel_frames_their_lobe() {
     assert!(kept["z"].as_f64().unwrap() >= needed, "{kept:?}");
 }
 
-/// The living room's picture_2 (a picture under a lobe of s 0.05, roughness 0.08) has its
-/// lobe fitted on a uniform stand-in, where the picture passes for part of the lobe (s
-/// 0.063, roughness 0.12 at 64 px). Fitted again with the map on its highlights, where the
-/// map was filled from neighbours rather than solved, it comes within 4.4% and 29% (the
-/// test allows 10% and 40%, which the stand-in's 27% and 56% fail); its own view then
-/// renders +0.7% where it rendered +2.3%.
 /// A picture's edge lies under pixels that see its frame too. The living room's frames
 /// are recovered at 64 px (the test above), so every picture's map is also solved from
 /// pixels on its border, rendered under the frames' material, where before its edge
@@ -495,6 +489,12 @@ fn living_room_small_solves_its_pictures_maps_from_their_borders_too() {
     }
 }
 
+/// The living room's picture_2 (a picture under a lobe of s 0.05, roughness 0.08) has its
+/// lobe fitted on a uniform stand-in, where the picture passes for part of the lobe (s
+/// 0.063, roughness 0.12 at 64 px). Fitted again with the map on its highlights, where the
+/// map was filled from neighbours rather than solved, it comes within 4.4% and 29% (the
+/// test allows 10% and 40%, which the stand-in's 27% and 56% fail); its own view then
+/// renders +0.7% where it rendered +2.3%.
 #[test]
 fn living_room_small_fits_picture_2s_lobe_again_with_its_map() {
     let (out, rows) = living_room_small();

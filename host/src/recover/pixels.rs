@@ -6,8 +6,9 @@ use std::collections::HashSet;
 
 use glam::Vec3;
 use rayon::prelude::*;
+use relume_core::bvh::Hit;
 use relume_core::fit::GroupFit;
-use relume_core::geometry::{Surface, View};
+use relume_core::geometry::{Surface, Triangle, View};
 use relume_core::render::{self, RenderSettings};
 use relume_core::scene::Scene;
 use relume_core::stages::texture_map::{FOOTPRINT_OFFSETS, FOOTPRINT_SAMPLES};
@@ -369,12 +370,21 @@ pub fn pixel_uvs(
 ) -> Option<[glam::Vec2; FOOTPRINT_SAMPLES]> {
     let mut uvs = [glam::Vec2::ZERO; FOOTPRINT_SAMPLES];
     for (uv, [dx, dy]) in uvs.iter_mut().zip(FOOTPRINT_OFFSETS) {
-        let ray = views[p.view as usize].ray(p.x as f32 + dx, p.y as f32 + dy);
-        let hit = scene.intersect(&ray, f32::INFINITY)?;
-        let triangle = scene.triangles.get(hit.triangle as usize)?;
+        let (hit, triangle) = first_hit(
+            scene,
+            &views[p.view as usize],
+            p.x as f32 + dx,
+            p.y as f32 + dy,
+        )?;
         *uv = triangle.uv_at(hit.b1, hit.b2);
     }
     Some(uvs)
+}
+
+/// What the ray through the point `(x, y)` of `view` (in pixels) meets first.
+fn first_hit<'s>(scene: &'s Scene, view: &View, x: f32, y: f32) -> Option<(Hit, &'s Triangle)> {
+    let hit = scene.intersect(&view.ray(x, y), f32::INFINITY)?;
+    Some((hit, scene.triangles.get(hit.triangle as usize)?))
 }
 
 /// The pixels around `pure` (group `g`'s pure pixels) that see the group over part of
@@ -395,10 +405,6 @@ pub fn border_pixels(
     min_on: usize,
     known: impl Fn(u16) -> bool,
 ) -> Vec<(PurePixel, [glam::Vec2; FOOTPRINT_SAMPLES])> {
-    let surface_at = |view: &View, x: f32, y: f32| {
-        let hit = scene.intersect(&view.ray(x, y), f32::INFINITY)?;
-        Some((hit, scene.triangles.get(hit.triangle as usize)?))
-    };
     // The rays of `render::pixel_surface`, edges included, which decided that the pixel
     // is not pure.
     let n = LABEL_RAYS_PER_SIDE.max(2);
@@ -420,7 +426,7 @@ pub fn border_pixels(
             }
             let surfaces: Vec<Option<Surface>> = (0..n * n)
                 .map(|k| {
-                    surface_at(view, x as f32 + sub(k % n), y as f32 + sub(k / n))
+                    first_hit(scene, view, x as f32 + sub(k % n), y as f32 + sub(k / n))
                         .map(|(_, t)| t.surface)
                 })
                 .collect();
@@ -435,7 +441,7 @@ pub fn border_pixels(
             }
             let mut uvs = [None; FOOTPRINT_SAMPLES];
             for (uv, [ox, oy]) in uvs.iter_mut().zip(FOOTPRINT_OFFSETS) {
-                let on = surface_at(view, x as f32 + ox, y as f32 + oy)
+                let on = first_hit(scene, view, x as f32 + ox, y as f32 + oy)
                     .filter(|(_, t)| t.surface == Surface::Group(g));
                 *uv = on.map(|(hit, t)| t.uv_at(hit.b1, hit.b2));
             }
