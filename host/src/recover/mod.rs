@@ -526,6 +526,19 @@ const MAP_MIN_SPP: u32 = 1024;
 /// The diffuse refinement's last step renders at this many times the loop's samples.
 const POLISH_SPP_FACTOR: u32 = 8;
 
+/// The diffuse refinement's last step is a Newton step: besides its render at
+/// [`POLISH_SPP_FACTOR`] times the samples, it renders at the loop's samples once as the
+/// colours are and once with each diffuse group's colour this much higher, on the same
+/// samples, for the matrix of how every group's mean responds to every colour
+/// (`stage1::newton_steps`). The plain ratio step treats each group alone, but groups
+/// light each other: on textured at 256 px the iteration ended with the floor, walls and
+/// ceiling all 0.1-0.3% bright, each of their renders moved 1.7-2.7 times as much as the
+/// colours did together, and the ratio step left them 0.2-0.6% dark (every view of the
+/// final render 0.15-0.5% dark, 4-6 standard errors; docs/recovery.md, "The diffuse
+/// polish"). A change of 5% is far above the noise of the difference of two renders on
+/// the same samples, and small enough to measure the local response.
+const POLISH_RESPONSE_STEP: f64 = 0.05;
+
 /// Pure pixels per group that the renders of the diffuse iteration and its polish step
 /// take at most: a larger group is rendered on that many, spread evenly over it
 /// (`pixels::spread_subset`), at the effort's samples per pixel.

@@ -335,9 +335,9 @@ fn projected_sum_of_squares<'a>(
         .sum()
 }
 
-/// The inverse of a small symmetric positive-definite matrix by Gauss-Jordan elimination
-/// with partial pivoting; `None` when it is singular (a parameter the pixels do not see).
-fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+/// The inverse of a small matrix by Gauss-Jordan elimination with partial pivoting; `None`
+/// when it is singular (here: a parameter the pixels do not see).
+pub(super) fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
     let n = a.len();
     let scale = (0..n).map(|i| a[i][i].abs()).fold(0.0, f64::max);
     if !scale.is_finite() || scale <= 0.0 {
