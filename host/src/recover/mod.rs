@@ -539,6 +539,11 @@ const POLISH_SPP_FACTOR: u32 = 8;
 /// the same samples, and small enough to measure the local response.
 const POLISH_RESPONSE_STEP: f64 = 0.05;
 
+/// The most diffuse groups the polish takes a Newton step for: it renders once per group,
+/// and a scene with many diffuse groups (up to `MAX_GROUPS`) takes the ratio step instead
+/// rather than more renders than its whole iteration. The references have 4-7.
+const POLISH_NEWTON_MAX_GROUPS: usize = 32;
+
 /// Pure pixels per group that the renders of the diffuse iteration and its polish step
 /// take at most: a larger group is rendered on that many, spread evenly over it
 /// (`pixels::spread_subset`), at the effort's samples per pixel.

@@ -336,7 +336,8 @@ fn projected_sum_of_squares<'a>(
 }
 
 /// The inverse of a small matrix by Gauss-Jordan elimination with partial pivoting; `None`
-/// when it is singular (here: a parameter the pixels do not see).
+/// when it is singular (for the sandwich's normal matrix: a parameter the pixels do not
+/// see).
 pub(super) fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
     let n = a.len();
     let scale = (0..n).map(|i| a[i][i].abs()).fold(0.0, f64::max);
