@@ -239,34 +239,17 @@ pub(super) fn refine_diffuse_groups(rec: &mut Recovery, spp: u32) -> Result<Stag
     let subset = rec.diffuse_subset();
     let wanted = |g: u16| active[g as usize];
     let fits = rec.evaluate_pixels(&subset, polish_spp, polish_seed, &wanted)?;
-    // The step is a Newton step on how every group's render responds to each group's
-    // colour, measured at the loop's samples, each raised render against one with the
-    // same samples (see POLISH_RESPONSE_STEP).
-    // More groups than POLISH_NEWTON_MAX_GROUPS take the ratio step: a render each would
-    // cost more than the iteration did.
+    // A Newton step on how every group's render responds to each group's colour (see
+    // POLISH_RESPONSE_STEP); more groups than POLISH_NEWTON_MAX_GROUPS take the ratio
+    // step: a render each would cost more than the iteration did.
     let groups: Vec<usize> = (0..fits.len())
         .filter(|&g| active[g] && fits[g].pixels > 0)
         .collect();
     let newton = groups.len() <= POLISH_NEWTON_MAX_GROUPS;
-    let unraised = if newton {
-        rec.evaluate_pixels(&subset, spp, polish_seed, &wanted)?
-    } else {
-        Vec::new()
-    };
-    let mut responses = Vec::with_capacity(groups.len());
-    for &h in groups.iter().filter(|_| newton) {
-        let GroupModel::Diffuse { color } = rec.models[h] else {
-            continue;
-        };
-        let raised =
-            color.map(|c| (c * (1.0 + POLISH_RESPONSE_STEP)).min(diffuse::MAX_DIFFUSE_REFLECTANCE));
-        rec.models[h] = GroupModel::Diffuse { color: raised };
-        let fits_raised = rec.evaluate_pixels(&subset, spp, polish_seed, &wanted)?;
-        rec.models[h] = GroupModel::Diffuse { color };
-        responses.push((color, raised, fits_raised));
-    }
-    evaluations += u32::from(newton) + responses.len() as u32;
     let steps = if newton {
+        let (unraised, responses) =
+            polish_responses(rec, &groups, &subset, spp, polish_seed, &wanted)?;
+        evaluations += 1 + responses.len() as u32;
         newton_steps(&groups, &fits, &unraised, &responses)
     } else {
         [None, None, None]
@@ -301,6 +284,38 @@ pub(super) fn refine_diffuse_groups(rec: &mut Recovery, spp: u32) -> Result<Stag
     })
 }
 
+/// One group's response for the polish's Newton step: its colour, the colour raised, and
+/// every group's fit with it raised.
+type Response = ([f64; 3], [f64; 3], Vec<fit::GroupFit>);
+
+/// What the polish's Newton step measures, at `spp` on `seed` over `subset`: every
+/// group's fit with the colours as they are, and per group of `groups` its colour, the
+/// colour raised by `POLISH_RESPONSE_STEP` and every group's fit with it raised (the same
+/// samples, so the differences hold little noise). `rec`'s models are left as they were.
+fn polish_responses(
+    rec: &mut Recovery,
+    groups: &[usize],
+    subset: &[pixels::PurePixel],
+    spp: u32,
+    seed: u64,
+    wanted: &(dyn Fn(u16) -> bool + Sync),
+) -> Result<(Vec<fit::GroupFit>, Vec<Response>), Error> {
+    let unraised = rec.evaluate_pixels(subset, spp, seed, wanted)?;
+    let mut responses = Vec::with_capacity(groups.len());
+    for &h in groups {
+        let GroupModel::Diffuse { color } = rec.models[h] else {
+            continue;
+        };
+        let raised =
+            color.map(|c| (c * (1.0 + POLISH_RESPONSE_STEP)).min(diffuse::MAX_DIFFUSE_REFLECTANCE));
+        rec.models[h] = GroupModel::Diffuse { color: raised };
+        let fits_raised = rec.evaluate_pixels(subset, spp, seed, wanted);
+        rec.models[h] = GroupModel::Diffuse { color };
+        responses.push((color, raised, fits_raised?));
+    }
+    Ok((unraised, responses))
+}
+
 /// The polish's Newton step per channel: the change of each group's log colour (in the
 /// order of `groups`) that brings every group's rendered mean to the panorama's, from the
 /// log ratios of `fits` and the response matrix `J[g][h] = d ln R_g / d ln rho_h` that
@@ -312,7 +327,7 @@ fn newton_steps(
     groups: &[usize],
     fits: &[fit::GroupFit],
     unraised: &[fit::GroupFit],
-    responses: &[([f64; 3], [f64; 3], Vec<fit::GroupFit>)],
+    responses: &[Response],
 ) -> [Option<Vec<f64>>; 3] {
     core::array::from_fn(|c| {
         if responses.len() != groups.len() {
@@ -373,7 +388,7 @@ mod tests {
         let colour = [truth[0] * 1.02, truth[1] * 1.02];
         let real = [render(truth, 0), render(truth, 1)];
         let fits: Vec<fit::GroupFit> = (0..2).map(|g| fit_of(real[g], render(colour, g))).collect();
-        let responses: Vec<([f64; 3], [f64; 3], Vec<fit::GroupFit>)> = (0..2)
+        let responses: Vec<Response> = (0..2)
             .map(|h| {
                 let mut raised = colour;
                 raised[h] *= 1.0 + POLISH_RESPONSE_STEP;
@@ -407,7 +422,7 @@ mod tests {
     #[test]
     fn a_singular_response_falls_back_to_the_ratio_step() {
         let fits = vec![fit_of(1.0, 1.1), fit_of(2.0, 2.1)];
-        let responses: Vec<([f64; 3], [f64; 3], Vec<fit::GroupFit>)> = (0..2)
+        let responses: Vec<Response> = (0..2)
             .map(|_| ([0.5; 3], [0.525; 3], fits.clone()))
             .collect();
         assert_eq!(
