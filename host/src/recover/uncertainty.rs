@@ -127,7 +127,12 @@ fn perturbed(model: GroupModel, perturbation: &Perturbation) -> GroupModel {
 /// How many samples the estimates of a group's parameters saw.
 #[derive(Clone, Copy, Debug)]
 pub struct EstimateSamples {
-    /// Samples per pixel of the renders whose mean sets the colour (the diffuse update).
+    /// Samples per pixel of the loop's renders, whose mean set the colour in the diffuse
+    /// update. The polishes now set it from renders with more samples (8x for a diffuse
+    /// colour, at least 2^19 in all for a lobe's), so the colours' noise term is an
+    /// over-count. Counted right, box-diffuse's colours lose the cover it lends them
+    /// against the renderer's common error: docs/stability.md, "Measured and not kept:
+    /// the colours' noise at the samples that set them".
     pub colour_spp: u32,
     /// Pixel samples in all of the transport cache that the lobe's shape and
     /// specularity are fitted on (`Recovery::cache_samples`).
@@ -141,8 +146,8 @@ pub struct EstimateSamples {
 /// Every parameter also carries the Monte Carlo noise of its own estimate, which the
 /// misfit does not show, measured from two independent half-renders and added in
 /// quadrature:
-/// - the colours: the diffuse update sets them from the mean of a render at
-///   `samples.colour_spp`;
+/// - the colours: the noise of a render's mean at `samples.colour_spp` (an over-count
+///   since the polishes, see [`EstimateSamples::colour_spp`]);
 /// - a lobe's specularity and roughnesses: they are the least-squares fit to the group's
 ///   transport cache, whose pixels carry `samples.lobe_samples` samples in all; the noise
 ///   moves the fit by `A^-1 sum J^T e`. Without it glossy's metal_steel, whose highlight
