@@ -242,28 +242,31 @@ pub(super) fn refine_diffuse_groups(rec: &mut Recovery, spp: u32) -> Result<Stag
     // A Newton step on how every group's render responds to each group's colour (see
     // POLISH_RESPONSE_STEP); more groups than POLISH_NEWTON_MAX_GROUPS take the ratio
     // step: a render each would cost more than the iteration did.
-    let groups: Vec<usize> = (0..fits.len())
-        .filter(|&g| active[g] && fits[g].pixels > 0)
+    // The diffuse groups the polish renders, with their colours.
+    let groups: Vec<(usize, [f64; 3])> = (0..fits.len())
+        .filter_map(|g| match rec.models[g] {
+            GroupModel::Diffuse { color } if active[g] && fits[g].pixels > 0 => Some((g, color)),
+            _ => None,
+        })
         .collect();
+    let indices: Vec<usize> = groups.iter().map(|&(g, _)| g).collect();
     let newton = groups.len() <= POLISH_NEWTON_MAX_GROUPS;
     let steps = if newton {
         let (unraised, responses) =
             polish_responses(rec, &groups, &subset, spp, polish_seed, &wanted)?;
         evaluations += 1 + responses.len() as u32;
-        newton_steps(&groups, &fits, &unraised, &responses)
+        newton_steps(&indices, &fits, &unraised, &responses)
     } else {
         [None, None, None]
     };
-    for (k, &g) in groups.iter().enumerate() {
-        if let GroupModel::Diffuse { color } = rec.models[g] {
-            let next = core::array::from_fn(|c| match steps[c] {
-                Some(ref step) => {
-                    (color[c] * libm::exp(step[k])).clamp(0.0, diffuse::MAX_DIFFUSE_REFLECTANCE)
-                }
-                None => diffuse::update(color, &fits[g]).0[c],
-            });
-            rec.models[g] = GroupModel::Diffuse { color: next };
-        }
+    for (k, &(g, color)) in groups.iter().enumerate() {
+        let next = core::array::from_fn(|c| match steps[c] {
+            Some(ref step) => {
+                (color[c] * libm::exp(step[k])).clamp(0.0, diffuse::MAX_DIFFUSE_REFLECTANCE)
+            }
+            None => diffuse::update(color, &fits[g]).0[c],
+        });
+        rec.models[g] = GroupModel::Diffuse { color: next };
     }
     bar.finish_and_clear();
     let step = if newton {
@@ -289,12 +292,13 @@ pub(super) fn refine_diffuse_groups(rec: &mut Recovery, spp: u32) -> Result<Stag
 type Response = ([f64; 3], [f64; 3], Vec<fit::GroupFit>);
 
 /// What the polish's Newton step measures, at `spp` on `seed` over `subset`: every
-/// group's fit with the colours as they are, and per group of `groups` its colour, the
-/// colour raised by `POLISH_RESPONSE_STEP` and every group's fit with it raised (the same
-/// samples, so the differences hold little noise). `rec`'s models are left as they were.
+/// group's fit with the colours as they are, and per diffuse group of `groups` (index and
+/// colour) its colour, the colour raised by `POLISH_RESPONSE_STEP` and every group's fit
+/// with it raised (the same samples, so the differences hold little noise). `rec`'s
+/// models are left as they were.
 fn polish_responses(
     rec: &mut Recovery,
-    groups: &[usize],
+    groups: &[(usize, [f64; 3])],
     subset: &[pixels::PurePixel],
     spp: u32,
     seed: u64,
@@ -302,10 +306,7 @@ fn polish_responses(
 ) -> Result<(Vec<fit::GroupFit>, Vec<Response>), Error> {
     let unraised = rec.evaluate_pixels(subset, spp, seed, wanted)?;
     let mut responses = Vec::with_capacity(groups.len());
-    for &h in groups {
-        let GroupModel::Diffuse { color } = rec.models[h] else {
-            continue;
-        };
+    for &(h, color) in groups {
         let raised =
             color.map(|c| (c * (1.0 + POLISH_RESPONSE_STEP)).min(diffuse::MAX_DIFFUSE_REFLECTANCE));
         rec.models[h] = GroupModel::Diffuse { color: raised };
