@@ -771,7 +771,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &cache_settings,
     )?);
 
-    stages.push(stage1::refine_diffuse_groups(&mut rec, spp)?);
+    stages.push(stage1::refine_diffuse_groups(&mut rec, &mut reports, spp)?);
 
     // Final render: errors, views and error images.
     let stage_start = Instant::now();

@@ -46,6 +46,8 @@ pub(super) fn polish_colours(
             report.pure_pixels,
             POLISH_MIN_SAMPLES,
         );
+        // The polish renders every pure pixel of the group.
+        let group_samples = group_spp as u64 * report.pure_pixels as u64;
         match kind {
             // A plastic lobe's colour came from stage 2 (the search's colour step on its
             // subset and samples, or a closed form), under the other groups as they were:
@@ -58,6 +60,7 @@ pub(super) fn polish_colours(
                 report.decisions.push(match step {
                     Some((polished, change)) => {
                         set_color(&mut rec.models[g], polished);
+                        report.colour_samples = Some(group_samples);
                         format!(
                             "colour polish: the diffuse part scaled by the mean ratio of renders at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples), of the model and of its lobe alone: largest change {:.2}%",
                             100.0 * change
@@ -72,6 +75,7 @@ pub(super) fn polish_colours(
                 let (polished, change) = colour_step(rec, g, color, group_spp, 0x3E7A_1C01)?;
                 evaluations += 1;
                 set_color(&mut rec.models[g], polished);
+                report.colour_samples = Some(group_samples);
                 report.decisions.push(format!(
                     "colour polish: colour scaled by the mean ratio of a render at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
                     100.0 * change

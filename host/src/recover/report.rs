@@ -58,6 +58,11 @@ pub struct GroupReport {
     /// (`uncertainty::proposal_size_dependence`).
     #[serde(skip)]
     pub lobe_sigmas: Vec<(&'static str, f64)>,
+    /// Pixel samples in all of the render whose mean last set the group's colour (the
+    /// colour polish, the diffuse refinement's step); `None` where the loop's renders set
+    /// it. The colour's noise is counted at these (`uncertainty::EstimateSamples`).
+    #[serde(skip)]
+    pub colour_samples: Option<u64>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
 }
@@ -86,6 +91,7 @@ impl GroupReport {
             comparisons: Vec::new(),
             lobe_from_ladder: false,
             lobe_sigmas: Vec::new(),
+            colour_samples: None,
             uncertainty: Vec::new(),
         }
     }

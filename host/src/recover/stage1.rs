@@ -209,8 +209,12 @@ fn unlit_groups(
 
 /// The diffuse refinement, after stage 5: the diffuse groups' colours again, under the
 /// specular materials now known, then one Newton step at `POLISH_SPP_FACTOR` times the
-/// samples.
-pub(super) fn refine_diffuse_groups(rec: &mut Recovery, spp: u32) -> Result<StageReport, Error> {
+/// samples; each colour's samples go to its report (`GroupReport::colour_samples`).
+pub(super) fn refine_diffuse_groups(
+    rec: &mut Recovery,
+    reports: &mut [GroupReport],
+    spp: u32,
+) -> Result<StageReport, Error> {
     let stage_start = Instant::now();
     let active: Vec<bool> = rec
         .models
@@ -267,6 +271,7 @@ pub(super) fn refine_diffuse_groups(rec: &mut Recovery, spp: u32) -> Result<Stag
             None => diffuse::update(color, &fits[g]).0[c],
         });
         rec.models[g] = GroupModel::Diffuse { color: next };
+        reports[g].colour_samples = Some(fits[g].pixels as u64 * polish_spp as u64);
     }
     bar.finish_and_clear();
     let step = if newton {
