@@ -311,6 +311,11 @@ mod tests {
             (Kind::Metal, [0.8, 0.7, 0.3], 0.9)
         );
         assert!((roughness - 0.1).abs() < 1e-12, "{roughness}");
-        assert_eq!(isotropic_projection(GroupModel::Unseen), None);
+        assert_eq!(
+            isotropic_projection(GroupModel::Unseen {
+                stand_in: crate::recover::model::NEUTRAL_STAND_IN
+            }),
+            None
+        );
     }
 }

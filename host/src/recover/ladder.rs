@@ -331,6 +331,7 @@ pub fn applies(diffuse_error: f64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::recover::model::NEUTRAL_STAND_IN;
 
     #[test]
     fn the_ladder_spans_the_search_range_evenly_in_log() {
@@ -346,7 +347,9 @@ mod tests {
 
     fn rung(roughness: f64, specularity: f64, gain: f64, sigma: f64) -> Rung {
         Rung {
-            model: GroupModel::Unseen,
+            model: GroupModel::Unseen {
+                stand_in: NEUTRAL_STAND_IN,
+            },
             specularity,
             roughness,
             squared_gain: gain,

@@ -39,6 +39,7 @@ mod stage4;
 mod stage5;
 mod texture;
 mod uncertainty;
+mod unseen;
 mod warnings;
 
 use std::path::PathBuf;
@@ -719,6 +720,14 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let (stage1_report, mut candidates) =
         stage1::run(&mut rec, &mut reports, &names, spp, &mut warnings)?;
     let mut stages = vec![stage1_report];
+    // The groups no view sees whole pass on light too: their stand-ins, measured under
+    // stage 1's colours now, and again below under the final models of their neighbours.
+    stages.extend(unseen::measure_stand_ins(
+        &mut rec,
+        &mut reports,
+        spp,
+        0x05EE_0001,
+    )?);
 
     let cache_settings = RenderSettings {
         spp: args.budget.cache_spp,
@@ -771,6 +780,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &cache_settings,
     )?);
 
+    stages.extend(unseen::measure_stand_ins(
+        &mut rec,
+        &mut reports,
+        spp,
+        0x05EE_0002,
+    )?);
     stages.push(stage1::refine_diffuse_groups(&mut rec, &mut reports, spp)?);
 
     // Final render: errors, views and error images.

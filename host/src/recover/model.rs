@@ -8,6 +8,10 @@ use relume_core::material::{Kind, Material, Params, SurfaceMaterial, TextureId};
 
 use crate::materials_file::{MaterialDesc, Model};
 
+/// The diffuse colour an unseen group is rendered with until (or unless) one is measured:
+/// a neutral grey, since nothing is known of it.
+pub const NEUTRAL_STAND_IN: [f64; 3] = [0.5; 3];
+
 /// The recovered model of one group.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum GroupModel {
@@ -40,8 +44,13 @@ pub enum GroupModel {
         map: usize,
         lobe: MapLobe,
     },
-    /// No pure pixel: nothing recovered (rendered as a neutral grey meanwhile).
-    Unseen,
+    /// No pure pixel (or no light reaching it): nothing recovered. The recovery still
+    /// renders the group, whose light reaches the others, as the diffuse `stand_in`:
+    /// [`NEUTRAL_STAND_IN`], or a colour measured on the pixels it shares with seen
+    /// groups (`unseen::measure_stand_ins`).
+    Unseen {
+        stand_in: [f64; 3],
+    },
 }
 
 /// The white specular lobe of a textured plastic: the untextured stand-in's lobe, whose
@@ -171,7 +180,7 @@ impl GroupModel {
             GroupModel::Anisotropic { .. } => "anisotropic",
             GroupModel::Mirror { .. } => "mirror",
             GroupModel::Textured { lobe, .. } => lobe.textured_model().name(),
-            GroupModel::Unseen => "unseen",
+            GroupModel::Unseen { .. } => "unseen",
         }
     }
 
@@ -200,7 +209,7 @@ impl GroupModel {
             ),
             GroupModel::Mirror { color } => ([0.0; 3], color),
             GroupModel::Textured { lobe, .. } => ([0.0; 3], [lobe.specularity(); 3]),
-            GroupModel::Unseen => ([0.0; 3], [0.0; 3]),
+            GroupModel::Unseen { .. } => ([0.0; 3], [0.0; 3]),
         }
     }
 
@@ -248,8 +257,8 @@ impl GroupModel {
                     ..lobe.white().surface_material()
                 };
             }
-            GroupModel::Unseen => Material::Diffuse {
-                rho_d: Vec3::splat(0.5),
+            GroupModel::Unseen { stand_in } => Material::Diffuse {
+                rho_d: v3(stand_in),
             },
         };
         SurfaceMaterial {
@@ -306,7 +315,7 @@ impl GroupModel {
                 d.color = None;
                 d.diffuse_map = map_path.map(Path::to_path_buf);
             }
-            GroupModel::Unseen => return None,
+            GroupModel::Unseen { .. } => return None,
         }
         Some(d)
     }
@@ -369,7 +378,7 @@ impl GroupModel {
             GroupModel::Textured { lobe, .. } => {
                 return lobe.white().radiance_primitive(group, modifier)
             }
-            GroupModel::Unseen => return None,
+            GroupModel::Unseen { .. } => return None,
         })
     }
 }

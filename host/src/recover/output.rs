@@ -163,7 +163,17 @@ pub(super) fn write_all(
                 rad.push('\n');
                 rad.push_str(&p);
             }
-            None => rad.push_str(&format!("\n# {name}: unseen, not recovered\n")),
+            None => {
+                let rendered_as = match primitive.0 {
+                    GroupModel::Unseen {
+                        stand_in: [r, g, b],
+                    } => format!(
+                        " (the recovery rendered it as a diffuse [{r:.4} {g:.4} {b:.4}]: report.json)"
+                    ),
+                    _ => String::new(),
+                };
+                rad.push_str(&format!("\n# {name}: unseen, not recovered{rendered_as}\n"))
+            }
         }
     }
     // An earlier recovery's map of a group this one did not map is no output of this run.

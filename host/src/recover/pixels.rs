@@ -168,6 +168,60 @@ pub fn label_views(pool: &rayon::ThreadPool, scene: &Scene, views: &[View]) -> L
     found
 }
 
+/// Per group for which `wanted` is true, the pixels of every view whose footprint sees it
+/// in part, in at least `min_share` of the [`LABEL_RAYS_PER_SIDE`]^2 rays that label a pixel (a grid
+/// over the pixel's square, edges included, as `render::pixel_surface`'s), and sees in the
+/// others only groups that `known` accepts: no light, no void, no group whose material is
+/// not known. Each with the group's share of the rays. In view and row order.
+pub fn mixed_pixels(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    views: &[View],
+    n_groups: usize,
+    min_share: f64,
+    wanted: impl Fn(u16) -> bool + Sync,
+    known: impl Fn(u16) -> bool + Sync,
+) -> Vec<Vec<(PurePixel, f64)>> {
+    let n = LABEL_RAYS_PER_SIDE.max(2);
+    let sub = |k: u32| k as f32 / (n - 1) as f32;
+    let mut found = vec![Vec::new(); n_groups];
+    for (vi, view) in views.iter().enumerate() {
+        let shares = parallel::map_pixels(pool, view, |x, y| {
+            let mut on: Option<(u16, u32)> = None;
+            for k in 0..n * n {
+                let hit = first_hit(scene, view, x as f32 + sub(k % n), y as f32 + sub(k / n));
+                match hit.map(|(_, t)| t.surface) {
+                    Some(Surface::Group(h)) if wanted(h) => match on {
+                        None => on = Some((h, 1)),
+                        Some((g, count)) if g == h => on = Some((g, count + 1)),
+                        // Two groups of unknown material: neither can be told apart.
+                        Some(_) => return None,
+                    },
+                    Some(Surface::Group(h)) if known(h) => {}
+                    _ => return None,
+                }
+            }
+            let (g, count) = on?;
+            let share = count as f64 / (n * n) as f64;
+            // A pixel it covers whole is a pure pixel, left out of the recovery's on
+            // purpose where there are any (`--limit-group-pixels`).
+            (share >= min_share && count < n * n).then_some((g, share))
+        });
+        for (i, share) in shares.into_iter().enumerate() {
+            if let Some((g, share)) = share {
+                let pixel = PurePixel {
+                    view: vi as u32,
+                    x: i as u32 % view.width,
+                    y: i as u32 / view.width,
+                    group: g,
+                };
+                found[g as usize].push((pixel, share));
+            }
+        }
+    }
+    found
+}
+
 /// The pure pixels of group `g`, in their order.
 pub fn of_group(pure: &[PurePixel], g: usize) -> Vec<PurePixel> {
     pure.iter()
@@ -523,6 +577,75 @@ pub fn step_differences(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// On the bundled cornell box, with the floor taken as unseen: every pixel found sees
+    /// it over the share given (counted again here ray by ray) and only known groups
+    /// beside it, none is one of its pure pixels, and a lower share finds more.
+    #[test]
+    fn mixed_pixels_see_the_group_over_their_share_and_known_groups_beside() {
+        use crate::assemble::{load_and_assemble, MaterialSource};
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/scene.toml");
+        let mut owned = load_and_assemble(&path, MaterialSource::GeometryOnly).unwrap();
+        let views = owned.views.clone();
+        let n_groups = owned.group_names.len();
+        let scene = owned.build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let pure = label_views(&pool, &scene, &views).pure;
+        let unseen = 0u16;
+        let find = |min_share: f64| {
+            mixed_pixels(
+                &pool,
+                &scene,
+                &views,
+                n_groups,
+                min_share,
+                |h| h == unseen,
+                |h| h != unseen,
+            )
+        };
+        let half = find(0.5);
+        let any = find(0.01);
+        assert!(half
+            .iter()
+            .enumerate()
+            .all(|(g, found)| g == 0 || found.is_empty()));
+        assert!(
+            !half[0].is_empty() && any[0].len() > half[0].len(),
+            "{} {}",
+            half[0].len(),
+            any[0].len()
+        );
+        let n = LABEL_RAYS_PER_SIDE;
+        for &(p, share) in &any[0] {
+            let is_pure = pure
+                .iter()
+                .any(|q| (q.view, q.x, q.y) == (p.view, p.x, p.y));
+            let view = &views[p.view as usize];
+            let mut on = 0;
+            for k in 0..n * n {
+                let (fx, fy) = (
+                    (k % n) as f32 / (n - 1) as f32,
+                    (k / n) as f32 / (n - 1) as f32,
+                );
+                match first_hit(&scene, view, p.x as f32 + fx, p.y as f32 + fy)
+                    .map(|(_, t)| t.surface)
+                {
+                    Some(Surface::Group(h)) if h == unseen => on += 1,
+                    Some(Surface::Group(_)) => {}
+                    other => panic!("{p:?} sees {other:?}"),
+                }
+            }
+            assert_eq!(share, on as f64 / (n * n) as f64, "{p:?}");
+            assert!(!is_pure && share < 1.0, "{p:?}");
+            if share >= 0.5 {
+                assert!(half[0].contains(&(p, share)), "{p:?}");
+            }
+        }
+    }
 
     #[test]
     fn limiting_a_group_keeps_an_even_subset_and_the_other_groups() {

@@ -7,7 +7,7 @@ use std::time::Instant;
 use relume_core::fit;
 use relume_core::stages::diffuse::{self, DiffuseVerdict};
 
-use super::model::GroupModel;
+use super::model::{GroupModel, NEUTRAL_STAND_IN};
 use super::{
     min_samples_spp, pixels, progress_bar, GroupReport, Recovery, StageReport, CACHE_MIN_SAMPLES,
     POLISH_NEWTON_MAX_GROUPS, POLISH_RESPONSE_STEP, POLISH_SPP_FACTOR,
@@ -76,7 +76,9 @@ pub(super) fn run(
         let e = decided[g].map_or(0.0, |e| e.error);
         let sigma = decided[g].map_or(0.0, |e| e.sigma);
         if let Some(unlit) = &unlit[g] {
-            rec.models[g] = GroupModel::Unseen;
+            rec.models[g] = GroupModel::Unseen {
+                stand_in: NEUTRAL_STAND_IN,
+            };
             r.decisions.push(format!(
                 "unlit: {}; material not recovered",
                 unlit.describe()
@@ -90,7 +92,9 @@ pub(super) fn run(
         }
         match diffuse::verdict(pure_pixels[g], decided[g]) {
             DiffuseVerdict::Unseen => {
-                rec.models[g] = GroupModel::Unseen;
+                rec.models[g] = GroupModel::Unseen {
+                    stand_in: NEUTRAL_STAND_IN,
+                };
                 r.decisions
                     .push("unseen: no pure pixel in any view; material not recovered".into());
                 warnings.push(format!(
@@ -228,7 +232,7 @@ pub(super) fn refine_diffuse_groups(
     let all_diffuse = rec
         .models
         .iter()
-        .all(|m| matches!(m, GroupModel::Diffuse { .. } | GroupModel::Unseen));
+        .all(|m| matches!(m, GroupModel::Diffuse { .. } | GroupModel::Unseen { .. }));
     let mut evaluations = 0;
     if !all_diffuse {
         evaluations += rec.diffuse_iteration(spp, &active, &bar)?.1;

@@ -84,7 +84,7 @@ fn perturbations(model: &GroupModel) -> Vec<Perturbation> {
             .into_iter()
             .filter(|p| !matches!(p, Colour(_)))
             .collect(),
-        GroupModel::Unseen => Vec::new(),
+        GroupModel::Unseen { .. } => Vec::new(),
     }
 }
 
@@ -486,6 +486,7 @@ pub(super) fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::recover::model::NEUTRAL_STAND_IN;
 
     #[test]
     fn inverting_a_small_matrix() {

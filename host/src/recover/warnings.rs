@@ -67,7 +67,7 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
     for (report, model) in inputs.groups.iter().zip(inputs.models) {
         let name = &report.group;
         let specular = match model {
-            GroupModel::Diffuse { .. } | GroupModel::Unseen => false,
+            GroupModel::Diffuse { .. } | GroupModel::Unseen { .. } => false,
             GroupModel::Textured { lobe, .. } => lobe.specularity() > 0.0,
             _ => true,
         };

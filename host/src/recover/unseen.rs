@@ -1,0 +1,118 @@
+//! Stand-ins for the groups no view sees whole. Their material is not recovered (no pure
+//! pixel says what it is), but their light reaches the groups that are, and a neutral grey
+//! in its place put light the panorama does not hold into every render: the textured
+//! reference's dark frames (colour 0.12, 0.09, 0.07), unseen at 64 px, rendered as grey
+//! made the ceiling 3.4% and the walls 1.3% brighter than the truth materials do, and the
+//! recovery took it out of their colours. So an unseen group is rendered as a diffuse
+//! colour measured on the pixels it shares with groups whose materials are known, by the
+//! colour step of a plastic's diffuse part (`diffuse::update_beside_lobe`): the pixels'
+//! render less their render with the group black is the group's part.
+
+use std::time::Instant;
+
+use relume_core::stages::diffuse;
+
+use super::model::GroupModel;
+use super::{min_samples_spp, pixels, GroupReport, Recovery, StageReport};
+use crate::error::Error;
+
+/// The smallest share of a pixel's label rays on the unseen group for the pixel to
+/// measure it: the rest of the pixel is rendered under the known groups' materials, whose
+/// errors the group's part takes whole, scaled up by the inverse of its share.
+pub const MIN_SHARE: f64 = 0.5;
+/// The fewest such pixels that a stand-in is measured on; with fewer the group keeps the
+/// neutral grey.
+pub const MIN_PIXELS: usize = 4;
+/// Pixel samples, in all, of each of the two renders of a measurement (on the same
+/// samples, so that their difference holds little noise).
+const MIN_SAMPLES: u64 = 1 << 18;
+
+/// Measures the stand-in of every group that no view sees whole (and that is not unlit:
+/// it has no pure pixel), on the pixels it shares with the other groups as they are now
+/// modelled, at `spp` samples per pixel or more. `None` when no group is unseen.
+pub(super) fn measure_stand_ins(
+    rec: &mut Recovery,
+    reports: &mut [GroupReport],
+    spp: u32,
+    key: u64,
+) -> Result<Option<StageReport>, Error> {
+    let stage_start = Instant::now();
+    let n_groups = rec.n_groups();
+    let unseen: Vec<bool> = (0..n_groups)
+        .map(|g| matches!(rec.models[g], GroupModel::Unseen { .. }) && reports[g].pure_pixels == 0)
+        .collect();
+    if !unseen.contains(&true) {
+        return Ok(None);
+    }
+    let known: Vec<bool> = rec
+        .models
+        .iter()
+        .map(|m| !matches!(m, GroupModel::Unseen { .. }))
+        .collect();
+    let mixed = rec.with_scene(1, 0, |pool, scene, observed, _| {
+        pixels::mixed_pixels(
+            pool,
+            scene,
+            observed.views,
+            n_groups,
+            MIN_SHARE,
+            |h| unseen[h as usize],
+            |h| known[h as usize],
+        )
+    })?;
+    let mut evaluations = 0;
+    for g in (0..n_groups).filter(|&g| unseen[g]) {
+        let GroupModel::Unseen { stand_in } = rec.models[g] else {
+            continue;
+        };
+        let shared: Vec<pixels::PurePixel> = mixed[g].iter().map(|&(p, _)| p).collect();
+        let share: f64 = mixed[g].iter().map(|&(_, s)| s).sum();
+        if shared.len() < MIN_PIXELS {
+            reports[g].decisions.push(format!(
+                "stand-in: {} pixels see it over at least MIN_SHARE {MIN_SHARE} of their footprint beside known groups (< MIN_PIXELS {MIN_PIXELS}): rendered as [{:.3}, {:.3}, {:.3}]",
+                shared.len(),
+                stand_in[0],
+                stand_in[1],
+                stand_in[2]
+            ));
+            continue;
+        }
+        let group_spp = min_samples_spp(spp, shared.len() as u32, MIN_SAMPLES);
+        let seed = rec.seed ^ key ^ g as u64;
+        let only_g = |h: u16| h as usize == g;
+        let with_stand_in = rec.evaluate_pixels(&shared, group_spp, seed, &only_g)?[g];
+        rec.models[g] = GroupModel::Unseen { stand_in: [0.0; 3] };
+        let black = rec.evaluate_pixels(&shared, group_spp, seed, &only_g);
+        rec.models[g] = GroupModel::Unseen { stand_in };
+        evaluations += 2;
+        let decision = match diffuse::update_beside_lobe(stand_in, &with_stand_in, &black?[g]) {
+            Some((measured, _)) => {
+                rec.models[g] = GroupModel::Unseen { stand_in: measured };
+                format!(
+                    "stand-in: rendered as the diffuse [{:.4}, {:.4}, {:.4}], measured on {} pixels that see it over at least MIN_SHARE {MIN_SHARE} of their footprint beside known groups ({share:.1} pixels' worth) at {group_spp} spp; not written as its material",
+                    measured[0],
+                    measured[1],
+                    measured[2],
+                    shared.len()
+                )
+            }
+            None => format!(
+                "stand-in: kept [{:.3}, {:.3}, {:.3}]: on the {} pixels that see it beside known groups, the panorama is no brighter than their render with it black in some channel",
+                stand_in[0],
+                stand_in[1],
+                stand_in[2],
+                shared.len()
+            ),
+        };
+        reports[g].decisions.push(decision);
+    }
+    Ok(Some(StageReport {
+        stage: "unseen stand-ins".into(),
+        evaluations,
+        samples_per_pixel: spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "groups with no pure pixel: a diffuse stand-in for the light they pass on, measured on the pixels they cover over at least MIN_SHARE {MIN_SHARE} of the footprint beside groups of known material (the colour step of a plastic's diffuse part, against a render with the group black)"
+        )],
+    }))
+}
