@@ -226,13 +226,15 @@ pub(super) fn refine_diffuse_groups(
         .map(|m| matches!(m, GroupModel::Diffuse { .. }))
         .collect();
     let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "diffuse again");
-    // With no group other than diffuse the scene is stage 1's, whose iteration already
-    // stopped at its noise floor: only the polish step below is new (box-diffuse at 256
-    // px: 18 more renders, 35 s, for nothing).
-    let all_diffuse = rec
-        .models
-        .iter()
-        .all(|m| matches!(m, GroupModel::Diffuse { .. } | GroupModel::Unseen { .. }));
+    // With no group other than diffuse (and no unseen group's stand-in measured since)
+    // the scene is stage 1's, whose iteration already stopped at its noise floor: only
+    // the polish step below is new (box-diffuse at 256 px: 18 more renders, 35 s, for
+    // nothing).
+    let all_diffuse = rec.models.iter().all(|m| match m {
+        GroupModel::Diffuse { .. } => true,
+        GroupModel::Unseen { stand_in } => *stand_in == NEUTRAL_STAND_IN,
+        _ => false,
+    });
     let mut evaluations = 0;
     if !all_diffuse {
         evaluations += rec.diffuse_iteration(spp, &active, &bar)?.1;

@@ -6,10 +6,13 @@
 //! recovery took it out of their colours. So an unseen group is rendered as a diffuse
 //! colour measured on the pixels it shares with groups whose materials are known, by the
 //! colour step of a plastic's diffuse part (`diffuse::update_beside_lobe`): the pixels'
-//! render less their render with the group black is the group's part.
+//! render less their render with the group black is the group's part. It is measured
+//! after stage 1, and again after the diffuse refinement, which then runs once more: the
+//! stand-in and its neighbours' colours depend on each other.
 
 use std::time::Instant;
 
+use relume_core::fit;
 use relume_core::stages::diffuse;
 
 use super::model::GroupModel;
@@ -23,9 +26,12 @@ pub const MIN_SHARE: f64 = 0.5;
 /// The fewest such pixels that a stand-in is measured on; with fewer the group keeps the
 /// neutral grey.
 pub const MIN_PIXELS: usize = 4;
-/// Pixel samples, in all, of each of the two renders of a measurement (on the same
-/// samples, so that their difference holds little noise).
+/// Pixel samples, in all, of each render of a measurement (all on the same samples, so
+/// that their differences hold little noise).
 const MIN_SAMPLES: u64 = 1 << 18;
+/// Colour steps of a measurement at the most; it stops sooner when a step changes no
+/// channel by more than `fit::DIFFUSE_CONVERGED`.
+pub const MAX_STEPS: u32 = 6;
 
 /// Measures the stand-in of every group that no view sees whole (and that is not unlit:
 /// it has no pure pixel), on the pixels it shares with untextured groups as they are now
@@ -85,22 +91,43 @@ pub(super) fn measure_stand_ins(
         let group_spp = min_samples_spp(spp, shared.len() as u32, MIN_SAMPLES);
         let seed = rec.seed ^ key ^ g as u64;
         let only_g = |h: u16| h as usize == g;
-        let with_stand_in = rec.evaluate_pixels(&shared, group_spp, seed, &only_g)?[g];
+        // The render with the group black is the rest of each pixel, whatever its colour.
         rec.models[g] = GroupModel::Unseen { stand_in: [0.0; 3] };
         let black = rec.evaluate_pixels(&shared, group_spp, seed, &only_g);
         rec.models[g] = GroupModel::Unseen { stand_in };
-        evaluations += 2;
-        let decision = match diffuse::update_beside_lobe(stand_in, &with_stand_in, &black?[g]) {
-            Some((measured, _)) => {
-                rec.models[g] = GroupModel::Unseen { stand_in: measured };
-                format!(
-                    "stand-in: rendered as the diffuse [{:.4}, {:.4}, {:.4}], measured on {} pixels that see it over at least MIN_SHARE {MIN_SHARE} of their footprint beside known groups ({share:.1} pixels' worth) at {group_spp} spp; not written as its material",
-                    measured[0],
-                    measured[1],
-                    measured[2],
-                    shared.len()
-                )
+        let black = black?[g];
+        evaluations += 1;
+        // The steps, each from a render on the same samples, until the colour settles: a
+        // group that lights itself (two facing walls) renders more than in proportion to
+        // its colour, and one step from the grey falls short.
+        let mut steps = 0;
+        let mut measured = None;
+        while steps < MAX_STEPS {
+            let current = match rec.models[g] {
+                GroupModel::Unseen { stand_in } => stand_in,
+                _ => break,
+            };
+            let with_stand_in = rec.evaluate_pixels(&shared, group_spp, seed, &only_g)?[g];
+            evaluations += 1;
+            steps += 1;
+            let Some((next, change)) = diffuse::update_beside_lobe(current, &with_stand_in, &black)
+            else {
+                break;
+            };
+            rec.models[g] = GroupModel::Unseen { stand_in: next };
+            measured = Some(next);
+            if change <= fit::DIFFUSE_CONVERGED {
+                break;
             }
+        }
+        let decision = match measured {
+            Some(measured) => format!(
+                "stand-in: rendered as the diffuse [{:.4}, {:.4}, {:.4}], measured in {steps} steps on {} pixels that see it over at least MIN_SHARE {MIN_SHARE} of their footprint beside known groups ({share:.1} pixels' worth) at {group_spp} spp; not written as its material",
+                measured[0],
+                measured[1],
+                measured[2],
+                shared.len()
+            ),
             None => format!(
                 "stand-in: kept [{:.3}, {:.3}, {:.3}]: on the {} pixels that see it beside known groups, the panorama is no brighter than their render with it black in some channel",
                 stand_in[0],
