@@ -60,6 +60,7 @@ pub(super) fn measure_stand_ins(
         .iter()
         .map(|m| !matches!(m, GroupModel::Unseen { .. } | GroupModel::Textured { .. }))
         .collect();
+    // Rays only: the render settings (spp 1, seed 0) are not used.
     let mixed = rec.with_scene(1, 0, |pool, scene, observed, _| {
         pixels::mixed_pixels(
             pool,
@@ -103,14 +104,11 @@ pub(super) fn measure_stand_ins(
         let mut steps = 0;
         let mut measured = None;
         while steps < MAX_STEPS {
-            let current = match rec.models[g] {
-                GroupModel::Unseen { stand_in } => stand_in,
-                _ => break,
-            };
-            let with_stand_in = rec.evaluate_pixels(&shared, group_spp, seed, &only_g)?[g];
+            let current = measured.unwrap_or(stand_in);
+            let with_current = rec.evaluate_pixels(&shared, group_spp, seed, &only_g)?[g];
             evaluations += 1;
             steps += 1;
-            let Some((next, change)) = diffuse::update_beside_lobe(current, &with_stand_in, &black)
+            let Some((next, change)) = diffuse::update_beside_lobe(current, &with_current, &black)
             else {
                 break;
             };
@@ -144,7 +142,7 @@ pub(super) fn measure_stand_ins(
         samples_per_pixel: spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![format!(
-            "groups with no pure pixel: a diffuse stand-in for the light they pass on, measured on the pixels they cover over at least MIN_SHARE {MIN_SHARE} of the footprint beside groups of known material (the colour step of a plastic's diffuse part, against a render with the group black)"
+            "groups with no pure pixel: a diffuse stand-in for the light they pass on, measured on the pixels they cover over at least MIN_SHARE {MIN_SHARE} of the footprint beside untextured groups of known material (colour steps of a plastic's diffuse part against a render with the group black, until settled or MAX_STEPS {MAX_STEPS})"
         )],
     }))
 }
