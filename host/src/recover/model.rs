@@ -46,7 +46,7 @@ pub enum GroupModel {
     },
     /// No pure pixel (or no light reaching it): nothing recovered. The recovery still
     /// renders the group, whose light reaches the others, as the diffuse `stand_in`:
-    /// [`NEUTRAL_STAND_IN`], or a colour measured on the pixels it shares with seen
+    /// `NEUTRAL_STAND_IN`, or a colour measured on the pixels it shares with seen
     /// groups (`unseen::measure_stand_ins`).
     Unseen {
         stand_in: [f64; 3],
