@@ -457,8 +457,9 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
     // pixel on a picture's border, which sees a frame too, joins its map.
     assert_eq!(group_report(&out, "frames")["model"], "unseen");
     // But their light is: they are rendered as a colour measured on the pixels they share
-    // with the walls and the pictures. As a neutral grey they lit the ceiling 3.4% more
-    // than the truth, and its colour came out 1.7% dark (0.5% with the stand-in).
+    // with the walls (not the pictures, whose maps are extrapolated there). As a neutral
+    // grey they lit the ceiling 3.4% more than the truth, and its colour came out 1.7%
+    // dark (0.5% with the stand-in).
     assert!(
         says("frames", "stand-in: rendered as the diffuse"),
         "{:?}",
