@@ -302,6 +302,17 @@ fn box_diffuse_small_measures_a_withheld_wall_from_the_pixels_it_shares() {
         let err = row.diffuse_rel_err.unwrap();
         assert!(err < 0.01, "{}: {:.2}%", row.group, 100.0 * err);
     }
+    // The stand-in is written apart from the recovered materials, for a render of the
+    // whole scene; a later recovery into the same folder that sees every group removes it.
+    let unseen = relume::materials_file::load_materials(&out.join("unseen.toml")).unwrap();
+    let groups: Vec<&str> = unseen.materials.iter().map(|m| m.group.as_str()).collect();
+    assert_eq!(groups, ["walls_ew"]);
+    let written = unseen.materials[0].color.unwrap();
+    for (w, m) in written.iter().zip(&measured) {
+        assert!((*w as f64 - m).abs() < 1e-4, "{written:?} {measured:?}");
+    }
+    recover(&bench.join("scene-small.toml"), &out, &["--effort", "fast"]);
+    assert!(!out.join("unseen.toml").exists());
 }
 
 /// A view of the bundled scene 10% too bright is named in a warning from the lamp it sees,

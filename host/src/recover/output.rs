@@ -1,5 +1,6 @@
 //! Everything `recover` writes, as one [`OutputSet`]: materials.toml, materials.rad,
-//! report.json, the diffuse maps, the re-rendered views and per-view error images. A
+//! report.json, the diffuse maps, the re-rendered views and per-view error images, and
+//! unseen.toml when some group is unseen. A
 //! failure on any file leaves none of them, so a folder never mixes two runs' outputs.
 
 use std::path::{Path, PathBuf};
@@ -64,7 +65,7 @@ pub(super) fn prepare(
 /// view's render and error image with their previews, and every group's map files (which
 /// groups get maps depends on the recovery; an earlier run's are removed).
 pub fn output_files(out: &Path, view_names: &[String], group_names: &[String]) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = [MATERIALS_TOML, MATERIALS_RAD, REPORT_JSON]
+    let mut files: Vec<PathBuf> = [MATERIALS_TOML, MATERIALS_RAD, REPORT_JSON, UNSEEN_TOML]
         .map(|f| out.join(f))
         .into();
     for dir in [VIEWS_DIR, ERRORS_DIR] {
@@ -80,6 +81,9 @@ pub fn output_files(out: &Path, view_names: &[String], group_names: &[String]) -
 const MATERIALS_TOML: &str = "materials.toml";
 const MATERIALS_RAD: &str = "materials.rad";
 const REPORT_JSON: &str = "report.json";
+/// The stand-ins of the unseen groups, apart from materials.toml, which holds only what
+/// was recovered.
+const UNSEEN_TOML: &str = "unseen.toml";
 const VIEWS_DIR: &str = "views";
 const ERRORS_DIR: &str = "errors";
 const TEXTURES_DIR: &str = "textures";
@@ -195,10 +199,52 @@ pub(super) fn write_all(
     };
     let toml = materials_file::materials_text(&materials_path, &materials)?;
     set.add(&materials_path, toml.as_bytes())?;
+    add_unseen_stand_ins(&mut set, &out.join(UNSEEN_TOML), &rec.models, names)?;
     set.add(&out.join(MATERIALS_RAD), rad.as_bytes())?;
     let text = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(e.to_string()))?;
     set.add(&out.join(REPORT_JSON), text.as_bytes())?;
     set.commit()
+}
+
+/// Writes `path` with the diffuse stand-in every unseen group was rendered with, so that
+/// the recovered scene can be rendered again at once (`--materials materials.toml
+/// unseen.toml`), or removes an earlier run's file when no group is unseen. Kept apart
+/// from materials.toml: these materials are not recovered.
+fn add_unseen_stand_ins(
+    set: &mut OutputSet,
+    path: &Path,
+    models: &[GroupModel],
+    group_names: &[String],
+) -> Result<(), Error> {
+    let materials: Vec<_> = models
+        .iter()
+        .zip(group_names)
+        .filter_map(|(m, name)| match *m {
+            GroupModel::Unseen { stand_in } => {
+                GroupModel::Diffuse { color: stand_in }.material_desc(name, None)
+            }
+            _ => None,
+        })
+        .collect();
+    if materials.is_empty() {
+        if path.is_file() {
+            set.remove_on_commit(path)?;
+        }
+        return Ok(());
+    }
+    let desc = MaterialsDesc {
+        path: path.to_path_buf(),
+        materials,
+    };
+    let text = format!(
+        "# relume: NOT recovered. The groups that no view sees whole or no light reaches,\n\
+         # as the diffuse stand-ins the recovery rendered them with: a colour measured on\n\
+         # the pixels each shares with groups of known material, or a neutral grey where\n\
+         # none could be (report.json says which). Render the scene with\n\
+         # `--materials materials.toml unseen.toml`.\n{}",
+        materials_file::materials_text(path, &desc)?
+    );
+    set.add(path, text.as_bytes())
 }
 
 /// The files of `out/textures` named for one of the scene's groups (`<group>.exr`,
