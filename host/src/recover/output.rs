@@ -1,7 +1,7 @@
 //! Everything `recover` writes, as one [`OutputSet`]: materials.toml, materials.rad,
 //! report.json, the diffuse maps, the re-rendered views and per-view error images, and
-//! unseen.toml when some group is unseen. A
-//! failure on any file leaves none of them, so a folder never mixes two runs' outputs.
+//! unseen.toml when some group is not recovered. A failure on any file leaves none of
+//! them, so a folder never mixes two runs' outputs.
 
 use std::path::{Path, PathBuf};
 
