@@ -182,15 +182,14 @@ pub fn mixed_pixels(
     wanted: impl Fn(u16) -> bool + Sync,
     known: impl Fn(u16) -> bool + Sync,
 ) -> Vec<Vec<(PurePixel, f64)>> {
-    let n = LABEL_RAYS_PER_SIDE.max(2);
-    let sub = |k: u32| k as f32 / (n - 1) as f32;
     let mut found = vec![Vec::new(); n_groups];
     for (vi, view) in views.iter().enumerate() {
         let shares = parallel::map_pixels(pool, view, |x, y| {
             let mut on: Option<(u16, u32)> = None;
-            for k in 0..n * n {
-                let hit = first_hit(scene, view, x as f32 + sub(k % n), y as f32 + sub(k / n));
-                match hit.map(|(_, t)| t.surface) {
+            let mut rays = 0;
+            for surface in label_ray_surfaces(scene, view, x, y) {
+                rays += 1;
+                match surface {
                     Some(Surface::Group(h)) if wanted(h) => match on {
                         None => on = Some((h, 1)),
                         Some((g, count)) if g == h => on = Some((g, count + 1)),
@@ -202,10 +201,10 @@ pub fn mixed_pixels(
                 }
             }
             let (g, count) = on?;
-            let share = count as f64 / (n * n) as f64;
+            let share = count as f64 / rays as f64;
             // A pixel it covers whole is a pure pixel, left out of the recovery's on
             // purpose where there are any (`--limit-group-pixels`).
-            (share >= min_share && count < n * n).then_some((g, share))
+            (share >= min_share && count < rays).then_some((g, share))
         });
         for (i, share) in shares.into_iter().enumerate() {
             if let Some((g, share)) = share {
@@ -435,6 +434,22 @@ pub fn pixel_uvs(
     Some(uvs)
 }
 
+/// What each of the [`LABEL_RAYS_PER_SIDE`]^2 rays that label pixel `(x, y)` of `view`
+/// meets first: the grid over the pixel's square, edges included, of
+/// `render::pixel_surface`.
+fn label_ray_surfaces<'s>(
+    scene: &'s Scene,
+    view: &'s View,
+    x: u32,
+    y: u32,
+) -> impl Iterator<Item = Option<Surface>> + 's {
+    let n = LABEL_RAYS_PER_SIDE.max(2);
+    let sub = move |k: u32| k as f32 / (n - 1) as f32;
+    (0..n * n).map(move |k| {
+        first_hit(scene, view, x as f32 + sub(k % n), y as f32 + sub(k / n)).map(|(_, t)| t.surface)
+    })
+}
+
 /// What the ray through the point `(x, y)` of `view` (in pixels) meets first.
 fn first_hit<'s>(scene: &'s Scene, view: &View, x: f32, y: f32) -> Option<(Hit, &'s Triangle)> {
     let hit = scene.intersect(&view.ray(x, y), f32::INFINITY)?;
@@ -459,10 +474,6 @@ pub fn border_pixels(
     min_on: usize,
     known: impl Fn(u16) -> bool,
 ) -> Vec<(PurePixel, [glam::Vec2; FOOTPRINT_SAMPLES])> {
-    // The rays of `render::pixel_surface`, edges included, which decided that the pixel
-    // is not pure.
-    let n = LABEL_RAYS_PER_SIDE.max(2);
-    let sub = |k: u32| k as f32 / (n - 1) as f32;
     let of_group: HashSet<(u32, u32, u32)> = pure.iter().map(|p| (p.view, p.x, p.y)).collect();
     let mut tried = HashSet::new();
     let mut found = Vec::new();
@@ -478,12 +489,8 @@ pub fn border_pixels(
             if of_group.contains(&(p.view, x, y)) || !tried.insert((p.view, x, y)) {
                 continue;
             }
-            let surfaces: Vec<Option<Surface>> = (0..n * n)
-                .map(|k| {
-                    first_hit(scene, view, x as f32 + sub(k % n), y as f32 + sub(k / n))
-                        .map(|(_, t)| t.surface)
-                })
-                .collect();
+            // The rays that decided that the pixel is not pure.
+            let surfaces: Vec<Option<Surface>> = label_ray_surfaces(scene, view, x, y).collect();
             let all_known = surfaces
                 .iter()
                 .all(|s| matches!(s, Some(Surface::Group(h)) if *h == g || known(*h)));
