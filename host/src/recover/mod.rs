@@ -769,6 +769,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &mut reports,
         &textured,
         spp,
+        polish::Pass::First,
     )?);
 
     stages.push(stage5::run(
@@ -788,6 +789,16 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     if let Some(report) = unseen::measure_stand_ins(&mut rec, &mut reports, spp, 0x05EE_0002)? {
         stages.push(report);
         stages.push(stage1::refine_diffuse_groups(&mut rec, &mut reports, spp)?);
+    }
+    // The lobes' colours once more, under the maps and diffuse colours now final.
+    if polish::any_to_polish(&rec, &reports, &textured) {
+        stages.push(polish::polish_colours(
+            &mut rec,
+            &mut reports,
+            &textured,
+            spp,
+            polish::Pass::Final,
+        )?);
     }
 
     // Final render: errors, views and error images.

@@ -22,25 +22,49 @@ use crate::error::Error;
 /// at 2^16 samples; at 2^19 +1.1, -0.6, -0.1, -0.3%, for about 0.4 s per small group.
 const POLISH_MIN_SAMPLES: u64 = 1 << 19;
 
-/// After stage 4: one colour step for every group with a lobe (see the module's comment),
-/// then the paper's mirror test once more on a metal's polished colour. Before stage 5
-/// and the diffuse refinement, which see these groups. Textured groups are left to stage
-/// 5: their colour is their map's.
+/// Which of the two colour polishes: the first, after stage 4, before stage 5 and the
+/// diffuse refinement, which see these groups; the last, after them.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(super) enum Pass {
+    First,
+    /// Under the final scene. A metal's or a mirror's colour scales the light it
+    /// reflects, which stage 5's maps and the diffuse refinement change after the first
+    /// polish: the living room's mirror at 64 px, seed 1, came out 1.1% bright from the
+    /// first polish alone, 0.1% after this one. On the first polish's random numbers, so
+    /// that a colour moves by what the scene changed rather than by fresh noise.
+    Final,
+}
+
+impl Pass {
+    /// The prefix of the stage's name and of its decisions in the report.
+    fn label(self) -> &'static str {
+        match self {
+            Pass::First => "colour polish",
+            Pass::Final => "colour polish under the final scene",
+        }
+    }
+}
+
+/// One colour step for every group with a lobe (see the module's comment), then the
+/// paper's mirror test once more on a metal's polished colour. Textured groups are left
+/// to stage 5: their colour is their map's.
 pub(super) fn polish_colours(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
     textured: &[bool],
     spp: u32,
+    pass: Pass,
 ) -> Result<StageReport, Error> {
+    let label = pass.label();
     let stage_start = Instant::now();
     let mut evaluations = 0;
     for (g, report) in reports.iter_mut().enumerate() {
+        if !to_polish(&rec.models[g], report, textured[g]) {
+            continue;
+        }
         let Some((kind, color)) = lobe_color(&rec.models[g]) else {
             continue;
         };
-        if report.pure_pixels == 0 || textured[g] {
-            continue;
-        }
         let group_spp = min_samples_spp(
             POLISH_SPP_FACTOR.saturating_mul(spp),
             report.pure_pixels,
@@ -62,12 +86,12 @@ pub(super) fn polish_colours(
                         set_color(&mut rec.models[g], polished);
                         report.colour_samples = Some(group_samples);
                         format!(
-                            "colour polish: the diffuse part scaled by the mean ratio of renders at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples), of the model and of its lobe alone: largest change {:.2}%",
+                            "{label}: the diffuse part scaled by the mean ratio of renders at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples), of the model and of its lobe alone: largest change {:.2}%",
                             100.0 * change
                         )
                     }
                     None => format!(
-                        "colour polish: colour kept: at {group_spp} spp the lobe alone renders as bright as the group or the panorama in some channel, leaving no diffuse part to scale"
+                        "{label}: colour kept: at {group_spp} spp the lobe alone renders as bright as the group or the panorama in some channel, leaving no diffuse part to scale"
                     ),
                 });
             }
@@ -77,7 +101,7 @@ pub(super) fn polish_colours(
                 set_color(&mut rec.models[g], polished);
                 report.colour_samples = Some(group_samples);
                 report.decisions.push(format!(
-                    "colour polish: colour scaled by the mean ratio of a render at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
+                    "{label}: colour scaled by the mean ratio of a render at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
                     100.0 * change
                 ));
                 // The paper's mirror test once more, on the polished colour: stage 2 tested
@@ -91,13 +115,13 @@ pub(super) fn polish_colours(
                     let (polished, _) = colour_step(rec, g, rho_s, group_spp, 0x3E7A_1C02)?;
                     evaluations += 1;
                     rec.models[g] = GroupModel::Mirror { color: polished };
-                    report.decisions.push(format!("colour polish: {why}"));
+                    report.decisions.push(format!("{label}: {why}"));
                 }
             }
         }
     }
     Ok(StageReport {
-        stage: "colour polish".into(),
+        stage: label.into(),
         evaluations,
         samples_per_pixel: POLISH_SPP_FACTOR * spp,
         seconds: stage_start.elapsed().as_secs_f64(),
@@ -139,6 +163,16 @@ fn colour_step(
 ) -> Result<([f64; 3], f64), Error> {
     let fit = rec.evaluate(spp, rec.seed ^ key ^ g as u64, &|h| h as usize == g)?[g];
     Ok(diffuse::update(color, &fit))
+}
+
+/// Whether any group has a colour for the polish to set.
+pub(super) fn any_to_polish(rec: &Recovery, reports: &[GroupReport], textured: &[bool]) -> bool {
+    (0..reports.len()).any(|g| to_polish(&rec.models[g], &reports[g], textured[g]))
+}
+
+/// A group the polish sets the colour of: seen, untextured, with a lobe.
+fn to_polish(model: &GroupModel, report: &GroupReport, textured: bool) -> bool {
+    lobe_color(model).is_some() && report.pure_pixels > 0 && !textured
 }
 
 /// The kind and colour of an untextured model with a lobe (a mirror is a metal's).
