@@ -487,6 +487,11 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
         let err = row(diffuse).diffuse_rel_err.unwrap();
         assert!(err < 0.01, "{diffuse}: {:.2}%", 100.0 * err);
     }
+    // The stand has 29 pixels: the diffuse polish's 64 spp gave its mean 1856 samples, and
+    // its colour came out 2.0% off. Measured again with at least POLISH_MIN_SAMPLES in
+    // all, 0.16%.
+    let stand = row("stand").diffuse_rel_err.unwrap();
+    assert!(stand < 0.01, "stand: {:.2}%", 100.0 * stand);
     for picture in ["picture_flowers", "picture_stripes", "picture_checker"] {
         assert_eq!(map_border_pixels(&out, picture), 0, "{picture}");
     }

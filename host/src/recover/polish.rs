@@ -12,15 +12,11 @@ use relume_core::material::Kind;
 use relume_core::stages::diffuse;
 
 use super::model::GroupModel;
-use super::{min_samples_spp, mirror_test, GroupReport, Recovery, StageReport, POLISH_SPP_FACTOR};
+use super::{
+    min_samples_spp, mirror_test, GroupReport, Recovery, StageReport, POLISH_MIN_SAMPLES,
+    POLISH_SPP_FACTOR,
+};
 use crate::error::Error;
-
-/// The colour polish renders each group with at least this many samples in all (more per
-/// pixel for small groups): a mirror's pixels carry the heavy-tailed noise of the light
-/// paths it reflects, and the living room's 192-pixel mirror took 10-15% colour errors
-/// from the search's renders without it, and +1.9, -1.7, +0.2, -0.9% (seeds 1-4, 64 px)
-/// at 2^16 samples; at 2^19 +1.1, -0.6, -0.1, -0.3%, for about 0.4 s per small group.
-const POLISH_MIN_SAMPLES: u64 = 1 << 19;
 
 /// Which of the two colour polishes: the first, after stage 4, before stage 5 and the
 /// diffuse refinement, which see these groups; the last, after them.
