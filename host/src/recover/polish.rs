@@ -55,10 +55,7 @@ pub(super) fn polish_colours(
     let stage_start = Instant::now();
     let mut evaluations = 0;
     for (g, report) in reports.iter_mut().enumerate() {
-        if !to_polish(&rec.models[g], report, textured[g]) {
-            continue;
-        }
-        let Some((kind, color)) = lobe_color(&rec.models[g]) else {
+        let Some((kind, color)) = to_polish(&rec.models[g], report, textured[g]) else {
             continue;
         };
         let group_spp = min_samples_spp(
@@ -163,12 +160,16 @@ fn colour_step(
 
 /// Whether any group has a colour for the polish to set.
 pub(super) fn any_to_polish(rec: &Recovery, reports: &[GroupReport], textured: &[bool]) -> bool {
-    (0..reports.len()).any(|g| to_polish(&rec.models[g], &reports[g], textured[g]))
+    (0..reports.len()).any(|g| to_polish(&rec.models[g], &reports[g], textured[g]).is_some())
 }
 
-/// A group the polish sets the colour of: seen, untextured, with a lobe.
-fn to_polish(model: &GroupModel, report: &GroupReport, textured: bool) -> bool {
-    lobe_color(model).is_some() && report.pure_pixels > 0 && !textured
+/// The kind and colour of a group the polish sets the colour of: seen, untextured, with
+/// a lobe.
+fn to_polish(model: &GroupModel, report: &GroupReport, textured: bool) -> Option<(Kind, [f64; 3])> {
+    if report.pure_pixels == 0 || textured {
+        return None;
+    }
+    lobe_color(model)
 }
 
 /// The kind and colour of an untextured model with a lobe (a mirror is a metal's).
