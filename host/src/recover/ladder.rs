@@ -65,6 +65,121 @@ pub struct Rung {
 /// [`RACE_MIN_SAMPLES`]: super::refine::RACE_MIN_SAMPLES
 pub const LADDER_SAMPLES: u64 = 1 << 15;
 
+/// Renders lobes of group `g` against its diffuse model, on the pixels and samples its
+/// decisions use (at least [`LADDER_SAMPLES`]) and on one seed, and reads each one's gain.
+struct RungMeter {
+    g: usize,
+    kind: Kind,
+    pixels: Vec<pixels::PurePixel>,
+    spp: u32,
+    seed: u64,
+    diffuse_terms: Vec<([f64; 2], f64)>,
+    /// The model `g` had before, restored by [`RungMeter::finish`].
+    before: GroupModel,
+    evaluations: u32,
+}
+
+impl RungMeter {
+    fn new(
+        rec: &mut Recovery,
+        g: usize,
+        kind: Kind,
+        diffuse: GroupModel,
+        group_spp: u32,
+        seed: u64,
+    ) -> Result<Self, Error> {
+        let (pixels, spp) = rec.decision_pixels(g, group_spp);
+        let before = rec.models[g];
+        rec.models[g] = diffuse;
+        // An error ends the recovery, so the model need not be restored on that path.
+        let diffuse_terms = rec.paired_terms(&pixels, spp, seed)?;
+        Ok(RungMeter {
+            g,
+            kind,
+            pixels,
+            spp,
+            seed,
+            diffuse_terms,
+            before,
+            evaluations: 1,
+        })
+    }
+
+    /// The lobe `model` (of `specularity` and `roughness`) rendered and compared with the
+    /// diffuse model; `None` when no pixel could be compared.
+    fn measure_model(
+        &mut self,
+        rec: &mut Recovery,
+        model: GroupModel,
+        specularity: f64,
+        roughness: f64,
+    ) -> Result<Option<Rung>, Error> {
+        rec.models[self.g] = model;
+        let terms = rec.paired_terms(&self.pixels, self.spp, self.seed)?;
+        self.evaluations += 1;
+        Ok(
+            super::paired_comparison(&self.diffuse_terms, &terms).map(|c| Rung {
+                model,
+                specularity,
+                roughness,
+                squared_gain: c.squared_gain,
+                squared_gain_sigma: c.squared_gain_sigma,
+                lower: c.squared_gain - fit::EXCEEDS_SIGMAS * c.squared_gain_sigma,
+                spp: self.spp,
+            }),
+        )
+    }
+
+    /// The rung of `roughness`: its reflectances from the cache in closed form (across
+    /// halves), then measured; `None` without a positive specularity.
+    fn measure(
+        &mut self,
+        rec: &mut Recovery,
+        cache: &GroupCache,
+        roughness: f64,
+    ) -> Result<Option<Rung>, Error> {
+        let kind = self.kind;
+        let fit = cache::isotropic_fit_across_halves(&rec.pool, cache, kind, roughness);
+        if fit.specularity.is_nan() || fit.specularity <= 0.0 {
+            return Ok(None);
+        }
+        let model = GroupModel::Isotropic {
+            kind,
+            color: fit.color,
+            specularity: fit.specularity,
+            roughness,
+        };
+        self.measure_model(rec, model, fit.specularity, roughness)
+    }
+
+    /// Every rung of the ladder, measured.
+    fn measure_ladder(
+        &mut self,
+        rec: &mut Recovery,
+        cache: &GroupCache,
+    ) -> Result<Vec<Rung>, Error> {
+        let mut measured = Vec::new();
+        for k in 0..LADDER_RUNGS {
+            measured.extend(self.measure(rec, cache, rung_roughness(k))?);
+        }
+        Ok(measured)
+    }
+
+    /// Restores the group's model; returns the renders spent.
+    fn finish(self, rec: &mut Recovery) -> u32 {
+        rec.models[self.g] = self.before;
+        self.evaluations
+    }
+}
+
+/// The better of two rungs by their gain's lower bound.
+fn better(a: Option<Rung>, b: Option<Rung>) -> Option<Rung> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if b.lower > a.lower { b } else { a }),
+        (a, b) => a.or(b),
+    }
+}
+
 /// The rung of group `g`'s ladder whose gain over `diffuse` is largest at its lower bound
 /// (`gain - EXCEEDS_SIGMAS sigma`, in squared error: a sharp rung's gain is the noisiest,
 /// and the plain largest gain is most often a sharp rung the samples favour; and a weak
@@ -80,67 +195,69 @@ fn best_rung(
     diffuse: GroupModel,
     group_spp: u32,
 ) -> Result<(Option<Rung>, Vec<Rung>, u32), Error> {
-    let (pixels, spp) = rec.decision_pixels(g, group_spp);
     let seed = rec.seed ^ 0x001A_DDE2 ^ g as u64;
-    let before = rec.models[g];
-    rec.models[g] = diffuse;
-    // An error ends the recovery, so the model need not be restored on that path.
-    let diffuse_terms = rec.paired_terms(&pixels, spp, seed)?;
-    let mut evaluations = 1;
-    let mut measure = |rec: &mut Recovery, roughness: f64| -> Result<Option<Rung>, Error> {
-        let fit = cache::isotropic_fit_across_halves(&rec.pool, cache, kind, roughness);
-        if fit.specularity.is_nan() || fit.specularity <= 0.0 {
-            return Ok(None);
-        }
-        let model = GroupModel::Isotropic {
-            kind,
-            color: fit.color,
-            specularity: fit.specularity,
-            roughness,
-        };
-        rec.models[g] = model;
-        let terms = rec.paired_terms(&pixels, spp, seed)?;
-        evaluations += 1;
-        Ok(
-            super::paired_comparison(&diffuse_terms, &terms).map(|c| Rung {
-                model,
-                specularity: fit.specularity,
-                roughness,
-                squared_gain: c.squared_gain,
-                squared_gain_sigma: c.squared_gain_sigma,
-                lower: c.squared_gain - fit::EXCEEDS_SIGMAS * c.squared_gain_sigma,
-                spp,
-            }),
-        )
-    };
-    let better = |a: Option<Rung>, b: Option<Rung>| match (a, b) {
-        (Some(a), Some(b)) => Some(if b.lower > a.lower { b } else { a }),
-        (a, b) => a.or(b),
-    };
-    let mut best = None;
-    let mut measured = Vec::new();
-    for k in 0..LADDER_RUNGS {
-        let rung = measure(rec, rung_roughness(k))?;
-        measured.extend(rung);
-        best = better(best, rung);
-    }
+    let mut meter = RungMeter::new(rec, g, kind, diffuse, group_spp, seed)?;
+    let mut measured = meter.measure_ladder(rec, cache)?;
+    let mut best = measured
+        .iter()
+        .copied()
+        .fold(None, |b, r| better(b, Some(r)));
     if let Some(at) = best.as_ref().map(|b| b.roughness) {
         for roughness in [at / half_step(), at * half_step()] {
             if (ROUGHNESS_MIN..=ROUGHNESS_MAX).contains(&roughness) {
-                let rung = measure(rec, roughness)?;
+                let rung = meter.measure(rec, cache, roughness)?;
                 measured.extend(rung);
                 best = better(best, rung);
             }
         }
     }
-    rec.models[g] = before;
-    Ok((best, measured, evaluations))
+    Ok((best, measured, meter.finish(rec)))
+}
+
+/// How far a weak lobe that the cache proposed and the test kept can be trusted: the
+/// ladder's rungs measured beside it, as [`plausible`] reads them around the better of it
+/// and the best rung, and the standard errors that implies for its specularity and
+/// roughness. The sandwich of `uncertainty` sees the pixels' pull at the chosen point
+/// only, and a weak lobe's pixels pull almost as hard far from it: glossy's box_teal (s
+/// 0.04, roughness 0.08) was kept at roughness 0.020 with a claimed sigma of 0.0015, 39
+/// standard errors from the truth (64 px, seed 1). Renders only; no decision changes.
+/// Also returns the renders spent; no sigmas when the lobe could not be compared.
+pub fn spread_around(
+    rec: &mut Recovery,
+    g: usize,
+    cache: &GroupCache,
+    kind: Kind,
+    diffuse: GroupModel,
+    spp: u32,
+    chosen: (GroupModel, f64, f64),
+) -> Result<(Option<LobeSigmas>, u32), Error> {
+    let seed = rec.seed ^ 0x5B2E_AD00 ^ g as u64;
+    let group_spp = ladder_spp(rec, g, spp);
+    let mut meter = RungMeter::new(rec, g, kind, diffuse, group_spp, seed)?;
+    let (model, specularity, roughness) = chosen;
+    let chosen = meter.measure_model(rec, model, specularity, roughness)?;
+    let measured = meter.measure_ladder(rec, cache)?;
+    let evaluations = meter.finish(rec);
+    Ok((chosen.map(|c| sigmas_of_chosen(c, measured)), evaluations))
+}
+
+/// The standard errors of `chosen`'s roughness and specularity from the rungs `measured`
+/// beside it: [`plausible`] around the better of it and the best rung.
+fn sigmas_of_chosen(chosen: Rung, mut measured: Vec<Rung>) -> LobeSigmas {
+    let best = measured
+        .iter()
+        .fold(chosen, |b, r| better(Some(b), Some(*r)).unwrap_or(b));
+    measured.push(chosen);
+    plausible(&best, &measured).sigmas(&chosen)
 }
 
 /// The ratio of a half-rung's roughness to its rung's.
 fn half_step() -> f64 {
     libm::sqrt(rung_roughness(1) / rung_roughness(0))
 }
+
+/// Standard errors of a lobe's roughness and specularity, by name, in that order.
+pub type LobeSigmas = [(&'static str, f64); 2];
 
 /// How far the ladder's choice can be trusted: the ranges of roughness and specularity
 /// over the rungs it cannot tell from the best (`plausible`), widened in roughness by
@@ -160,7 +277,7 @@ impl Spread {
     /// `uncertainty` sees the pixels' pull at the chosen point only, and a weak lobe's
     /// pixels pull almost as hard at rungs far apart (glossy's yellow box, roughness 0.2:
     /// chosen at 0.005-0.3 over the seeds, with a sandwich sigma of a few percent).
-    pub fn sigmas(&self, chosen: &Rung) -> [(&'static str, f64); 2] {
+    pub fn sigmas(&self, chosen: &Rung) -> LobeSigmas {
         let half_width = |(lo, hi): (f64, f64), at: f64| (at - lo).max(hi - at).max(0.0) / 2.0;
         [
             ("roughness", half_width(self.roughness, chosen.roughness)),
@@ -400,5 +517,39 @@ mod tests {
         assert_eq!(alone.rungs, 1);
         assert_eq!(alone.sigmas(&best)[1].1, 0.0);
         assert!(alone.sigmas(&best)[0].1 > 0.0);
+    }
+
+    #[test]
+    fn a_kept_weak_lobe_is_as_uncertain_as_the_rungs_that_read_as_well() {
+        // box_teal's case: kept sharp (roughness 0.02), where broader rungs read as much
+        // gain within their noise; its roughness sigma must reach the broadest of them.
+        let chosen = rung(0.020, 0.06, 0.0006, 0.0002);
+        let measured = vec![
+            rung(0.005, 0.03, 0.0001, 0.0001),
+            rung(0.0114, 0.05, 0.0004, 0.0002),
+            rung(0.0260, 0.06, 0.0006, 0.0002),
+            rung(0.0592, 0.05, 0.0005, 0.0002),
+            rung(0.1348, 0.04, 0.0005, 0.0003),
+            rung(0.3, 0.01, -0.0004, 0.0002),
+        ];
+        let [(name, roughness), (_, specularity)] = sigmas_of_chosen(chosen, measured.clone());
+        assert_eq!(name, "roughness");
+        assert!(0.020 + 2.0 * roughness >= 0.1348, "{roughness}");
+        // Its specularity spans the rungs that read as well (0.04-0.06).
+        assert!((specularity - 0.01).abs() < 1e-12, "{specularity}");
+
+        // A lobe the rungs cannot match keeps half a half-rung of roughness only.
+        let clear = rung(0.020, 0.06, 0.0020, 0.0001);
+        let [(_, roughness), (_, specularity)] = sigmas_of_chosen(clear, measured.clone());
+        assert!(
+            roughness < 0.2 * 0.020 && specularity == 0.0,
+            "{roughness} {specularity}"
+        );
+
+        // A rung clearly better than the lobe kept: the spread is around that rung, and
+        // the lobe's sigma reaches it.
+        let poor = rung(0.005, 0.02, 0.0001, 0.0001);
+        let [(_, roughness), _] = sigmas_of_chosen(poor, measured);
+        assert!(0.005 + 2.0 * roughness >= 0.0260, "{roughness}");
     }
 }

@@ -263,13 +263,29 @@ pub(super) fn run(
             r.lobe_sigmas = match ladder_sigmas {
                 Some(sigmas) => Vec::from(sigmas),
                 None if matches!(candidate.0, GroupModel::Isotropic { .. }) => {
-                    Vec::from(uncertainty::proposal_size_dependence(
+                    let mut sigmas = Vec::from(uncertainty::proposal_size_dependence(
                         &rec.pool,
                         &cache,
                         kind,
                         ward.specularity,
                         proposal_roughness,
-                    ))
+                    ));
+                    if ladder::applies(diffuse_error) {
+                        let chosen = (candidate.0, specularity, alpha);
+                        let (spread, spent) = ladder::spread_around(
+                            rec, g, &cache, kind, stage1, verify_spp, chosen,
+                        )?;
+                        evaluations += spent;
+                        if let Some([(_, roughness), (_, s)]) = spread {
+                            r.decisions.push(format!(
+                                "stage 2: a weak lobe's uncertainty: the LADDER_RUNGS {} rungs measured beside it, those within EXCEEDS_SIGMAS {} standard errors of the best, give roughness +- {roughness:.4} and s +- {s:.4}",
+                                ladder::LADDER_RUNGS,
+                                fit::EXCEEDS_SIGMAS
+                            ));
+                        }
+                        sigmas.extend(spread.into_iter().flatten());
+                    }
+                    sigmas
                 }
                 None => Vec::new(),
             };
