@@ -794,9 +794,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &mut rec,
         &mut reports,
         &textured,
-        (MAP_SPP_FACTOR * args.budget.final_spp).max(MAP_MIN_SPP),
-        args.seed,
-        &cache_settings,
+        &stage5::MapSettings {
+            map_spp: (MAP_SPP_FACTOR * args.budget.final_spp).max(MAP_MIN_SPP),
+            seed: args.seed,
+            cache_settings: &cache_settings,
+            budget: &args.budget,
+        },
     )?);
 
     stages.push(stage1::refine_diffuse_groups(&mut rec, &mut reports, spp)?);

@@ -432,6 +432,45 @@ pub(super) fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
     Some(m.into_iter().map(|r| r[n..].to_vec()).collect())
 }
 
+/// Group `g`'s parameters under its current model with their standard errors (`report`
+/// gives the samples its colour and lobe were set from, and stage 2's extra spread).
+pub(super) fn group_uncertainty(
+    rec: &mut Recovery,
+    g: usize,
+    report: &GroupReport,
+    budget: &Budget,
+    cache_settings: &RenderSettings,
+    seed: u64,
+) -> Result<Vec<ParameterUncertainty>, Error> {
+    let samples = EstimateSamples {
+        colour_samples: report
+            .colour_samples
+            .unwrap_or(budget.loop_spp as u64 * report.pure_pixels as u64),
+        lobe_samples: rec.cache_samples(g, cache_settings.spp),
+    };
+    // Stage 2's lobe carries what its fit's own spread adds: the ladder's rungs it could
+    // not tell apart, or the cache proposal's dependence on the cache's size.
+    let lobe_sigmas: &[(&str, f64)] = match rec.models[g] {
+        GroupModel::Isotropic { .. } => &report.lobe_sigmas,
+        _ => &[],
+    };
+    let uncertainty_spp = 4 * budget.loop_spp;
+    let mut uncertainty =
+        parameter_uncertainty(rec, g, uncertainty_spp, samples, lobe_sigmas, seed ^ 0x5160)?;
+    // A textured group's lobe also carries the picture's share (`pattern::lobe_spread`).
+    if let GroupModel::Textured { lobe, .. } = rec.models[g] {
+        if lobe.specularity() > 0.0 {
+            let cache = rec.group_cache(g, cache_settings)?;
+            for (name, sigma) in pattern::lobe_spread(rec, &cache, &lobe)? {
+                if let Some(u) = uncertainty.iter_mut().find(|u| u.parameter == name) {
+                    u.sigma = libm::hypot(u.sigma, sigma);
+                }
+            }
+        }
+    }
+    Ok(uncertainty)
+}
+
 /// The uncertainty stage, after the final render: every group's parameters with their
 /// standard errors in `reports`; a ladder's lobe and a textured group's lobe carry their
 /// extra spread too.
@@ -443,34 +482,10 @@ pub(super) fn run(
     seed: u64,
 ) -> Result<StageReport, Error> {
     let stage_start = Instant::now();
-    let uncertainty_spp = 4 * budget.loop_spp;
     for (g, r) in reports.iter_mut().enumerate() {
-        let samples = EstimateSamples {
-            colour_samples: r
-                .colour_samples
-                .unwrap_or(budget.loop_spp as u64 * r.pure_pixels as u64),
-            lobe_samples: rec.cache_samples(g, cache_settings.spp),
-        };
-        // Stage 2's lobe carries what its fit's own spread adds: the ladder's rungs it
-        // could not tell apart, or the cache proposal's dependence on the cache's size.
-        let lobe_sigmas: &[(&str, f64)] = match rec.models[g] {
-            GroupModel::Isotropic { .. } => &r.lobe_sigmas,
-            _ => &[],
-        };
-        r.uncertainty =
-            parameter_uncertainty(rec, g, uncertainty_spp, samples, lobe_sigmas, seed ^ 0x5160)?;
-        // A textured group's lobe also carries the picture's share (`pattern::lobe_spread`).
-        if let GroupModel::Textured { lobe, .. } = rec.models[g] {
-            if lobe.specularity() > 0.0 {
-                let cache = rec.group_cache(g, cache_settings)?;
-                for (name, sigma) in pattern::lobe_spread(rec, &cache, &lobe)? {
-                    if let Some(u) = r.uncertainty.iter_mut().find(|u| u.parameter == name) {
-                        u.sigma = libm::hypot(u.sigma, sigma);
-                    }
-                }
-            }
-        }
+        r.uncertainty = group_uncertainty(rec, g, r, budget, cache_settings, seed)?;
     }
+    let uncertainty_spp = 4 * budget.loop_spp;
     Ok(StageReport {
         stage: "uncertainty".into(),
         evaluations: reports.len() as u32,

@@ -91,7 +91,7 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
         }
         if let Some((s, sigma)) = unestablished_specularity(report) {
             warnings.push(format!(
-                "group '{name}': its lobe's specularity {s:.3} +- {sigma:.3} is within EXCEEDS_SIGMAS {} standard errors of 0: its pixels do not establish the lobe, and under other views or lights than the panorama's its share of the light may be misplaced (the living room's picture_1, no lobe in the truth, kept one at 64 px at s 0.034 +- 0.019-0.024 over six seeds and rendered 13.5% dark in a novel view; docs/edits.md)",
+                "group '{name}': its lobe's specularity {s:.3} +- {sigma:.3} is within EXCEEDS_SIGMAS {} standard errors of 0: its pixels do not establish the lobe, and under other views or lights than the panorama's its share of the light may be misplaced (a picture's lobe so weak is dropped in stage 5: the living room's picture_1, no lobe in the truth, kept one at 64 px at 1.4-1.9 standard errors and rendered 13.5% dark from a novel viewpoint; docs/edits.md)",
                 fit::EXCEEDS_SIGMAS
             ));
         }
