@@ -105,15 +105,21 @@ impl RungMeter {
         })
     }
 
-    /// The lobe `model` (of `specularity` and `roughness`) rendered and compared with the
-    /// diffuse model; `None` when no pixel could be compared.
+    /// The isotropic lobe `model` rendered and compared with the diffuse model; `None`
+    /// for another model or when no pixel could be compared.
     fn measure_model(
         &mut self,
         rec: &mut Recovery,
         model: GroupModel,
-        specularity: f64,
-        roughness: f64,
     ) -> Result<Option<Rung>, Error> {
+        let GroupModel::Isotropic {
+            specularity,
+            roughness,
+            ..
+        } = model
+        else {
+            return Ok(None);
+        };
         rec.models[self.g] = model;
         let terms = rec.paired_terms(&self.pixels, self.spp, self.seed)?;
         self.evaluations += 1;
@@ -149,7 +155,7 @@ impl RungMeter {
             specularity: fit.specularity,
             roughness,
         };
-        self.measure_model(rec, model, fit.specularity, roughness)
+        self.measure_model(rec, model)
     }
 
     /// Every rung of the ladder, measured.
@@ -229,13 +235,12 @@ pub fn spread_around(
     kind: Kind,
     diffuse: GroupModel,
     spp: u32,
-    chosen: (GroupModel, f64, f64),
+    chosen: GroupModel,
 ) -> Result<(Option<LobeSigmas>, u32), Error> {
     let seed = rec.seed ^ 0x5B2E_AD00 ^ g as u64;
     let group_spp = ladder_spp(rec, g, spp);
     let mut meter = RungMeter::new(rec, g, kind, diffuse, group_spp, seed)?;
-    let (model, specularity, roughness) = chosen;
-    let chosen = meter.measure_model(rec, model, specularity, roughness)?;
+    let chosen = meter.measure_model(rec, chosen)?;
     let measured = meter.measure_ladder(rec, cache)?;
     let evaluations = meter.finish(rec);
     Ok((chosen.map(|c| sigmas_of_chosen(c, measured)), evaluations))

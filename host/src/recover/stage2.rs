@@ -271,9 +271,14 @@ pub(super) fn run(
                         proposal_roughness,
                     ));
                     if ladder::applies(diffuse_error) {
-                        let chosen = (candidate.0, specularity, alpha);
                         let (spread, spent) = ladder::spread_around(
-                            rec, g, &cache, kind, stage1, verify_spp, chosen,
+                            rec,
+                            g,
+                            &cache,
+                            kind,
+                            stage1,
+                            verify_spp,
+                            candidate.0,
                         )?;
                         evaluations += spent;
                         if let Some([(_, roughness), (_, s)]) = spread {
