@@ -432,6 +432,11 @@ pub(super) fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
     Some(m.into_iter().map(|r| r[n..].to_vec()).collect())
 }
 
+/// Samples per pixel of the renders the standard errors come from: 4x the loop's.
+fn uncertainty_spp(budget: &Budget) -> u32 {
+    4 * budget.loop_spp
+}
+
 /// Group `g`'s parameters under its current model with their standard errors (`report`
 /// gives the samples its colour and lobe were set from, and stage 2's extra spread).
 pub(super) fn group_uncertainty(
@@ -454,9 +459,14 @@ pub(super) fn group_uncertainty(
         GroupModel::Isotropic { .. } => &report.lobe_sigmas,
         _ => &[],
     };
-    let uncertainty_spp = 4 * budget.loop_spp;
-    let mut uncertainty =
-        parameter_uncertainty(rec, g, uncertainty_spp, samples, lobe_sigmas, seed ^ 0x5160)?;
+    let mut uncertainty = parameter_uncertainty(
+        rec,
+        g,
+        uncertainty_spp(budget),
+        samples,
+        lobe_sigmas,
+        seed ^ 0x5160,
+    )?;
     // A textured group's lobe also carries the picture's share (`pattern::lobe_spread`).
     if let GroupModel::Textured { lobe, .. } = rec.models[g] {
         if lobe.specularity() > 0.0 {
@@ -485,11 +495,10 @@ pub(super) fn run(
     for (g, r) in reports.iter_mut().enumerate() {
         r.uncertainty = group_uncertainty(rec, g, r, budget, cache_settings, seed)?;
     }
-    let uncertainty_spp = 4 * budget.loop_spp;
     Ok(StageReport {
         stage: "uncertainty".into(),
         evaluations: reports.len() as u32,
-        samples_per_pixel: uncertainty_spp,
+        samples_per_pixel: uncertainty_spp(budget),
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![format!(
             "standard error of every parameter: cluster-robust least squares over tiles of {0}x{0} pixels, derivatives by finite differences on common random numbers",
