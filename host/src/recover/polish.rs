@@ -147,7 +147,7 @@ fn plastic_colour_step(
 /// One ratio step of group `g`'s `color` from a render of its pixels alone at `spp`, on
 /// the recovery's seed with `key` and the group: the new colour and its largest relative
 /// change.
-fn colour_step(
+pub(super) fn colour_step(
     rec: &mut Recovery,
     g: usize,
     color: [f64; 3],

@@ -14,8 +14,9 @@ use relume_core::stages::anisotropic::Proposal;
 use super::model::GroupModel;
 use super::refine::RACE_SIGNIFICANCE;
 use super::{
-    anisotropic, cache, fit_ward, fit_ward_by, keep_rule, lobe_kinds, pattern, progress_bar,
-    uncertainty, Budget, ComparisonReport, GroupReport, Recovery, StageReport, CACHE_MIN_SAMPLES,
+    anisotropic, cache, fit_ward, fit_ward_by, keep_rule, lobe_kinds, min_samples_spp, pattern,
+    polish, progress_bar, uncertainty, Budget, ComparisonReport, GroupReport, Recovery,
+    StageReport, CACHE_MIN_SAMPLES, POLISH_MIN_SAMPLES, POLISH_SPP_FACTOR,
 };
 use crate::error::Error;
 use crate::scene_file::GroupKind;
@@ -51,6 +52,9 @@ fn isotropic_alternative(
         _ => Alternative::Worse,
     }
 }
+
+/// The seed key of the render that levels a diffuse rival's colour.
+const LEVEL_KEY: u64 = 0x57A6_E4D1;
 
 /// Runs stage 4 on the groups it applies to (`textured` from stage 3), recording in
 /// `reports` what each group became and why; every cache is traced with
@@ -201,7 +205,24 @@ pub(super) fn run(
                 roughness: across_alpha,
             },
         );
+        // A diffuse rival's colour is stage 1's, before any polish, and each fit on the
+        // cache brings a level of its own: cornell's ceiling (seed 3), its stage-1 colour
+        // 3.6% dark, took a weak lobe at the bound (s 0.035, roughness 0.3) on its level
+        // alone. So the lobes are weighed against the diffuse model levelled by the colour
+        // polish's step; the colour kept is still stage 1's, which the diffuse refinement
+        // after stage 5 takes up.
         let mut rival = stage2;
+        if let (GroupModel::Diffuse { color }, false) = (stage2, textured[g]) {
+            let spp = min_samples_spp(
+                POLISH_SPP_FACTOR.saturating_mul(verify_spp),
+                reports[g].pure_pixels,
+                POLISH_MIN_SAMPLES,
+            );
+            rec.models[g] = stage2;
+            let (levelled, _) = polish::colour_step(rec, g, color, spp, LEVEL_KEY)?;
+            evaluations += 1;
+            rival = GroupModel::Diffuse { color: levelled };
+        }
         let mut kept = stage2;
         let mut replaced = false;
         for (what, alternative) in [
