@@ -21,5 +21,9 @@ pub const MAX_VIEW_SIDE: u32 = 16384;
 pub const MAX_TEXTURES: usize = 1024;
 /// Texels of all textures together.
 pub const MAX_TEXELS: usize = 1 << 26;
+/// Planar mirror groups whose light the renderer samples through the light's image in
+/// the mirror (next-event estimation by way of a mirror); light by way of any further
+/// mirror is found by BSDF sampling alone, as by way of a curved one.
+pub const MAX_MIRROR_PLANES: usize = 8;
 /// Path vertices a path tracer follows at most (Russian roulette ends most paths far sooner).
 pub const MAX_PATH_DEPTH: u32 = 64;

@@ -1,7 +1,10 @@
 //! The path tracer: unidirectional paths from the camera with next-event estimation
 //! (light sampling) and multiple importance sampling (power heuristic) against BSDF
-//! sampling, Russian roulette, perfect mirrors (light reaching a diffuse surface by way of
-//! a mirror is found by BSDF sampling), and box-filtered pixels.
+//! sampling, Russian roulette, perfect mirrors, and box-filtered pixels. Light reaching a
+//! surface by way of a planar mirror is also sampled through the light's image in the
+//! mirror (RADIANCE's virtual sources), weighed by MIS against the BSDF sample that
+//! bounces off the mirror into the light; by way of a curved mirror, or of two, BSDF
+//! sampling alone finds it.
 //!
 //! Every sample draws from its own stream `(seed, view, pixel, sample)`, so a pixel's value
 //! does not depend on which thread renders it, or when.
@@ -11,7 +14,7 @@ use crate::geometry::{Ray, Surface, View};
 use crate::material::Bsdf;
 use crate::math::{self, Vec3};
 use crate::rng::Sampler;
-use crate::scene::Scene;
+use crate::scene::{LightSample, MirrorPlane, Scene};
 
 /// How a render samples.
 #[derive(Clone, Copy, Debug)]
@@ -147,6 +150,10 @@ pub fn radiance(
     // (camera rays count as one: emission seen directly is not light-sampled).
     let mut bsdf_pdf = 0.0f32;
     let mut delta = true;
+    // When `ray` leaves a planar mirror that a BSDF sample from a non-delta vertex reached:
+    // that sample's pdf and its length. A light at the end of `ray` is then also sampled
+    // through the mirror, and MIS weighs the two.
+    let mut via_mirror: Option<(f32, f32)> = None;
     let max_depth = settings.max_depth.min(config::MAX_PATH_DEPTH);
 
     for depth in 0..max_depth {
@@ -173,12 +180,18 @@ pub fn radiance(
                         .get(light as usize)
                         .copied()
                         .unwrap_or(Vec3::ZERO);
-                    let weight = if delta {
-                        1.0
-                    } else {
-                        let pdf_light =
-                            scene.light_pdf_area(hit.triangle) * hit.t * hit.t / cos_hit;
-                        power_heuristic(bsdf_pdf, pdf_light)
+                    let weight = match (delta, via_mirror) {
+                        (false, _) => {
+                            let pdf_light =
+                                scene.light_pdf_area(hit.triangle) * hit.t * hit.t / cos_hit;
+                            power_heuristic(bsdf_pdf, pdf_light)
+                        }
+                        (true, Some((pdf_before, t_before))) => {
+                            let d = t_before + hit.t;
+                            let pdf_image = scene.light_pdf_area(hit.triangle) * d * d / cos_hit;
+                            power_heuristic(pdf_before, pdf_image)
+                        }
+                        (true, None) => 1.0,
                     };
                     total += throughput * le * weight;
                 }
@@ -199,28 +212,25 @@ pub fn radiance(
         let bsdf = Bsdf::new(&surface.material, rho_d, n);
         let origin = offset_origin(p, n);
 
-        // Next-event estimation: one point on one light.
+        // Next-event estimation: one point on one light, seen directly and in each
+        // planar mirror.
         let u_light = sampler.next_f32();
         let u_point = sampler.next_2d();
         if !bsdf.is_delta() {
             if let Some(ls) = scene.sample_light(u_light, u_point) {
-                let to_light = ls.point - origin;
-                let dist2 = to_light.length_squared();
-                let dist = math::sqrt(dist2);
-                if dist > 0.0 {
-                    let wi = to_light / dist;
-                    let cos_light = -ls.normal.dot(wi);
-                    let cos_surface = n.dot(wi);
-                    if cos_light > 0.0 && cos_surface > 0.0 && ls.pdf_area > 0.0 {
-                        let f = bsdf.eval(wo, wi);
-                        if f.max_element() > 0.0
-                            && !scene.occluded(&Ray::new(origin, wi), dist * (1.0 - RAY_EPSILON))
-                        {
-                            let pdf_light = ls.pdf_area * dist2 / cos_light;
-                            let weight = power_heuristic(pdf_light, bsdf.pdf(wo, wi));
-                            total +=
-                                throughput * f * ls.radiance * (cos_surface * weight / pdf_light);
-                        }
+                let at = Vertex {
+                    bsdf: &bsdf,
+                    wo,
+                    n,
+                    origin,
+                    throughput,
+                };
+                if let Some(light) = direct_light(scene, &at, &ls) {
+                    total += light;
+                }
+                for mirror in scene.mirror_planes().as_slice() {
+                    if let Some(light) = light_in_mirror(scene, mirror, &at, &ls) {
+                        total += light;
                     }
                 }
             }
@@ -231,6 +241,11 @@ pub fn radiance(
         let u_dir = sampler.next_2d();
         let Some(sample) = bsdf.sample(wo, u_lobe, u_dir) else {
             break;
+        };
+        via_mirror = if sample.delta && !delta && scene.mirror_planes().contains(group) {
+            Some((bsdf_pdf, hit.t))
+        } else {
+            None
         };
         throughput *= sample.weight;
         bsdf_pdf = sample.pdf;
@@ -250,6 +265,119 @@ pub fn radiance(
     }
     total
 }
+
+/// A non-delta path vertex where next-event estimation happens.
+struct Vertex<'b> {
+    bsdf: &'b Bsdf,
+    /// Unit direction towards the previous vertex.
+    wo: Vec3,
+    /// Unit shading normal, turned towards `wo`.
+    n: Vec3,
+    /// The vertex moved off the surface: where shadow rays start.
+    origin: Vec3,
+    /// The path's throughput up to this vertex.
+    throughput: Vec3,
+}
+
+/// Light from the point `ls` arriving straight at the vertex, times the path's throughput:
+/// `f L cos w / pdf`, MIS-weighted against the BSDF sample. `None` when none arrives.
+fn direct_light(scene: &Scene, at: &Vertex, ls: &LightSample) -> Option<Vec3> {
+    let (bsdf, wo, n, origin) = (at.bsdf, at.wo, at.n, at.origin);
+    let to_light = ls.point - origin;
+    let dist2 = to_light.length_squared();
+    let dist = math::sqrt(dist2);
+    if !(dist > 0.0) {
+        return None;
+    }
+    let wi = to_light / dist;
+    let cos_light = -ls.normal.dot(wi);
+    let cos_surface = n.dot(wi);
+    if !(cos_light > 0.0 && cos_surface > 0.0 && ls.pdf_area > 0.0) {
+        return None;
+    }
+    let f = bsdf.eval(wo, wi);
+    if !(f.max_element() > 0.0) || scene.occluded(&Ray::new(origin, wi), dist * (1.0 - RAY_EPSILON))
+    {
+        return None;
+    }
+    let pdf_light = ls.pdf_area * dist2 / cos_light;
+    let weight = power_heuristic(pdf_light, bsdf.pdf(wo, wi));
+    Some(at.throughput * f * ls.radiance * (cos_surface * weight / pdf_light))
+}
+
+/// Light from the point `ls` arriving at the vertex by way of the planar `mirror`, times
+/// the path's throughput: aimed at the point's image behind the mirror, the ray must meet
+/// the mirror first and the light from there. The same path's pdf as a BSDF sample is the
+/// BSDF's at the vertex (the mirror bounce is a delta), so the MIS weight is against it,
+/// with the unfolded length.
+fn light_in_mirror(
+    scene: &Scene,
+    mirror: &MirrorPlane,
+    at: &Vertex,
+    ls: &LightSample,
+) -> Option<Vec3> {
+    let (bsdf, wo, n, origin) = (at.bsdf, at.wo, at.n, at.origin);
+    let side_origin = mirror.normal.dot(origin) - mirror.offset;
+    let side_light = mirror.normal.dot(ls.point) - mirror.offset;
+    if !(side_origin * side_light > 0.0 && ls.pdf_area > 0.0) {
+        return None;
+    }
+    let image = ls.point - mirror.normal * (2.0 * side_light);
+    let to_image = image - origin;
+    let dist_image = to_image.length();
+    if !(dist_image > 0.0) {
+        return None;
+    }
+    let wi = to_image / dist_image;
+    let cos_surface = n.dot(wi);
+    if !(cos_surface > 0.0) {
+        return None;
+    }
+    let f = bsdf.eval(wo, wi);
+    if !(f.max_element() > 0.0) {
+        return None;
+    }
+    // The first thing the ray meets is the mirror, about where it crosses the plane.
+    let t_plane = dist_image * side_origin / (side_origin + side_light);
+    let to_mirror = Ray::new(origin, wi);
+    let hit = scene.intersect(&to_mirror, t_plane * (1.0 + MIRROR_HIT_SLACK))?;
+    let on_mirror = scene
+        .triangles
+        .get(hit.triangle as usize)
+        .is_some_and(|t| t.surface == Surface::Group(mirror.group));
+    if !on_mirror {
+        return None;
+    }
+    let facing = if side_origin > 0.0 {
+        mirror.normal
+    } else {
+        -mirror.normal
+    };
+    let from_mirror = offset_origin(to_mirror.at(hit.t), facing);
+    let to_light = ls.point - from_mirror;
+    let dist_after = to_light.length();
+    if !(dist_after > 0.0) {
+        return None;
+    }
+    let reflected = to_light / dist_after;
+    let cos_light = -ls.normal.dot(reflected);
+    if !(cos_light > 0.0)
+        || scene.occluded(
+            &Ray::new(from_mirror, reflected),
+            dist_after * (1.0 - RAY_EPSILON),
+        )
+    {
+        return None;
+    }
+    let unfolded = hit.t + dist_after;
+    let pdf_image = ls.pdf_area * unfolded * unfolded / cos_light;
+    let weight = power_heuristic(pdf_image, bsdf.pdf(wo, wi));
+    Some(at.throughput * f * mirror.rho * ls.radiance * (cos_surface * weight / pdf_image))
+}
+
+/// How far past the mirror's plane (relative) a ray aimed at a light's image may meet the
+/// mirror: rounding only, a planar mirror is met at the plane.
+const MIRROR_HIT_SLACK: f32 = 1e-3;
 
 /// What the whole footprint of pixel `(x, y)` sees, tested with `n_sub x n_sub` rays on a
 /// grid over the pixel's square (edges included): `Some(surface)` when every ray hits the
@@ -481,6 +609,166 @@ mod tests {
         assert_eq!(
             pixel_surface(&scene, &floor, 1, 1, 4),
             Some(Surface::Group(0))
+        );
+    }
+
+    /// A quad `a b c d` (counter-clockwise seen from its front) as two triangles.
+    fn quad(corners: [Vec3; 4], surface: Surface) -> [Triangle; 2] {
+        let [a, b, c, d] = corners;
+        let uv = [Vec2::ZERO; 3];
+        [
+            Triangle {
+                v: [a, b, c],
+                uv,
+                surface,
+            },
+            Triangle {
+                v: [a, c, d],
+                uv,
+                surface,
+            },
+        ]
+    }
+
+    /// Irradiance at `p` (normal `n`) from a Lambertian polygon of unit radiance wholly
+    /// above `p`'s horizon: Lambert's contour formula, `1/2 sum theta_i (u_i x u_i+1)^ . n`.
+    fn polygon_irradiance(p: [f64; 3], n: [f64; 3], polygon: &[[f64; 3]]) -> f64 {
+        let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let unit = |a: [f64; 3]| {
+            let l = libm::sqrt(dot(a, a));
+            [a[0] / l, a[1] / l, a[2] / l]
+        };
+        let mut sum = 0.0;
+        for i in 0..polygon.len() {
+            let u = unit(sub(polygon[i], p));
+            let v = unit(sub(polygon[(i + 1) % polygon.len()], p));
+            sum += libm::acos(dot(u, v).clamp(-1.0, 1.0)) * dot(unit(cross(u, v)), n);
+        }
+        0.5 * sum.abs()
+    }
+
+    /// Light by way of a planar mirror. A small diffuse tile (albedo 0.5) faces up under a
+    /// square light and beside a wall mirror (reflectance 0.8); nothing else reflects, so
+    /// the tile's radiance is `0.5 / pi (E_light + 0.8 E_image)`, both irradiances exact by
+    /// Lambert's formula (the image: the light mirrored in the wall). Rendered with the
+    /// mirror sampled through (the mirror flat) and by BSDF sampling alone (the same mirror
+    /// with one stray triangle off its plane), both must give it; sampling through the
+    /// mirror with far less noise.
+    #[test]
+    fn light_by_way_of_a_planar_mirror_matches_the_closed_form() {
+        let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        let light_corners = [
+            v(0.2, -0.1, 1.0),
+            v(0.2, 0.1, 1.0),
+            v(0.4, 0.1, 1.0),
+            v(0.4, -0.1, 1.0),
+        ];
+        let mut triangles = Vec::new();
+        triangles.extend(quad(
+            [
+                v(-0.05, -0.05, 0.0),
+                v(0.05, -0.05, 0.0),
+                v(0.05, 0.05, 0.0),
+                v(-0.05, 0.05, 0.0),
+            ],
+            Surface::Group(0),
+        ));
+        // The light faces down (its corners run clockwise seen from above).
+        triangles.extend(quad(light_corners, Surface::Light(0)));
+        triangles.extend(quad(
+            [
+                v(-0.5, -2.0, -1.0),
+                v(-0.5, 2.0, -1.0),
+                v(-0.5, 2.0, 3.0),
+                v(-0.5, -2.0, 3.0),
+            ],
+            Surface::Group(1),
+        ));
+        let materials = [
+            SurfaceMaterial {
+                material: Material::Diffuse {
+                    rho_d: Vec3::splat(0.5),
+                },
+                diffuse_map: None,
+            },
+            SurfaceMaterial {
+                material: Material::Mirror {
+                    rho: Vec3::splat(0.8),
+                },
+                diffuse_map: None,
+            },
+        ];
+        let light_radiance = [Vec3::ONE];
+
+        let corners: Vec<[f64; 3]> = light_corners
+            .iter()
+            .map(|c| [c.x as f64, c.y as f64, c.z as f64])
+            .collect();
+        let image: Vec<[f64; 3]> = corners.iter().map(|c| [-1.0 - c[0], c[1], c[2]]).collect();
+        let (p, up) = ([0.0; 3], [0.0, 0.0, 1.0]);
+        let expected = 0.5 / core::f64::consts::PI
+            * (polygon_irradiance(p, up, &corners) + 0.8 * polygon_irradiance(p, up, &image));
+
+        let settings = RenderSettings {
+            seed: 11,
+            ..RenderSettings::default()
+        };
+        let estimate = |scene: &Scene, n: u32| {
+            let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+            for k in 0..n {
+                let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+                let ray = Ray::new(v(0.0, 0.0, 0.5), -Vec3::Z);
+                let l = radiance(scene, ray, &mut sampler, &settings).y as f64;
+                sum += l;
+                sum2 += l * l;
+            }
+            let mean = sum / n as f64;
+            let var = (sum2 / n as f64 - mean * mean).max(0.0);
+            (mean, (var / n as f64).sqrt())
+        };
+        let n = 100_000;
+
+        let mut storage = LentStorage::new(triangles.len());
+        let flat = storage.build(&triangles, &materials, &light_radiance);
+        assert_eq!(flat.mirror_planes().as_slice().len(), 1);
+        let (through, through_se) = estimate(&flat, n);
+
+        // A tiny triangle of the mirror's group far off its plane: no longer flat.
+        let mut bent = triangles.clone();
+        bent.push(Triangle {
+            v: [v(-3.0, 5.0, 5.0), v(-3.0, 5.01, 5.0), v(-3.0, 5.0, 5.01)],
+            uv: [Vec2::ZERO; 3],
+            surface: Surface::Group(1),
+        });
+        let mut bent_storage = LentStorage::new(bent.len());
+        let curved = bent_storage.build(&bent, &materials, &light_radiance);
+        assert!(curved.mirror_planes().as_slice().is_empty());
+        let (bsdf_only, bsdf_only_se) = estimate(&curved, n);
+
+        for (what, mean, se) in [
+            ("through the mirror", through, through_se),
+            ("BSDF sampling alone", bsdf_only, bsdf_only_se),
+        ] {
+            assert!(
+                (mean - expected).abs() < 4.0 * se + 1e-4 * expected,
+                "{what}: {mean} +- {se}, expected {expected}"
+            );
+        }
+        assert!(
+            through_se < 0.002 * expected,
+            "through the mirror: standard error {through_se} of {expected}"
+        );
+        assert!(
+            through_se * 3.0 < bsdf_only_se,
+            "standard errors: {through_se} through the mirror, {bsdf_only_se} without"
         );
     }
 

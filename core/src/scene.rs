@@ -5,7 +5,7 @@ use crate::bvh::{Bvh, BvhBuffers, BvhNode, Hit, PackedTriangle};
 use crate::config;
 use crate::error::{check_capacity, Error};
 use crate::geometry::{Ray, Surface, Triangle};
-use crate::material::{SurfaceMaterial, Textures};
+use crate::material::{Material, SurfaceMaterial, Textures};
 use crate::math::{self, Vec3};
 
 /// One emitting triangle in the light-sampling table.
@@ -30,6 +30,104 @@ pub struct LightSample {
     pub pdf_area: f32,
 }
 
+/// A mirror group whose triangles lie in one plane. Light that reaches a surface by way of
+/// it is sampled through the light's image in that plane (RADIANCE's virtual light
+/// sources), where BSDF sampling alone finds it only when a bounce happens to hit the
+/// light: heavy-tailed noise wherever a room has a mirror.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MirrorPlane {
+    pub group: u16,
+    /// Unit normal of the plane (the mirror reflects on both sides).
+    pub normal: Vec3,
+    /// `normal . x` for the plane's points `x`.
+    pub offset: f32,
+    /// The mirror's reflectance, as its BSDF applies it.
+    pub rho: Vec3,
+}
+
+/// The scene's planar mirrors (at most [`config::MAX_MIRROR_PLANES`]; the groups after
+/// those are left to BSDF sampling).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MirrorPlanes {
+    planes: [MirrorPlane; config::MAX_MIRROR_PLANES],
+    len: usize,
+}
+
+impl MirrorPlanes {
+    /// The groups with a mirror material whose triangles (the degenerate ones aside) share
+    /// one plane, in group order.
+    fn find(triangles: &[Triangle], materials: &[SurfaceMaterial]) -> MirrorPlanes {
+        let mut found = MirrorPlanes::default();
+        for (g, m) in materials.iter().enumerate() {
+            if let Material::Mirror { rho } = m.material {
+                let rho = rho.max(Vec3::ZERO);
+                if found.len < config::MAX_MIRROR_PLANES && rho.max_element() > 0.0 {
+                    found.planes[found.len] = MirrorPlane {
+                        group: g as u16,
+                        normal: Vec3::ZERO,
+                        offset: 0.0,
+                        rho,
+                    };
+                    found.len += 1;
+                }
+            }
+        }
+        if found.len == 0 {
+            return found;
+        }
+        let mut planar = [true; config::MAX_MIRROR_PLANES];
+        for t in triangles {
+            let Surface::Group(g) = t.surface else {
+                continue;
+            };
+            let Some(k) = found.planes[..found.len].iter().position(|p| p.group == g) else {
+                continue;
+            };
+            let n2 = t.normal_area2();
+            let len = n2.length();
+            if !(len > 0.0) {
+                continue;
+            }
+            let plane = &mut found.planes[k];
+            if plane.normal == Vec3::ZERO {
+                plane.normal = n2 / len;
+                plane.offset = plane.normal.dot(t.v[0]);
+                continue;
+            }
+            let scale = t.v.iter().fold(1.0f32, |m, v| m.max(v.abs().max_element()));
+            let tolerance = PLANE_TOLERANCE * scale;
+            let parallel = math::abs(plane.normal.dot(n2 / len)) >= 1.0 - PLANE_TOLERANCE;
+            let on_plane =
+                t.v.iter()
+                    .all(|v| math::abs(plane.normal.dot(*v) - plane.offset) <= tolerance);
+            if !(parallel && on_plane) {
+                planar[k] = false;
+            }
+        }
+        let mut kept = MirrorPlanes::default();
+        for (plane, planar) in found.planes[..found.len].iter().zip(planar) {
+            if planar && plane.normal != Vec3::ZERO {
+                kept.planes[kept.len] = *plane;
+                kept.len += 1;
+            }
+        }
+        kept
+    }
+
+    pub fn as_slice(&self) -> &[MirrorPlane] {
+        &self.planes[..self.len]
+    }
+
+    /// True when `group` is one of the planar mirrors sampled through.
+    pub fn contains(&self, group: u16) -> bool {
+        self.as_slice().iter().any(|p| p.group == group)
+    }
+}
+
+/// Relative tolerance of a mirror's flatness: normals within it of parallel, vertices
+/// within it (times the coordinates' size) of the plane.
+const PLANE_TOLERANCE: f32 = 1e-5;
+
 /// The buffers a [`Scene`] is built over, lent by the caller.
 pub struct SceneStorage<'a> {
     pub bvh: BvhBuffers<'a>,
@@ -47,6 +145,7 @@ pub struct Scene<'a> {
     pub textures: Textures<'a>,
     bvh: Bvh<'a>,
     light_table: &'a [LightTriangle],
+    mirrors: MirrorPlanes,
 }
 
 /// What [`Scene::build`] filled in its storage: with [`Scene::from_built`], the same
@@ -188,6 +287,7 @@ impl<'a> Scene<'a> {
             textures,
             bvh,
             light_table: &light_table[..n_emitting],
+            mirrors: MirrorPlanes::find(triangles, materials),
         })
     }
 
@@ -225,6 +325,7 @@ impl<'a> Scene<'a> {
             textures,
             bvh,
             light_table,
+            mirrors: MirrorPlanes::find(triangles, materials),
         })
     }
 
@@ -240,6 +341,11 @@ impl<'a> Scene<'a> {
 
     pub fn bvh(&self) -> &Bvh<'a> {
         &self.bvh
+    }
+
+    /// The planar mirrors that light is sampled through.
+    pub fn mirror_planes(&self) -> &MirrorPlanes {
+        &self.mirrors
     }
 
     /// True when some light emits.
@@ -300,5 +406,66 @@ impl<'a> Scene<'a> {
             Ok(i) => self.light_table[i].pick_pdf / area,
             Err(_) => 0.0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec2;
+
+    fn tri(v: [[f32; 3]; 3], group: u16) -> Triangle {
+        Triangle {
+            v: v.map(Vec3::from_array),
+            uv: [Vec2::ZERO; 3],
+            surface: Surface::Group(group),
+        }
+    }
+
+    fn material(material: Material) -> SurfaceMaterial {
+        SurfaceMaterial {
+            material,
+            diffuse_map: None,
+        }
+    }
+
+    /// Only mirrors whose triangles share a plane are sampled through: a flat mirror
+    /// (its triangles wound either way, a degenerate one beside them), not a bent one,
+    /// not a black one, and not a flat group of another material.
+    #[test]
+    fn the_planar_mirrors_are_the_flat_mirror_groups() {
+        let mirror = |rho: f32| {
+            material(Material::Mirror {
+                rho: Vec3::splat(rho),
+            })
+        };
+        let materials = [
+            mirror(0.9),
+            mirror(0.9),
+            mirror(0.0),
+            material(Material::Diffuse {
+                rho_d: Vec3::splat(0.5),
+            }),
+        ];
+        let triangles = [
+            // Group 0: the plane x = 1, one triangle wound the other way, one degenerate.
+            tri([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0]], 0),
+            tri([[1.0, 0.0, 0.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0]], 0),
+            tri([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 2.0, 5.0]], 0),
+            // Group 1: two triangles at a right angle.
+            tri([[0.0, 0.0, 2.0], [1.0, 0.0, 2.0], [0.0, 1.0, 2.0]], 1),
+            tri([[0.0, 0.0, 2.0], [0.0, 1.0, 2.0], [0.0, 0.0, 3.0]], 1),
+            // Group 2: flat, but black; group 3: flat, but diffuse.
+            tri([[0.0, 0.0, 4.0], [1.0, 0.0, 4.0], [0.0, 1.0, 4.0]], 2),
+            tri([[0.0, 0.0, 5.0], [1.0, 0.0, 5.0], [0.0, 1.0, 5.0]], 3),
+        ];
+        let found = MirrorPlanes::find(&triangles, &materials);
+        assert_eq!(found.as_slice().len(), 1);
+        let plane = found.as_slice()[0];
+        assert_eq!(plane.group, 0);
+        assert!((plane.normal.x.abs() - 1.0).abs() < 1e-6);
+        assert!((plane.offset * plane.normal.x - 1.0).abs() < 1e-6);
+        assert_eq!(plane.rho, Vec3::splat(0.9));
+        assert!(found.contains(0) && !found.contains(1) && !found.contains(3));
     }
 }
