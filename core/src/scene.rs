@@ -43,6 +43,9 @@ pub struct MirrorPlane {
     pub offset: f32,
     /// The mirror's reflectance, as its BSDF applies it.
     pub rho: Vec3,
+    /// Bounds of the mirror's triangles, padded by [`PLANE_TOLERANCE`]: a ray that
+    /// crosses the plane outside them cannot meet the mirror, and needs no tracing.
+    pub bounds: (Vec3, Vec3),
 }
 
 /// The scene's planar mirrors (at most [`config::MAX_MIRROR_PLANES`]; the groups after
@@ -67,6 +70,7 @@ impl MirrorPlanes {
                         normal: Vec3::ZERO,
                         offset: 0.0,
                         rho,
+                        bounds: (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
                     };
                     found.len += 1;
                 }
@@ -89,6 +93,8 @@ impl MirrorPlanes {
                 continue;
             }
             let plane = &mut found.planes[k];
+            let (lo, hi) = t.bounds();
+            plane.bounds = (plane.bounds.0.min(lo), plane.bounds.1.max(hi));
             if plane.normal == Vec3::ZERO {
                 plane.normal = n2 / len;
                 plane.offset = plane.normal.dot(t.v[0]);
@@ -107,7 +113,12 @@ impl MirrorPlanes {
         let mut kept = MirrorPlanes::default();
         for (plane, planar) in found.planes[..found.len].iter().zip(planar) {
             if planar && plane.normal != Vec3::ZERO {
-                kept.planes[kept.len] = *plane;
+                let (lo, hi) = plane.bounds;
+                let pad = PLANE_TOLERANCE * lo.abs().max(hi.abs()).max_element().max(1.0);
+                kept.planes[kept.len] = MirrorPlane {
+                    bounds: (lo - Vec3::splat(pad), hi + Vec3::splat(pad)),
+                    ..*plane
+                };
                 kept.len += 1;
             }
         }
