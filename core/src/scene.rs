@@ -43,7 +43,7 @@ pub struct MirrorPlane {
     pub offset: f32,
     /// The mirror's reflectance, as its BSDF applies it.
     pub rho: Vec3,
-    /// Bounds of the mirror's triangles, padded by [`PLANE_TOLERANCE`]: a ray that
+    /// Bounds of the mirror's triangles, padded by the flatness tolerance: a ray that
     /// crosses the plane outside them cannot meet the mirror, and needs no tracing.
     pub bounds: (Vec3, Vec3),
 }
