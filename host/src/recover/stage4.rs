@@ -219,9 +219,13 @@ pub(super) fn run(
                 POLISH_MIN_SAMPLES,
             );
             rec.models[g] = stage2;
-            let (levelled, _) = polish::colour_step(rec, g, color, spp, LEVEL_KEY)?;
+            let (levelled, change) = polish::colour_step(rec, g, color, spp, LEVEL_KEY)?;
             evaluations += 1;
             rival = GroupModel::Diffuse { color: levelled };
+            reports[g].decisions.push(format!(
+                "stage 4: the lobes are weighed against the diffuse model levelled by a render at {spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
+                100.0 * change
+            ));
         }
         let mut kept = stage2;
         let mut replaced = false;
