@@ -333,18 +333,18 @@ fn light_in_mirror(
     if !(cos_surface > 0.0) {
         return None;
     }
-    let f = bsdf.eval(wo, wi);
-    if !(f.max_element() > 0.0) {
-        return None;
-    }
     // The first thing the ray meets is the mirror, about where it crosses the plane
     // (outside the mirror's bounds it cannot: most vertices see most lights' images
-    // beside a mirror, and these need no ray).
+    // beside a mirror, and these need neither the BSDF nor a ray).
     let t_plane = dist_image * side_origin / (side_origin + side_light);
     let to_mirror = Ray::new(origin, wi);
     let crossing = to_mirror.at(t_plane);
     let (lo, hi) = mirror.bounds;
     if !(crossing.cmpge(lo).all() && crossing.cmple(hi).all()) {
+        return None;
+    }
+    let f = bsdf.eval(wo, wi);
+    if !(f.max_element() > 0.0) {
         return None;
     }
     let hit = scene.intersect(&to_mirror, t_plane * (1.0 + MIRROR_HIT_SLACK))?;
