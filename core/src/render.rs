@@ -138,18 +138,42 @@ pub fn render_rows(
 }
 
 /// Radiance arriving along `ray`, estimated with one path.
-pub fn radiance(
+pub fn radiance(scene: &Scene, ray: Ray, sampler: &mut Sampler, settings: &RenderSettings) -> Vec3 {
+    path_radiance(scene, ray, sampler, settings, None)
+}
+
+/// [`radiance`] along `ray`, a sample of solid-angle pdf `pdf` taken at a non-delta vertex
+/// where the lights were also sampled directly and through each planar mirror (as
+/// [`crate::transport`] samples a first vertex): a light that `ray` meets, at once or by
+/// way of a planar mirror, is MIS-weighted against those samples, as at the renderer's own
+/// vertices.
+pub fn radiance_after_sample(
+    scene: &Scene,
+    ray: Ray,
+    sampler: &mut Sampler,
+    settings: &RenderSettings,
+    pdf: f32,
+) -> Vec3 {
+    path_radiance(scene, ray, sampler, settings, Some(pdf))
+}
+
+/// One path's radiance along `ray`; `after_sample` is the pdf of the non-delta sample
+/// that produced `ray`, `None` for a camera ray.
+fn path_radiance(
     scene: &Scene,
     mut ray: Ray,
     sampler: &mut Sampler,
     settings: &RenderSettings,
+    after_sample: Option<f32>,
 ) -> Vec3 {
     let mut total = Vec3::ZERO;
     let mut throughput = Vec3::ONE;
     // The pdf of the BSDF sample that produced `ray`, and whether it was a Dirac sample
     // (camera rays count as one: emission seen directly is not light-sampled).
-    let mut bsdf_pdf = 0.0f32;
-    let mut delta = true;
+    let (mut bsdf_pdf, mut delta) = match after_sample {
+        Some(pdf) => (pdf, false),
+        None => (0.0f32, true),
+    };
     // When `ray` leaves a planar mirror that a BSDF sample from a non-delta vertex reached:
     // that sample's pdf and its length. A light at the end of `ray` is then also sampled
     // through the mirror, and MIS weighs the two.
@@ -306,17 +330,51 @@ fn direct_light(scene: &Scene, at: &Vertex, ls: &LightSample) -> Option<Vec3> {
 }
 
 /// Light from the point `ls` arriving at the vertex by way of the planar `mirror`, times
-/// the path's throughput: aimed at the point's image behind the mirror, the ray must meet
-/// the mirror first and the light from there. The same path's pdf as a BSDF sample is the
-/// BSDF's at the vertex (the mirror bounce is a delta), so the MIS weight is against it,
-/// with the unfolded length.
+/// the path's throughput. The same path's pdf as a BSDF sample is the BSDF's at the vertex
+/// (the mirror bounce is a delta), so the MIS weight is against it, with the unfolded
+/// length.
 fn light_in_mirror(
     scene: &Scene,
     mirror: &MirrorPlane,
     at: &Vertex,
     ls: &LightSample,
 ) -> Option<Vec3> {
-    let (bsdf, wo, n, origin) = (at.bsdf, at.wo, at.n, at.origin);
+    let (bsdf, wo) = (at.bsdf, at.wo);
+    let mut f = Vec3::ZERO;
+    let image = light_image_in_mirror(scene, mirror, at.origin, at.n, ls, |wi| {
+        f = bsdf.eval(wo, wi);
+        f.max_element() > 0.0
+    })?;
+    let weight = power_heuristic(image.pdf, bsdf.pdf(wo, image.wi));
+    Some(at.throughput * f * mirror.rho * ls.radiance * (image.cos_surface * weight / image.pdf))
+}
+
+/// A light point's image in a planar mirror, seen from a surface point: the direction the
+/// light arrives from, and that direction's pdf as a light sample.
+#[derive(Clone, Copy, Debug)]
+pub struct MirrorImage {
+    /// Unit direction from the surface point towards the mirror (and the image behind it).
+    pub wi: Vec3,
+    /// Cosine between the surface normal and `wi`.
+    pub cos_surface: f32,
+    /// Solid-angle pdf of `wi` as the light sample: the light's area pdf over the unfolded
+    /// path length squared and the light's cosine.
+    pub pdf: f32,
+}
+
+/// Where the light point `ls` reaches the surface point `origin` (normal `n`) by way of
+/// the planar `mirror`, when it does: aimed at the point's image behind the mirror, the
+/// ray must meet the mirror first and the light from there. The light arriving is
+/// `mirror.rho * ls.radiance`. `worth_tracing(wi)` is asked before any ray is traced, so
+/// that a direction the surface does not reflect costs none.
+pub fn light_image_in_mirror(
+    scene: &Scene,
+    mirror: &MirrorPlane,
+    origin: Vec3,
+    n: Vec3,
+    ls: &LightSample,
+    worth_tracing: impl FnOnce(Vec3) -> bool,
+) -> Option<MirrorImage> {
     let side_origin = mirror.normal.dot(origin) - mirror.offset;
     let side_light = mirror.normal.dot(ls.point) - mirror.offset;
     if !(side_origin * side_light > 0.0 && ls.pdf_area > 0.0) {
@@ -343,8 +401,7 @@ fn light_in_mirror(
     if !(crossing.cmpge(lo).all() && crossing.cmple(hi).all()) {
         return None;
     }
-    let f = bsdf.eval(wo, wi);
-    if !(f.max_element() > 0.0) {
+    if !worth_tracing(wi) {
         return None;
     }
     let hit = scene.intersect(&to_mirror, t_plane * (1.0 + MIRROR_HIT_SLACK))?;
@@ -377,9 +434,11 @@ fn light_in_mirror(
         return None;
     }
     let unfolded = hit.t + dist_after;
-    let pdf_image = ls.pdf_area * unfolded * unfolded / cos_light;
-    let weight = power_heuristic(pdf_image, bsdf.pdf(wo, wi));
-    Some(at.throughput * f * mirror.rho * ls.radiance * (cos_surface * weight / pdf_image))
+    Some(MirrorImage {
+        wi,
+        cos_surface,
+        pdf: ls.pdf_area * unfolded * unfolded / cos_light,
+    })
 }
 
 /// How far past the mirror's plane (relative) a ray aimed at a light's image may meet the
@@ -417,7 +476,7 @@ pub fn pixel_surface(scene: &Scene, view: &View, x: u32, y: u32, n_sub: u32) -> 
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     //! Analytic checks of the path tracer: scenes whose radiance is known in closed form.
 
     use super::*;
@@ -484,14 +543,14 @@ mod tests {
     }
 
     /// The storage a test lends its scene, sized for `triangles` triangles.
-    struct LentStorage {
+    pub(crate) struct LentStorage {
         nodes: Vec<BvhNode>,
         packed: Vec<PackedTriangle>,
         lights: Vec<LightTriangle>,
     }
 
     impl LentStorage {
-        fn new(triangles: usize) -> Self {
+        pub(crate) fn new(triangles: usize) -> Self {
             let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles);
             LentStorage {
                 nodes: vec![BvhNode::default(); n_nodes],
@@ -501,7 +560,7 @@ mod tests {
         }
 
         /// A scene built afresh into this storage.
-        fn build<'a>(
+        pub(crate) fn build<'a>(
             &'a mut self,
             triangles: &'a [Triangle],
             materials: &'a [SurfaceMaterial],
@@ -662,67 +721,101 @@ mod tests {
         0.5 * sum.abs()
     }
 
-    /// Light by way of a planar mirror. A small diffuse tile (albedo 0.5) faces up under a
-    /// square light and beside a wall mirror (reflectance 0.8); nothing else reflects, so
-    /// the tile's radiance is `0.5 / pi (E_light + 0.8 E_image)`, both irradiances exact by
-    /// Lambert's formula (the image: the light mirrored in the wall). Rendered with the
-    /// mirror sampled through (the mirror flat) and by BSDF sampling alone (the same mirror
-    /// with one stray triangle off its plane), both must give it; sampling through the
-    /// mirror with far less noise.
+    /// A small tile at the origin facing up (group 0, of `tile`), under a square light of
+    /// unit radiance facing down, beside a wall mirror of reflectance 0.8 (group 1) at
+    /// x = -0.5. With `bent`, the mirror's group has one tiny triangle far off its plane:
+    /// the same light by way of the mirror, but no planar mirror to sample it through.
+    pub(crate) struct TileBesideAMirror {
+        pub(crate) triangles: Vec<Triangle>,
+        pub(crate) materials: [SurfaceMaterial; 2],
+        pub(crate) light_radiance: [Vec3; 1],
+    }
+
+    impl TileBesideAMirror {
+        pub(crate) fn new(tile: Material, bent: bool) -> Self {
+            let mut triangles = Vec::new();
+            triangles.extend(quad(
+                [
+                    v(-0.05, -0.05, 0.0),
+                    v(0.05, -0.05, 0.0),
+                    v(0.05, 0.05, 0.0),
+                    v(-0.05, 0.05, 0.0),
+                ],
+                Surface::Group(0),
+            ));
+            // The light faces down (its corners run clockwise seen from above).
+            triangles.extend(quad(Self::LIGHT, Surface::Light(0)));
+            triangles.extend(quad(
+                [
+                    v(-0.5, -2.0, -1.0),
+                    v(-0.5, 2.0, -1.0),
+                    v(-0.5, 2.0, 3.0),
+                    v(-0.5, -2.0, 3.0),
+                ],
+                Surface::Group(1),
+            ));
+            if bent {
+                triangles.push(Triangle {
+                    v: [v(-3.0, 5.0, 5.0), v(-3.0, 5.01, 5.0), v(-3.0, 5.0, 5.01)],
+                    uv: [Vec2::ZERO; 3],
+                    surface: Surface::Group(1),
+                });
+            }
+            let materials = [
+                SurfaceMaterial {
+                    material: tile,
+                    diffuse_map: None,
+                },
+                SurfaceMaterial {
+                    material: Material::Mirror {
+                        rho: Vec3::splat(0.8),
+                    },
+                    diffuse_map: None,
+                },
+            ];
+            TileBesideAMirror {
+                triangles,
+                materials,
+                light_radiance: [Vec3::ONE],
+            }
+        }
+
+        const LIGHT: [Vec3; 4] = [
+            Vec3::new(0.2, -0.1, 1.0),
+            Vec3::new(0.2, 0.1, 1.0),
+            Vec3::new(0.4, 0.1, 1.0),
+            Vec3::new(0.4, -0.1, 1.0),
+        ];
+
+        /// The tile's radiance at its centre when it is diffuse of albedo `albedo`:
+        /// nothing else reflects, so it is `albedo / pi (E_light + 0.8 E_image)`, both
+        /// irradiances exact by Lambert's formula (the image: the light mirrored in the
+        /// wall).
+        pub(crate) fn diffuse_radiance(albedo: f64) -> f64 {
+            let corners: Vec<[f64; 3]> = Self::LIGHT
+                .iter()
+                .map(|c| [c.x as f64, c.y as f64, c.z as f64])
+                .collect();
+            let image: Vec<[f64; 3]> = corners.iter().map(|c| [-1.0 - c[0], c[1], c[2]]).collect();
+            let (p, up) = ([0.0; 3], [0.0, 0.0, 1.0]);
+            albedo / core::f64::consts::PI
+                * (polygon_irradiance(p, up, &corners) + 0.8 * polygon_irradiance(p, up, &image))
+        }
+    }
+
+    fn v(x: f32, y: f32, z: f32) -> Vec3 {
+        Vec3::new(x, y, z)
+    }
+
+    /// Light by way of a planar mirror: [`TileBesideAMirror`]'s diffuse tile rendered with
+    /// the mirror sampled through (the mirror flat) and by BSDF sampling alone (bent) must
+    /// both give the closed form; sampling through the mirror with far less noise.
     #[test]
     fn light_by_way_of_a_planar_mirror_matches_the_closed_form() {
-        let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
-        let light_corners = [
-            v(0.2, -0.1, 1.0),
-            v(0.2, 0.1, 1.0),
-            v(0.4, 0.1, 1.0),
-            v(0.4, -0.1, 1.0),
-        ];
-        let mut triangles = Vec::new();
-        triangles.extend(quad(
-            [
-                v(-0.05, -0.05, 0.0),
-                v(0.05, -0.05, 0.0),
-                v(0.05, 0.05, 0.0),
-                v(-0.05, 0.05, 0.0),
-            ],
-            Surface::Group(0),
-        ));
-        // The light faces down (its corners run clockwise seen from above).
-        triangles.extend(quad(light_corners, Surface::Light(0)));
-        triangles.extend(quad(
-            [
-                v(-0.5, -2.0, -1.0),
-                v(-0.5, 2.0, -1.0),
-                v(-0.5, 2.0, 3.0),
-                v(-0.5, -2.0, 3.0),
-            ],
-            Surface::Group(1),
-        ));
-        let materials = [
-            SurfaceMaterial {
-                material: Material::Diffuse {
-                    rho_d: Vec3::splat(0.5),
-                },
-                diffuse_map: None,
-            },
-            SurfaceMaterial {
-                material: Material::Mirror {
-                    rho: Vec3::splat(0.8),
-                },
-                diffuse_map: None,
-            },
-        ];
-        let light_radiance = [Vec3::ONE];
-
-        let corners: Vec<[f64; 3]> = light_corners
-            .iter()
-            .map(|c| [c.x as f64, c.y as f64, c.z as f64])
-            .collect();
-        let image: Vec<[f64; 3]> = corners.iter().map(|c| [-1.0 - c[0], c[1], c[2]]).collect();
-        let (p, up) = ([0.0; 3], [0.0, 0.0, 1.0]);
-        let expected = 0.5 / core::f64::consts::PI
-            * (polygon_irradiance(p, up, &corners) + 0.8 * polygon_irradiance(p, up, &image));
+        let tile = Material::Diffuse {
+            rho_d: Vec3::splat(0.5),
+        };
+        let expected = TileBesideAMirror::diffuse_radiance(0.5);
 
         let settings = RenderSettings {
             seed: 11,
@@ -743,20 +836,23 @@ mod tests {
         };
         let n = 100_000;
 
-        let mut storage = LentStorage::new(triangles.len());
-        let flat = storage.build(&triangles, &materials, &light_radiance);
+        let flat_parts = TileBesideAMirror::new(tile, false);
+        let mut storage = LentStorage::new(flat_parts.triangles.len());
+        let flat = storage.build(
+            &flat_parts.triangles,
+            &flat_parts.materials,
+            &flat_parts.light_radiance,
+        );
         assert_eq!(flat.mirror_planes().as_slice().len(), 1);
         let (through, through_se) = estimate(&flat, n);
 
-        // A tiny triangle of the mirror's group far off its plane: no longer flat.
-        let mut bent = triangles.clone();
-        bent.push(Triangle {
-            v: [v(-3.0, 5.0, 5.0), v(-3.0, 5.01, 5.0), v(-3.0, 5.0, 5.01)],
-            uv: [Vec2::ZERO; 3],
-            surface: Surface::Group(1),
-        });
-        let mut bent_storage = LentStorage::new(bent.len());
-        let curved = bent_storage.build(&bent, &materials, &light_radiance);
+        let bent_parts = TileBesideAMirror::new(tile, true);
+        let mut bent_storage = LentStorage::new(bent_parts.triangles.len());
+        let curved = bent_storage.build(
+            &bent_parts.triangles,
+            &bent_parts.materials,
+            &bent_parts.light_radiance,
+        );
         assert!(curved.mirror_planes().as_slice().is_empty());
         let (bsdf_only, bsdf_only_se) = estimate(&curved, n);
 

@@ -3,12 +3,15 @@
 //!
 //! A pixel sample's radiance is `integral f(wo, wi) L_in(wi) cos dwi` at its first vertex.
 //! We estimate that integral with two MIS-weighted samples (one on a light, one from a
-//! mixture of a cosine lobe and Ward lobes of several roughnesses) and store each as an
+//! mixture of a cosine lobe and Ward lobes of several roughnesses), and one on the light's
+//! image in each planar mirror as the renderer has (light by way of a mirror is otherwise
+//! found by the mixture alone: heavy-tailed noise), and store each as an
 //! [`IncidentSample`]: directions and `L_in cos w / pdf`. For *any* BRDF of the group the
 //! pixel's value is then `sum f(wo, wi) * weight`, unbiased while the mixture covers the
 //! BRDF. So a new material costs a few BRDF evaluations per sample, not a render; the cache
 //! is refreshed (re-traced) when the rest of the scene's materials change.
 
+use crate::config;
 use crate::geometry::{Surface, View};
 use crate::material::{self, Bsdf, Material};
 use crate::math::{self, Vec3, INV_PI};
@@ -37,8 +40,20 @@ pub struct IncidentSample {
     pub uv: [f32; 2],
 }
 
-/// Samples per pixel sample: one light sample, one mixture sample.
+/// Incident samples per pixel sample in a scene without planar mirrors: one on a light, one
+/// from the mixture.
 pub const INCIDENT_PER_SAMPLE: usize = 2;
+
+/// Incident samples per pixel sample at most: [`INCIDENT_PER_SAMPLE`] and one on the
+/// light's image in each planar mirror.
+pub const MAX_INCIDENT_PER_SAMPLE: usize = INCIDENT_PER_SAMPLE + config::MAX_MIRROR_PLANES;
+
+/// Incident samples per pixel sample in `scene`: [`INCIDENT_PER_SAMPLE`] and one on the
+/// light's image in each of its planar mirrors, the layout of [`trace_pixel_sample`]'s
+/// output.
+pub fn incident_per_sample(scene: &Scene) -> usize {
+    INCIDENT_PER_SAMPLE + scene.mirror_planes().as_slice().len()
+}
 
 /// The unit isotropic specular lobe of roughness `alpha` (`rho_d = 0`, `rho_s = 1`): the
 /// lobe whose part of a pixel the linear fits scale by the specular reflectance.
@@ -83,8 +98,11 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 }
 
 /// Traces one pixel sample of pixel `(x, y)` and writes its incident samples into `out`
-/// when the first hit is on `group`. Returns how many were written (0 when the sample sees
-/// something else, e.g. at the edge of a pure pixel by rounding).
+/// when the first hit is on `group`: the light sample, the mixture's, then the light
+/// sample's image in each planar mirror ([`incident_per_sample`] in all; an image that
+/// does not reach the point is left as the default, which every sum skips). Returns how
+/// many were written (0 when the sample sees something else, e.g. at the edge of a pure
+/// pixel by rounding).
 #[allow(clippy::too_many_arguments)]
 pub fn trace_pixel_sample(
     scene: &Scene,
@@ -95,7 +113,7 @@ pub fn trace_pixel_sample(
     sample: u32,
     group: u16,
     settings: &RenderSettings,
-    out: &mut [IncidentSample; INCIDENT_PER_SAMPLE],
+    out: &mut [IncidentSample; MAX_INCIDENT_PER_SAMPLE],
 ) -> usize {
     let pixel = y * view.width + x;
     let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, sample);
@@ -133,7 +151,8 @@ pub fn trace_pixel_sample(
         weight: Vec3::ZERO,
         uv,
     };
-    if let Some(ls) = scene.sample_light(u_light, u_point) {
+    let light_sample = scene.sample_light(u_light, u_point);
+    if let Some(ls) = light_sample {
         let to_light = ls.point - origin;
         let dist2 = to_light.length_squared();
         let dist = math::sqrt(dist2);
@@ -202,7 +221,9 @@ pub fn trace_pixel_sample(
                                 Vec3::ZERO
                             }
                         }
-                        Surface::Group(_) => render::radiance(scene, next, &mut sampler, settings),
+                        Surface::Group(_) => {
+                            render::radiance_after_sample(scene, next, &mut sampler, settings, pdf)
+                        }
                     };
                     indirect.weight = l_in * (cos / pdf);
                 }
@@ -211,6 +232,32 @@ pub fn trace_pixel_sample(
     }
     out[written] = indirect;
     written += 1;
+
+    // 3. The light sample's image in each planar mirror, MIS-weighted against the
+    // mixture's sample that reaches the light by way of the mirror (which
+    // `radiance_after_sample` weighs). It reuses the light sample: a scene without planar
+    // mirrors draws the same random numbers.
+    for mirror in scene.mirror_planes().as_slice() {
+        let mut entry = IncidentSample::default();
+        if let Some(ls) = &light_sample {
+            if let Some(image) =
+                render::light_image_in_mirror(scene, mirror, origin, n, ls, |_| true)
+            {
+                let w = power_heuristic(image.pdf, mixture_pdf(n, wo, image.wi));
+                entry = IncidentSample {
+                    wo,
+                    n,
+                    wi: image.wi,
+                    weight: mirror.rho * ls.radiance * (image.cos_surface * w / image.pdf),
+                    uv,
+                };
+            }
+        }
+        if let Some(slot) = out.get_mut(written) {
+            *slot = entry;
+            written += 1;
+        }
+    }
     written
 }
 
@@ -523,5 +570,104 @@ mod tests {
             assert_eq!(bits(specular_part(&points, 1, &ward(alpha))), bits(s));
             assert_eq!(s.x > 0.0, reflects, "{exponent}: {s}");
         }
+    }
+
+    /// Light by way of a planar mirror reaches the incident samples. Over
+    /// [`TileBesideAMirror`]'s tile, seen straight down, they give the diffuse tile the
+    /// closed form and a glossy tile what the renderer gives it, with the mirror flat (its
+    /// image sampled, MIS against the mixture's sample through it) and bent (the mixture
+    /// alone); flat with far less noise.
+    #[test]
+    fn light_by_way_of_a_planar_mirror_reaches_the_incident_samples() {
+        use crate::render::tests::{LentStorage, TileBesideAMirror};
+        let diffuse = Material::Diffuse {
+            rho_d: Vec3::splat(0.5),
+        };
+        let glossy = Material::Ward {
+            rho_d: Vec3::splat(0.2),
+            rho_s: Vec3::splat(0.3),
+            alpha: 0.25,
+        };
+        let settings = RenderSettings {
+            seed: 5,
+            ..RenderSettings::default()
+        };
+        let view = View::new(
+            Vec3::new(0.0, 0.0, 0.5),
+            -Vec3::Z,
+            Vec3::Y,
+            [1.0, 1.0],
+            [1, 1],
+        )
+        .unwrap();
+        let n = 40_000u32;
+        let mean_and_error = |values: &mut dyn Iterator<Item = f64>| {
+            let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+            for l in values {
+                sum += l;
+                sum2 += l * l;
+            }
+            let mean = sum / n as f64;
+            let var = (sum2 / n as f64 - mean * mean).max(0.0);
+            (mean, libm::sqrt(var / n as f64))
+        };
+        // The tile's pixel under `material` from the incident samples, and as rendered.
+        let cached = |scene: &Scene, material: &Material| {
+            let per_sample = incident_per_sample(scene);
+            mean_and_error(&mut (0..n).map(|k| {
+                let mut out = [IncidentSample::default(); MAX_INCIDENT_PER_SAMPLE];
+                let written = trace_pixel_sample(scene, &view, 0, 0, 0, k, 0, &settings, &mut out);
+                assert_eq!(written, per_sample);
+                shade(&out[..written], 1, material, None).y as f64
+            }))
+        };
+        let rendered = |scene: &Scene| {
+            mean_and_error(&mut (0..n).map(|k| {
+                render::render_pixel(
+                    scene,
+                    &view,
+                    1,
+                    0,
+                    0,
+                    &RenderSettings {
+                        spp: 1,
+                        seed: 1000 + k as u64,
+                        ..settings
+                    },
+                )
+                .y as f64
+            }))
+        };
+
+        let expected = TileBesideAMirror::diffuse_radiance(0.5);
+        let mut errors = Vec::new();
+        for (bent, planes) in [(false, 1), (true, 0)] {
+            let parts = TileBesideAMirror::new(glossy, bent);
+            let mut storage = LentStorage::new(parts.triangles.len());
+            let scene = storage.build(&parts.triangles, &parts.materials, &parts.light_radiance);
+            assert_eq!(scene.mirror_planes().as_slice().len(), planes);
+            assert_eq!(incident_per_sample(&scene), INCIDENT_PER_SAMPLE + planes);
+
+            let (mean, se) = cached(&scene, &diffuse);
+            assert!(
+                (mean - expected).abs() < 4.0 * se + 1e-4 * expected,
+                "diffuse, bent {bent}: {mean} +- {se}, expected {expected}"
+            );
+            errors.push(se);
+
+            let (mean, se) = cached(&scene, &glossy);
+            let (render_mean, render_se) = rendered(&scene);
+            let both = libm::sqrt(se * se + render_se * render_se);
+            assert!(
+                (mean - render_mean).abs() < 4.0 * both,
+                "glossy, bent {bent}: {mean} +- {se} cached, {render_mean} +- {render_se} rendered"
+            );
+        }
+        assert!(
+            errors[0] * 3.0 < errors[1],
+            "standard errors: {} through the mirror, {} without",
+            errors[0],
+            errors[1]
+        );
     }
 }

@@ -15,7 +15,9 @@ use relume_core::math::{Vec2, Vec3};
 use relume_core::render::{render_pixel, RenderSettings};
 use relume_core::scene::{LightTriangle, Scene, SceneStorage};
 use relume_core::stages::{diffuse, isotropic};
-use relume_core::transport::{self, IncidentSample, LobePoint, INCIDENT_PER_SAMPLE};
+use relume_core::transport::{
+    self, IncidentSample, LobePoint, INCIDENT_PER_SAMPLE, MAX_INCIDENT_PER_SAMPLE,
+};
 
 extern "C" {
     fn write(fd: i32, buf: *const u8, count: usize) -> isize;
@@ -216,7 +218,8 @@ fn floor_sums(
         let (x, y) = (i as u32 % SIDE, i as u32 / SIDE);
         let mut n = 0;
         for sample in 0..CACHE_SPP {
-            let mut out = [IncidentSample::default(); INCIDENT_PER_SAMPLE];
+            // The scene has no mirror: INCIDENT_PER_SAMPLE are written at most.
+            let mut out = [IncidentSample::default(); MAX_INCIDENT_PER_SAMPLE];
             let written =
                 transport::trace_pixel_sample(scene, view, 0, x, y, sample, 0, &settings, &mut out);
             entries[n..n + written].copy_from_slice(&out[..written]);

@@ -247,7 +247,7 @@ mod tests {
                 group: 0,
             });
         }
-        GroupCache::new(pixels, real, entries, samples)
+        GroupCache::new(pixels, real, entries, samples, INCIDENT_PER_SAMPLE)
     }
 
     fn pool(threads: usize) -> rayon::ThreadPool {

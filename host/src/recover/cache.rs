@@ -8,7 +8,7 @@ use relume_core::material::{Kind, Material};
 use relume_core::render::RenderSettings;
 use relume_core::scene::Scene;
 use relume_core::stages::isotropic::{self, LinearSums, WardFit};
-use relume_core::transport::{self, IncidentSample, LobePoint, INCIDENT_PER_SAMPLE};
+use relume_core::transport::{self, IncidentSample, LobePoint, MAX_INCIDENT_PER_SAMPLE};
 
 use super::pixels::{real_value, PurePixel, CHUNK};
 use crate::images::Image;
@@ -35,19 +35,21 @@ pub struct GroupCache {
 
 impl GroupCache {
     /// A cache of `samples` pixel samples per pixel, whose incident samples are
-    /// `entries` (`samples * INCIDENT_PER_SAMPLE` per pixel, in pixel order).
+    /// `entries` (`samples * per_sample` per pixel, in pixel order; `per_sample` is
+    /// [`transport::incident_per_sample`] of the scene traced).
     pub fn new(
         pixels: Vec<PurePixel>,
         real: Vec<Vec3>,
         entries: Vec<IncidentSample>,
         samples: u32,
+        per_sample: usize,
     ) -> GroupCache {
-        let per_pixel = samples as usize * INCIDENT_PER_SAMPLE;
+        let per_pixel = samples as usize * per_sample;
         let of_pixel = |i: usize| &entries[i * per_pixel..(i + 1) * per_pixel];
         let diffuse = (0..pixels.len())
             .map(|i| transport::diffuse_part(of_pixel(i), samples))
             .collect();
-        let first_half = (samples / 2) as usize * INCIDENT_PER_SAMPLE;
+        let first_half = (samples / 2) as usize * per_sample;
         let diffuse_halves = (0..pixels.len())
             .map(|i| {
                 let (a, b) = of_pixel(i).split_at(first_half);
@@ -122,7 +124,8 @@ pub fn build(
     settings: &RenderSettings,
 ) -> GroupCache {
     let pixels: Vec<PurePixel> = pure.iter().copied().filter(|p| p.group == group).collect();
-    let per_pixel = settings.spp as usize * INCIDENT_PER_SAMPLE;
+    let per_sample = transport::incident_per_sample(scene);
+    let per_pixel = settings.spp as usize * per_sample;
     let mut entries = vec![IncidentSample::default(); pixels.len() * per_pixel];
     pool.install(|| {
         // Pixel by pixel: each writes its own slot, so the split changes only the balance
@@ -133,17 +136,17 @@ pub fn build(
             .for_each(|(slot, p)| {
                 let view = &views[p.view as usize];
                 for s in 0..settings.spp {
-                    let mut buf = [IncidentSample::default(); INCIDENT_PER_SAMPLE];
+                    let mut buf = [IncidentSample::default(); MAX_INCIDENT_PER_SAMPLE];
                     let n = transport::trace_pixel_sample(
                         scene, view, p.view, p.x, p.y, s, group, settings, &mut buf,
                     );
-                    let at = s as usize * INCIDENT_PER_SAMPLE;
+                    let at = s as usize * per_sample;
                     slot[at..at + n].copy_from_slice(&buf[..n]);
                 }
             });
     });
     let real = pixels.iter().map(|p| real_value(real, views, p)).collect();
-    GroupCache::new(pixels, real, entries, settings.spp)
+    GroupCache::new(pixels, real, entries, settings.spp, per_sample)
 }
 
 /// The normal-equation sums of the group's pixels for a unit specular `lobe`. Each
@@ -276,6 +279,7 @@ pub fn isotropic_fit_across_halves(
 pub(super) mod tests {
     use super::*;
     use crate::recover::pixels::PurePixel;
+    use relume_core::transport::INCIDENT_PER_SAMPLE;
 
     /// Two pixels of `samples` samples each: every other incident direction spread widely
     /// (some below the surface, which the parts leave out), the rest near the mirror
@@ -316,7 +320,13 @@ pub(super) mod tests {
                 group: 0,
             })
             .collect();
-        GroupCache::new(pixels, vec![Vec3::splat(0.2); 2], entries, samples)
+        GroupCache::new(
+            pixels,
+            vec![Vec3::splat(0.2); 2],
+            entries,
+            samples,
+            INCIDENT_PER_SAMPLE,
+        )
     }
 
     /// `entries` of `samples` per pixel with each pixel's samples repeated once: a cache
