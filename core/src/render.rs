@@ -780,6 +780,16 @@ pub(crate) mod tests {
             }
         }
 
+        /// Storage for the scene's triangles, to build it into with [`Self::scene`].
+        pub(crate) fn storage(&self) -> LentStorage {
+            LentStorage::new(self.triangles.len())
+        }
+
+        /// The scene, built into `storage`.
+        pub(crate) fn scene<'a>(&'a self, storage: &'a mut LentStorage) -> Scene<'a> {
+            storage.build(&self.triangles, &self.materials, &self.light_radiance)
+        }
+
         const LIGHT: [Vec3; 4] = [
             Vec3::new(0.2, -0.1, 1.0),
             Vec3::new(0.2, 0.1, 1.0),
@@ -837,22 +847,14 @@ pub(crate) mod tests {
         let n = 100_000;
 
         let flat_parts = TileBesideAMirror::new(tile, false);
-        let mut storage = LentStorage::new(flat_parts.triangles.len());
-        let flat = storage.build(
-            &flat_parts.triangles,
-            &flat_parts.materials,
-            &flat_parts.light_radiance,
-        );
+        let mut storage = flat_parts.storage();
+        let flat = flat_parts.scene(&mut storage);
         assert_eq!(flat.mirror_planes().as_slice().len(), 1);
         let (through, through_se) = estimate(&flat, n);
 
         let bent_parts = TileBesideAMirror::new(tile, true);
-        let mut bent_storage = LentStorage::new(bent_parts.triangles.len());
-        let curved = bent_storage.build(
-            &bent_parts.triangles,
-            &bent_parts.materials,
-            &bent_parts.light_radiance,
-        );
+        let mut bent_storage = bent_parts.storage();
+        let curved = bent_parts.scene(&mut bent_storage);
         assert!(curved.mirror_planes().as_slice().is_empty());
         let (bsdf_only, bsdf_only_se) = estimate(&curved, n);
 

@@ -579,7 +579,7 @@ mod tests {
     /// alone); flat with far less noise.
     #[test]
     fn light_by_way_of_a_planar_mirror_reaches_the_incident_samples() {
-        use crate::render::tests::{LentStorage, TileBesideAMirror};
+        use crate::render::tests::TileBesideAMirror;
         let diffuse = Material::Diffuse {
             rho_d: Vec3::splat(0.5),
         };
@@ -643,8 +643,8 @@ mod tests {
         let mut errors = Vec::new();
         for (bent, planes) in [(false, 1), (true, 0)] {
             let parts = TileBesideAMirror::new(glossy, bent);
-            let mut storage = LentStorage::new(parts.triangles.len());
-            let scene = storage.build(&parts.triangles, &parts.materials, &parts.light_radiance);
+            let mut storage = parts.storage();
+            let scene = parts.scene(&mut storage);
             assert_eq!(scene.mirror_planes().as_slice().len(), planes);
             assert_eq!(incident_per_sample(&scene), INCIDENT_PER_SAMPLE + planes);
 
