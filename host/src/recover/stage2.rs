@@ -69,6 +69,7 @@ fn proposed_mirrors(
         groups: Vec::new(),
         evaluations: 0,
     };
+    // One candidate has no order to change: spare its cache.
     if candidates.len() < 2 {
         return Ok(first);
     }
