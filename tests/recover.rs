@@ -715,11 +715,12 @@ fn living_room_small_renders_its_panorama_as_well_as_the_truth_does() {
 /// it (ebb2007). The truth materials' own group-mean error fell (0.39% -> 0.28% at 1024
 /// spp), and the recovered statue (20 pixels, a metal) renders about 2% darker than the
 /// truth materials do on the same samples (its colour x specularity 0.803 against 0.792,
-/// its diffuse part 27% low). Ratio 1.31 at 256 spp on seed 1, 0.57 and 1.58 at 1024 spp
-/// on seeds 1 and 2; four times the colour polish's samples move the statue by 0.4%. A
-/// finding of docs/edits.md, kept here as the check it was, to run by name.
+/// its diffuse part 27% low). Ratio 1.31 at 256 spp on seed 1 (1.34 at 40e0ba7), 0.57
+/// and 1.58 at 1024 spp on seeds 1 and 2; four times the colour polish's samples move the
+/// statue by 0.4%. A finding of docs/recovery.md ("The recovered model against the
+/// panorama, beside the truth materials"), kept here as the check it was, to run by name.
 #[test]
-#[ignore = "missed since ebb2007: the statue's group mean, see the comment and docs/edits.md"]
+#[ignore = "missed since ebb2007: the statue's group mean, see the comment and docs/recovery.md"]
 fn living_room_small_renders_its_group_means_as_well_as_the_truth_does() {
     let (out, _) = living_room_small();
     let o = renders_of_its_panorama("living-room", out);
