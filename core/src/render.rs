@@ -550,7 +550,7 @@ pub(crate) mod tests {
     }
 
     impl LentStorage {
-        pub(crate) fn new(triangles: usize) -> Self {
+        fn new(triangles: usize) -> Self {
             let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles);
             LentStorage {
                 nodes: vec![BvhNode::default(); n_nodes],
@@ -560,7 +560,7 @@ pub(crate) mod tests {
         }
 
         /// A scene built afresh into this storage.
-        pub(crate) fn build<'a>(
+        fn build<'a>(
             &'a mut self,
             triangles: &'a [Triangle],
             materials: &'a [SurfaceMaterial],
@@ -583,25 +583,10 @@ pub(crate) mod tests {
         }
     }
 
-    /// Mean and standard error of the radiance seen from the sphere's centre along
-    /// uniformly spread directions that meet the diffuse part.
-    fn mean_radiance_from_centre(scene: &Scene, n: u32, settings: &RenderSettings) -> (f64, f64) {
+    /// Mean and standard error of the mean of `values`.
+    pub(crate) fn mean_and_standard_error(values: impl Iterator<Item = f64>) -> (f64, f64) {
         let (mut sum, mut sum2, mut count) = (0.0f64, 0.0f64, 0u32);
-        for k in 0..n {
-            let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
-            let [u1, u2] = sampler.next_2d();
-            let z = 1.0 - 2.0 * u1;
-            let r = math::sqrt((1.0 - z * z).max(0.0));
-            let phi = 2.0 * math::PI * u2;
-            let dir = Vec3::new(r * math::cos(phi), r * math::sin(phi), z);
-            let ray = Ray::new(Vec3::ZERO, dir);
-            let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
-                continue;
-            };
-            if scene.triangles[hit.triangle as usize].surface != Surface::Group(0) {
-                continue;
-            }
-            let l = radiance(scene, ray, &mut sampler, settings).y as f64;
+        for l in values {
             sum += l;
             sum2 += l * l;
             count += 1;
@@ -609,6 +594,25 @@ pub(crate) mod tests {
         let mean = sum / count as f64;
         let var = (sum2 / count as f64 - mean * mean).max(0.0);
         (mean, (var / count as f64).sqrt())
+    }
+
+    /// Mean and standard error of the radiance seen from the sphere's centre along
+    /// uniformly spread directions that meet the diffuse part.
+    fn mean_radiance_from_centre(scene: &Scene, n: u32, settings: &RenderSettings) -> (f64, f64) {
+        mean_and_standard_error((0..n).filter_map(|k| {
+            let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+            let [u1, u2] = sampler.next_2d();
+            let z = 1.0 - 2.0 * u1;
+            let r = math::sqrt((1.0 - z * z).max(0.0));
+            let phi = 2.0 * math::PI * u2;
+            let dir = Vec3::new(r * math::cos(phi), r * math::sin(phi), z);
+            let ray = Ray::new(Vec3::ZERO, dir);
+            let hit = scene.intersect(&ray, f32::INFINITY)?;
+            if scene.triangles[hit.triangle as usize].surface != Surface::Group(0) {
+                return None;
+            }
+            Some(radiance(scene, ray, &mut sampler, settings).y as f64)
+        }))
     }
 
     /// Furnace test. In a sphere every surface element sees every other with the same
@@ -832,17 +836,11 @@ pub(crate) mod tests {
             ..RenderSettings::default()
         };
         let estimate = |scene: &Scene, n: u32| {
-            let (mut sum, mut sum2) = (0.0f64, 0.0f64);
-            for k in 0..n {
+            mean_and_standard_error((0..n).map(|k| {
                 let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
                 let ray = Ray::new(v(0.0, 0.0, 0.5), -Vec3::Z);
-                let l = radiance(scene, ray, &mut sampler, &settings).y as f64;
-                sum += l;
-                sum2 += l * l;
-            }
-            let mean = sum / n as f64;
-            let var = (sum2 / n as f64 - mean * mean).max(0.0);
-            (mean, (var / n as f64).sqrt())
+                radiance(scene, ray, &mut sampler, &settings).y as f64
+            }))
         };
         let n = 100_000;
 

@@ -579,7 +579,7 @@ mod tests {
     /// alone); flat with far less noise.
     #[test]
     fn light_by_way_of_a_planar_mirror_reaches_the_incident_samples() {
-        use crate::render::tests::TileBesideAMirror;
+        use crate::render::tests::{mean_and_standard_error, TileBesideAMirror};
         let diffuse = Material::Diffuse {
             rho_d: Vec3::splat(0.5),
         };
@@ -601,20 +601,10 @@ mod tests {
         )
         .unwrap();
         let n = 40_000u32;
-        let mean_and_error = |values: &mut dyn Iterator<Item = f64>| {
-            let (mut sum, mut sum2) = (0.0f64, 0.0f64);
-            for l in values {
-                sum += l;
-                sum2 += l * l;
-            }
-            let mean = sum / n as f64;
-            let var = (sum2 / n as f64 - mean * mean).max(0.0);
-            (mean, libm::sqrt(var / n as f64))
-        };
         // The tile's pixel under `material` from the incident samples, and as rendered.
         let cached = |scene: &Scene, material: &Material| {
             let per_sample = incident_per_sample(scene);
-            mean_and_error(&mut (0..n).map(|k| {
+            mean_and_standard_error((0..n).map(|k| {
                 let mut out = [IncidentSample::default(); MAX_INCIDENT_PER_SAMPLE];
                 let written = trace_pixel_sample(scene, &view, 0, 0, 0, k, 0, &settings, &mut out);
                 assert_eq!(written, per_sample);
@@ -622,7 +612,7 @@ mod tests {
             }))
         };
         let rendered = |scene: &Scene| {
-            mean_and_error(&mut (0..n).map(|k| {
+            mean_and_standard_error((0..n).map(|k| {
                 render::render_pixel(
                     scene,
                     &view,

@@ -43,9 +43,11 @@ fn more_precise(
     }
 }
 
-/// The groups that [`proposed_mirrors`] sends first, and the fits it spent.
+/// The groups that [`proposed_mirrors`] sends first, the caches it traced (under stage
+/// 1's materials, which the group fitted first still sees), and the fits it spent.
 struct MirrorsFirst {
     groups: Vec<usize>,
+    caches: Vec<(usize, cache::GroupCache)>,
     evaluations: u32,
 }
 
@@ -67,6 +69,7 @@ fn proposed_mirrors(
 ) -> Result<MirrorsFirst, Error> {
     let mut first = MirrorsFirst {
         groups: Vec::new(),
+        caches: Vec::new(),
         evaluations: 0,
     };
     // One candidate has no order to change: spare its cache.
@@ -87,6 +90,7 @@ fn proposed_mirrors(
             ));
             first.groups.push(g);
         }
+        first.caches.push((g, cache));
     }
     Ok(first)
 }
@@ -120,10 +124,21 @@ pub(super) fn run(
     let mirror_like = proposed_mirrors(rec, reports, candidates, kinds, cache_settings)?;
     evaluations += mirror_like.evaluations;
     order(candidates, &mirror_like.groups);
+    // The group fitted first sees the materials the pre-pass traced under: its cache, if
+    // the pre-pass traced one, is the one it would trace again (the same bits).
+    let mut first_cache = candidates.first().and_then(|&(first, _)| {
+        mirror_like
+            .caches
+            .into_iter()
+            .find_map(|(g, cache)| (g == first).then_some(cache))
+    });
     let verify_spp = budget.loop_spp;
     let bar = progress_bar(candidates.len() as u64, "2 isotropic");
     for &(g, diffuse_error) in candidates.iter() {
-        let cache = rec.group_cache(g, cache_settings)?;
+        let cache = match first_cache.take() {
+            Some(cache) => cache,
+            None => rec.group_cache(g, cache_settings)?,
+        };
         let diffuse_fit = isotropic::solve_diffuse(&cache::linear_sums(
             &rec.pool,
             &cache,
