@@ -71,6 +71,20 @@ pub enum MapLobe {
 }
 
 impl MapLobe {
+    /// An isotropic lobe, or none when its specularity is none: a lobe refitted to zero
+    /// (stage 5, the highlights explained by the map filled in from their neighbours)
+    /// leaves the group textured-diffuse rather than textured-isotropic with no lobe.
+    pub fn isotropic(specularity: f64, roughness: f64) -> MapLobe {
+        if specularity > 0.0 {
+            MapLobe::Isotropic {
+                specularity,
+                roughness,
+            }
+        } else {
+            MapLobe::None
+        }
+    }
+
     /// The lobe of an untextured plastic stand-in (`None` for any other model).
     pub fn of_stand_in(model: &GroupModel) -> MapLobe {
         match *model {
@@ -386,6 +400,20 @@ impl GroupModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lobe_refitted_to_no_specularity_is_no_lobe() {
+        let refitted = MapLobe::isotropic(0.0, 0.005);
+        assert_eq!(refitted, MapLobe::None);
+        assert_eq!(refitted.textured_model(), Model::TexturedDiffuse);
+        assert_eq!(
+            MapLobe::isotropic(0.06, 0.08),
+            MapLobe::Isotropic {
+                specularity: 0.06,
+                roughness: 0.08
+            }
+        );
+    }
 
     #[test]
     fn stage_4_and_5_models_write_valid_entries_and_primitives() {

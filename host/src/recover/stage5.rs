@@ -126,6 +126,11 @@ fn solve_map(
             "stage 5: the stand-in's lobe fitted again with a first map, on the {} highlight pixels of the group's cache (where the map was filled from neighbours, not solved): specularity {:.4} -> {:.4}, roughness {:.4} -> {:.4}, squared residual {:.5} -> {:.5}",
             r.pixels, r.before[0], r.after[0], r.before[1], r.after[1], r.sse_before, r.sse_after
         ));
+        if r.after[0] <= 0.0 {
+            report.decisions.push(
+                "stage 5: no lobe left under the map: textured-diffuse (the highlights are the map's, filled in from their neighbours)".into(),
+            );
+        }
     }
     let lobe = match summary.lobe_refit {
         Some(_) => "the lobe refitted with the map".to_string(),

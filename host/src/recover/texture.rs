@@ -215,10 +215,7 @@ pub fn recover_map(
             let [specularity, roughness] = refit.after;
             rec.models[g] = GroupModel::Textured {
                 map,
-                lobe: MapLobe::Isotropic {
-                    specularity,
-                    roughness,
-                },
+                lobe: MapLobe::isotropic(specularity, roughness),
             };
             // E and the lobe's part under the new lobe.
             observed = solve.observe(rec)?;
