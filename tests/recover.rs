@@ -133,6 +133,48 @@ fn group_report(out: &std::path::Path, name: &str) -> serde_json::Value {
         .clone()
 }
 
+/// What report.json charges each group (`work`) adds up, stage by stage, to no more than
+/// the stage's own evaluations and time; every group with a lobe was charged stage 2 and
+/// the colour polish, and every group the uncertainty stage.
+fn assert_group_work_within_its_stages(out: &std::path::Path) {
+    let report = report_json(out);
+    let groups = report["groups"].as_array().unwrap();
+    for stage in report["stages"].as_array().unwrap() {
+        let name = stage["stage"].as_str().unwrap();
+        let charged: Vec<&serde_json::Value> = groups
+            .iter()
+            .flat_map(|g| g["work"].as_array().unwrap())
+            .filter(|w| w["stage"] == name)
+            .collect();
+        let evaluations: u64 = charged
+            .iter()
+            .map(|w| w["evaluations"].as_u64().unwrap())
+            .sum();
+        let seconds: f64 = charged.iter().map(|w| w["seconds"].as_f64().unwrap()).sum();
+        assert!(
+            evaluations <= stage["evaluations"].as_u64().unwrap()
+                && seconds <= stage["seconds"].as_f64().unwrap(),
+            "{name}: groups charged {evaluations} evaluations in {seconds} s: {stage}"
+        );
+    }
+    for g in groups {
+        let stages: Vec<&str> = g["work"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|w| w["stage"].as_str().unwrap())
+            .collect();
+        assert!(stages.contains(&"uncertainty"), "{g}");
+        if !matches!(g["model"].as_str().unwrap(), "diffuse" | "unseen") {
+            assert!(
+                stages.contains(&"2 isotropic"),
+                "{}: {stages:?}",
+                g["group"]
+            );
+        }
+    }
+}
+
 /// The first of a group report's comparisons that `matches`.
 fn comparison(
     group: &serde_json::Value,
@@ -186,6 +228,7 @@ fn cornell_recovery_is_deterministic_and_matches_its_golden() {
     for file in ["materials.rad", "report.json"] {
         assert!(tmp.path().join("t1").join(file).is_file(), "{file} missing");
     }
+    assert_group_work_within_its_stages(&tmp.path().join("t1"));
     // Beside the bytes, what they mean: every group in its true class, the anisotropic
     // plate included (its lobe found on stage 4's cache), its direction near the truth's.
     let rows = relume::compare::materials_report(

@@ -12,6 +12,7 @@ use relume_core::material::Kind;
 use relume_core::stages::diffuse;
 
 use super::model::GroupModel;
+use super::report::Laps;
 use super::{
     min_samples_spp, mirror_test, GroupReport, Recovery, StageReport, POLISH_MIN_SAMPLES,
     POLISH_SPP_FACTOR,
@@ -54,10 +55,13 @@ pub(super) fn polish_colours(
     let label = pass.label();
     let stage_start = Instant::now();
     let mut evaluations = 0;
-    for (g, report) in reports.iter_mut().enumerate() {
-        let Some((kind, color)) = to_polish(&rec.models[g], report, textured[g]) else {
+    let mut laps = Laps::new(label);
+    for g in 0..reports.len() {
+        let Some((kind, color)) = to_polish(&rec.models[g], &reports[g], textured[g]) else {
             continue;
         };
+        laps.start(g, evaluations, reports);
+        let report = &mut reports[g];
         let group_spp = min_samples_spp(
             POLISH_SPP_FACTOR.saturating_mul(spp),
             report.pure_pixels,
@@ -113,6 +117,7 @@ pub(super) fn polish_colours(
             }
         }
     }
+    laps.close(evaluations, reports);
     Ok(StageReport {
         stage: label.into(),
         evaluations,

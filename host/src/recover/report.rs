@@ -1,6 +1,8 @@
 //! What `report.json` says: per stage and per group, every decision with its threshold and
 //! statistic, the errors before and after, evaluations and time.
 
+use std::time::Instant;
+
 use relume_core::fit;
 use serde::Serialize;
 
@@ -65,6 +67,17 @@ pub struct GroupReport {
     pub colour_samples: Option<u64>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
+    /// What the stages that work group by group spent on this group, in the order they
+    /// ran: where a stage's time went (see [`Laps`]).
+    pub work: Vec<GroupWork>,
+}
+
+/// The evaluations and wall time one stage spent on one group.
+#[derive(Serialize, Clone, Debug, PartialEq)]
+pub struct GroupWork {
+    pub stage: String,
+    pub evaluations: u32,
+    pub seconds: f64,
 }
 
 impl GroupReport {
@@ -93,6 +106,22 @@ impl GroupReport {
             lobe_sigmas: Vec::new(),
             colour_samples: None,
             uncertainty: Vec::new(),
+            work: Vec::new(),
+        }
+    }
+
+    /// Adds work of `stage` on this group to what the stage has already spent on it.
+    fn add_work(&mut self, stage: &str, evaluations: u32, seconds: f64) {
+        match self.work.iter_mut().find(|w| w.stage == stage) {
+            Some(w) => {
+                w.evaluations += evaluations;
+                w.seconds += seconds;
+            }
+            None => self.work.push(GroupWork {
+                stage: stage.into(),
+                evaluations,
+                seconds,
+            }),
         }
     }
 
@@ -198,6 +227,37 @@ impl ComparisonReport {
     }
 }
 
+/// A stage's work group by group, in a loop over the groups: each group's lap runs from
+/// its start to the next group's (or to [`Laps::close`]), so it is counted whichever way
+/// the group's turn ends. `evaluations` is the stage's running count.
+pub(super) struct Laps {
+    stage: &'static str,
+    open: Option<(usize, Instant, u32)>,
+}
+
+impl Laps {
+    pub fn new(stage: &'static str) -> Self {
+        Laps { stage, open: None }
+    }
+
+    /// Ends the open lap and starts group `g`'s.
+    pub fn start(&mut self, g: usize, evaluations: u32, reports: &mut [GroupReport]) {
+        self.close(evaluations, reports);
+        self.open = Some((g, Instant::now(), evaluations));
+    }
+
+    /// Ends the open lap, adding its work to its group's report.
+    pub fn close(&mut self, evaluations: u32, reports: &mut [GroupReport]) {
+        if let Some((g, start, before)) = self.open.take() {
+            reports[g].add_work(
+                self.stage,
+                evaluations.saturating_sub(before),
+                start.elapsed().as_secs_f64(),
+            );
+        }
+    }
+}
+
 #[derive(Serialize, Debug)]
 pub struct StageReport {
     pub stage: String,
@@ -255,5 +315,42 @@ mod tests {
         );
         r.decisions = vec!["uncertainty: no pixel".into()];
         assert_eq!(r.settling_decision(), Some("uncertainty: no pixel"));
+    }
+
+    /// Each group is charged the evaluations spent from its start to the next group's,
+    /// whichever way its turn ended; two loops of one stage (stage 2's pre-pass and its
+    /// fits) add up under the stage's name.
+    #[test]
+    fn laps_charge_each_group_its_share_of_a_stage() {
+        let mut reports = vec![
+            GroupReport::new("mirror", "metal"),
+            GroupReport::new("desk", "plastic"),
+            GroupReport::new("wall", "plastic"),
+        ];
+        let mut pre_pass = Laps::new("2 isotropic");
+        pre_pass.start(0, 0, &mut reports);
+        pre_pass.close(3, &mut reports);
+        let mut fits = Laps::new("2 isotropic");
+        fits.start(1, 3, &mut reports);
+        fits.start(0, 10, &mut reports);
+        fits.close(14, &mut reports);
+        fits.close(20, &mut reports);
+        fn spent(r: &GroupReport) -> Vec<(&str, u32)> {
+            r.work
+                .iter()
+                .map(|w| (w.stage.as_str(), w.evaluations))
+                .collect()
+        }
+        assert_eq!(spent(&reports[0]), [("2 isotropic", 3 + 4)]);
+        assert_eq!(spent(&reports[1]), [("2 isotropic", 7)]);
+        assert!(reports[2].work.is_empty());
+        let mut later = Laps::new("uncertainty");
+        later.start(1, 0, &mut reports);
+        later.close(1, &mut reports);
+        assert_eq!(spent(&reports[1]), [("2 isotropic", 7), ("uncertainty", 1)]);
+        assert!(reports
+            .iter()
+            .flat_map(|r| &r.work)
+            .all(|w| w.seconds >= 0.0));
     }
 }

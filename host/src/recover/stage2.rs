@@ -15,12 +15,16 @@ use relume_core::stages::diffuse;
 use relume_core::stages::isotropic::{self, WardFit};
 
 use super::model::GroupModel;
+use super::report::Laps;
 use super::{
     cache, fit_ward, keep_rule, ladder, lobe_kinds, min_samples_spp, mirror_test, progress_bar,
     refine, uncertainty, Budget, ComparisonReport, GroupReport, Recovery, StageReport,
 };
 use crate::error::Error;
 use crate::scene_file::GroupKind;
+
+/// The stage's name in report.json.
+const STAGE: &str = "2 isotropic";
 
 /// Colour steps at most when a diffuse alternative is re-fitted in stage 2.
 const REFIT_MAX_STEPS: u32 = 6;
@@ -76,10 +80,12 @@ fn proposed_mirrors(
     if candidates.len() < 2 {
         return Ok(first);
     }
+    let mut laps = Laps::new(STAGE);
     for &(g, _) in candidates {
         if !matches!(kinds[g], GroupKind::Metal | GroupKind::Auto) {
             continue;
         }
+        laps.start(g, first.evaluations, reports);
         let cache = rec.group_cache(g, cache_settings)?;
         let (_, alpha, n) = fit_ward(&rec.pool, &cache, Kind::Metal);
         first.evaluations += n;
@@ -92,6 +98,7 @@ fn proposed_mirrors(
         }
         first.caches.push((g, cache));
     }
+    laps.close(first.evaluations, reports);
     Ok(first)
 }
 
@@ -133,8 +140,10 @@ pub(super) fn run(
             .find_map(|(g, cache)| (g == first).then_some(cache))
     });
     let verify_spp = budget.loop_spp;
-    let bar = progress_bar(candidates.len() as u64, "2 isotropic");
+    let bar = progress_bar(candidates.len() as u64, STAGE);
+    let mut laps = Laps::new(STAGE);
     for &(g, diffuse_error) in candidates.iter() {
+        laps.start(g, evaluations, reports);
         let cache = match first_cache.take() {
             Some(cache) => cache,
             None => rec.group_cache(g, cache_settings)?,
@@ -380,9 +389,10 @@ pub(super) fn run(
             r.set_decided(more_precise(r.latest_error, c.simple_estimate()));
         }
     }
+    laps.close(evaluations, reports);
     bar.finish_and_clear();
     Ok(StageReport {
-        stage: "2 isotropic".into(),
+        stage: STAGE.into(),
         evaluations,
         samples_per_pixel: cache_settings.spp,
         seconds: stage_start.elapsed().as_secs_f64(),

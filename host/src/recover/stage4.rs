@@ -13,6 +13,7 @@ use relume_core::stages::anisotropic::Proposal;
 
 use super::model::GroupModel;
 use super::refine::RACE_SIGNIFICANCE;
+use super::report::Laps;
 use super::{
     anisotropic, cache, fit_ward, fit_ward_by, keep_rule, lobe_kinds, min_samples_spp, pattern,
     polish, progress_bar, uncertainty, Budget, ComparisonReport, GroupReport, Recovery,
@@ -20,6 +21,9 @@ use super::{
 };
 use crate::error::Error;
 use crate::scene_file::GroupKind;
+
+/// The stage's name in report.json.
+const STAGE: &str = "4 anisotropic";
 
 /// What an isotropic alternative to a group's isotropic model (or diffuse one) is worth.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -90,8 +94,10 @@ pub(super) fn run(
             _ => false,
         })
         .collect();
-    let bar = progress_bar(stage4.len() as u64, "4 anisotropic");
+    let bar = progress_bar(stage4.len() as u64, STAGE);
+    let mut laps = Laps::new(STAGE);
     for g in stage4 {
+        laps.start(g, evaluations, reports);
         let mut stage2 = rec.models[g];
         let Some(basis) = anisotropic::tangent_basis(rec, g) else {
             bar.inc(1);
@@ -376,9 +382,10 @@ pub(super) fn run(
             ));
         }
     }
+    laps.close(evaluations, reports);
     bar.finish_and_clear();
     Ok(StageReport {
-        stage: "4 anisotropic".into(),
+        stage: STAGE.into(),
         evaluations,
         samples_per_pixel: verify_spp,
         seconds: stage_start.elapsed().as_secs_f64(),

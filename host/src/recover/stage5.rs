@@ -19,8 +19,12 @@ use relume_core::fit;
 use relume_core::render::RenderSettings;
 
 use super::model::GroupModel;
+use super::report::Laps;
 use super::{texture, uncertainty, Budget, GroupReport, Recovery, StageReport};
 use crate::error::Error;
+
+/// The stage's name in report.json.
+const STAGE: &str = "5 diffuse maps";
 
 /// What stage 5 runs with.
 pub(super) struct MapSettings<'a> {
@@ -42,7 +46,9 @@ pub(super) fn run(
 ) -> Result<StageReport, Error> {
     let stage_start = Instant::now();
     let mut evaluations = 0;
+    let mut laps = Laps::new(STAGE);
     for g in (0..rec.n_groups()).filter(|&g| textured[g]) {
+        laps.start(g, evaluations, reports);
         let standin = rec.models[g];
         evaluations += solve_map(rec, &mut reports[g], g, settings)?;
         let GroupModel::Textured { lobe, .. } = rec.models[g] else {
@@ -90,8 +96,9 @@ pub(super) fn run(
         rec.models[g] = GroupModel::Diffuse { color: diffuse };
         evaluations += solve_map(rec, &mut reports[g], g, settings)?;
     }
+    laps.close(evaluations, reports);
     Ok(StageReport {
-        stage: "5 diffuse maps".into(),
+        stage: STAGE.into(),
         evaluations,
         samples_per_pixel: settings.map_spp,
         seconds: stage_start.elapsed().as_secs_f64(),

@@ -23,6 +23,7 @@ use serde::Serialize;
 
 use super::cache::{self, GroupCache};
 use super::model::{GroupModel, MapLobe};
+use super::report::Laps;
 use super::{fit_ward_by, pattern, pixels, Budget, GroupReport, Recovery, StageReport};
 use crate::error::Error;
 
@@ -491,12 +492,17 @@ pub(super) fn run(
     cache_settings: &RenderSettings,
     seed: u64,
 ) -> Result<StageReport, Error> {
+    const STAGE: &str = "uncertainty";
     let stage_start = Instant::now();
-    for (g, r) in reports.iter_mut().enumerate() {
-        r.uncertainty = group_uncertainty(rec, g, r, budget, cache_settings, seed)?;
+    let mut laps = Laps::new(STAGE);
+    for g in 0..reports.len() {
+        laps.start(g, g as u32, reports);
+        reports[g].uncertainty =
+            group_uncertainty(rec, g, &reports[g], budget, cache_settings, seed)?;
     }
+    laps.close(reports.len() as u32, reports);
     Ok(StageReport {
-        stage: "uncertainty".into(),
+        stage: STAGE.into(),
         evaluations: reports.len() as u32,
         samples_per_pixel: uncertainty_spp(budget),
         seconds: stage_start.elapsed().as_secs_f64(),
