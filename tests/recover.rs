@@ -175,6 +175,16 @@ fn assert_group_work_within_its_stages(out: &std::path::Path) {
     }
 }
 
+/// A group report's decisions, in order.
+fn decisions(group_report: &serde_json::Value) -> Vec<&str> {
+    group_report["decisions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d.as_str().unwrap())
+        .collect()
+}
+
 /// The first of a group report's comparisons that `matches`.
 fn comparison(
     group: &serde_json::Value,
@@ -324,12 +334,7 @@ fn box_diffuse_small_measures_a_withheld_wall_from_the_pixels_it_shares() {
     );
     let walls = group_report(&out, "walls_ew");
     assert_eq!(walls["model"], "unseen");
-    let decisions: Vec<&str> = walls["decisions"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|d| d.as_str().unwrap())
-        .collect();
+    let decisions = decisions(&walls);
     let last = decisions
         .iter()
         .rev()
@@ -742,12 +747,7 @@ fn living_room_small_renders_no_lobe_its_cache_rules_out() {
         ("lamp_body", false),
     ] {
         let report = group_report(out, group);
-        let decisions: Vec<&str> = report["decisions"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|d| d.as_str().unwrap())
-            .collect();
+        let decisions = decisions(&report);
         let skipped = decisions
             .iter()
             .any(|d| d.starts_with("stage 2: stays diffuse, its lobe not rendered"));

@@ -68,7 +68,7 @@ pub struct GroupReport {
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
     /// What the stages that work group by group spent on this group, in the order they
-    /// ran: where a stage's time went (see [`Laps`]).
+    /// ran: where a stage's time went (see `Laps`).
     pub work: Vec<GroupWork>,
 }
 

@@ -4,7 +4,9 @@
 //! renders refines (`refine`); a metal's lobe stands against a perfect mirror, and the
 //! paper's mirror test may make it one; a render decides against the diffuse model,
 //! re-fitted under the materials found so far (`Recovery::compare_models`); a weak lobe
-//! whose proposal fails gets a second look on a ladder of roughnesses (`ladder`).
+//! whose proposal fails gets a second look on a ladder of roughnesses (`ladder`). A weak
+//! candidate whose best lobe on its own cache cannot account for the threshold
+//! (`fit::cache_effect`) stays diffuse without those renders.
 
 use std::time::Instant;
 
@@ -218,7 +220,7 @@ pub(super) fn run(
         let on_cache = fit::cache_effect(diffuse_fit.relative_error, ward.relative_error);
         if ladder::applies(diffuse_error) && on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
             r.decisions.push(format!(
-                "stage 2: stays diffuse, its lobe not rendered: on its transport cache the best isotropic fit (s {:.4}, roughness {alpha:.4}) accounts for {on_cache:.4} of relative error (diffuse {:.4}, specular {:.4}), at most SPECULAR_GAIN_THRESHOLD {}; the cache's fit takes in its noise too, so no render could show more",
+                "stage 2: stays diffuse, its lobe not rendered: on its transport cache the best isotropic fit (s {:.4}, roughness {alpha:.4}) accounts for {on_cache:.4} of relative error (diffuse {:.4}, specular {:.4}), at most SPECULAR_GAIN_THRESHOLD {}; the cache's fit takes in its noise too and reads more gain, not less, than a render",
                 ward.specularity,
                 diffuse_fit.relative_error,
                 ward.relative_error,
