@@ -158,12 +158,7 @@ fn assert_group_work_within_its_stages(out: &std::path::Path) {
         );
     }
     for g in groups {
-        let stages: Vec<&str> = g["work"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|w| w["stage"].as_str().unwrap())
-            .collect();
+        let stages = stage_names(&g["work"]);
         assert!(stages.contains(&"uncertainty"), "{g}");
         if !matches!(g["model"].as_str().unwrap(), "diffuse" | "unseen") {
             assert!(
@@ -173,6 +168,17 @@ fn assert_group_work_within_its_stages(out: &std::path::Path) {
             );
         }
     }
+}
+
+/// The `stage` of each entry of a report's array (its `stages`, or a group's `work`), in
+/// order.
+fn stage_names(entries: &serde_json::Value) -> Vec<&str> {
+    entries
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["stage"].as_str().unwrap())
+        .collect()
 }
 
 /// A group report's decisions, in order.
@@ -783,12 +789,7 @@ fn living_room_small_polishes_its_mirror_again_under_the_final_scene() {
     assert!(mirror.diffuse_rel_err.unwrap() <= 0.005, "{mirror:?}");
 
     let report = report_json(out);
-    let stages: Vec<&str> = report["stages"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["stage"].as_str().unwrap())
-        .collect();
+    let stages = stage_names(&report["stages"]);
     let last_refinement = stages.iter().rposition(|s| *s == "diffuse refinement");
     let final_polish = stages
         .iter()

@@ -217,6 +217,7 @@ pub(super) fn run(
         // where even that is under the threshold, the search, the test and the ladder
         // could only keep noise. (The living room's floor and accent wall at 64 px: 0.0016
         // and 0.0009, a third of stage 2's time; the lobes found are 0.0136 and above.)
+        let stage1 = rec.models[g];
         let on_cache = fit::cache_effect(diffuse_fit.relative_error, ward.relative_error);
         if ladder::applies(diffuse_error) && on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
             r.decisions.push(format!(
@@ -231,7 +232,7 @@ pub(super) fn run(
             }
             // Its colour re-fitted under the materials found so far, as when a render
             // keeps it diffuse.
-            let (diffuse, n) = refit_diffuse(rec, g, rec.models[g], r.pure_pixels, verify_spp)?;
+            let (diffuse, n) = refit_diffuse(rec, g, stage1, r.pure_pixels, verify_spp)?;
             evaluations += n;
             rec.models[g] = diffuse;
             continue;
@@ -241,7 +242,6 @@ pub(super) fn run(
         // render decides. The cache's error carries its own sampling noise and the bias of
         // a finite set of incident samples, which a specular lobe can partly "explain"; the
         // render's error is noise-corrected (fit::GroupFit), so the gain it shows is real.
-        let stage1 = rec.models[g];
         let proposal = GroupModel::Isotropic {
             kind,
             color: ward.color,
