@@ -534,3 +534,116 @@ fn compare_views_says_where_the_reference_is_zero_instead_of_printing_nan() {
     );
     assert!(run.stdout.is_empty());
 }
+
+/// `--independent B2` adds each row's misfit, the relative RMS with two renders' noise
+/// taken out: flat renders 10% bright read +10% (their errors agree), a B2 10% dark against
+/// them -10% (under the noise); a group whose reference is 0 has none, as it has no RMS;
+/// the JSON has it beside the RMS, and leaves it out without B2. A B2 missing a view's
+/// image is refused, naming it.
+#[test]
+fn compare_views_with_an_independent_render_gives_the_misfit() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), TWO_VIEWS).unwrap();
+    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
+    for (sub, a, b) in [
+        ("A", 0.0, 1.0),
+        ("B", 0.5, 1.1),
+        ("same", 0.5, 1.1),
+        ("dark", 0.5, 0.9),
+    ] {
+        std::fs::create_dir(dir.path().join(sub)).unwrap();
+        flat(&dir.path().join(sub).join("a.exr"), a);
+        flat(&dir.path().join(sub).join("b.exr"), b);
+    }
+    let compare = |b2: &str| {
+        let run = relume(
+            dir.path(),
+            &[
+                "compare",
+                "views",
+                "scene.toml",
+                "A",
+                "B",
+                "--independent",
+                b2,
+                "--json",
+                &format!("{b2}.json"),
+            ],
+        );
+        let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+        assert!(run.status.success(), "{stdout}");
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join(format!("{b2}.json"))).unwrap(),
+        )
+        .unwrap();
+        (stdout, json)
+    };
+    let (stdout, json) = compare("same");
+    assert!(
+        stdout.lines().next().unwrap().ends_with("misfit"),
+        "{stdout}"
+    );
+    let last_two = |stdout: &str, group: &str| -> Vec<String> {
+        let line = stdout.lines().find(|l| l.starts_with(group)).unwrap();
+        let mut words: Vec<String> = line
+            .split_whitespace()
+            .rev()
+            .take(2)
+            .map(String::from)
+            .collect();
+        words.reverse();
+        words
+    };
+    assert_eq!(
+        last_two(&stdout, "shelf "),
+        ["10.00%", "+10.00%"],
+        "{stdout}"
+    );
+    assert_eq!(last_two(&stdout, "floor "), ["-", "-"], "{stdout}");
+    let shelf = &json["groups"][1];
+    assert!(
+        (shelf["rel_misfit"].as_f64().unwrap() - 0.1).abs() < 1e-6,
+        "{shelf}"
+    );
+    assert!(json["groups"][0]["rel_misfit"].is_null());
+
+    let (stdout, _) = compare("dark");
+    assert_eq!(
+        last_two(&stdout, "shelf "),
+        ["10.00%", "-10.00%"],
+        "{stdout}"
+    );
+
+    let run = relume(
+        dir.path(),
+        &[
+            "compare",
+            "views",
+            "scene.toml",
+            "A",
+            "B",
+            "--json",
+            "plain.json",
+        ],
+    );
+    assert!(run.status.success());
+    let text = std::fs::read_to_string(dir.path().join("plain.json")).unwrap();
+    assert!(!text.contains("rel_misfit"), "{text}");
+    assert!(!String::from_utf8_lossy(&run.stdout).contains("misfit"));
+
+    std::fs::remove_file(dir.path().join("dark/b.exr")).unwrap();
+    let run = relume(
+        dir.path(),
+        &[
+            "compare",
+            "views",
+            "scene.toml",
+            "A",
+            "B",
+            "--independent",
+            "dark",
+        ],
+    );
+    // A file that cannot be read is an I/O error (4), as for A's and B's images.
+    fails(&run, 4, &["dark/b.exr", "No such file"]);
+}

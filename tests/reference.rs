@@ -27,7 +27,8 @@ fn check_scene(name: &str, spp: &str) {
         ],
     );
     let report =
-        relume::compare::views_report(&scene, &bench.join("views-small"), &out, None).unwrap();
+        relume::compare::views_report(&scene, &bench.join("views-small"), &out, None, None)
+            .unwrap();
     let mut bad = Vec::new();
     for row in &report.groups {
         println!(

@@ -127,6 +127,11 @@ enum CompareCommand {
         dir_a: PathBuf,
         /// Folder of `<view>.exr` files: compared against A.
         dir_b: PathBuf,
+        /// Folder of an independent render of B's materials (another seed): adds each
+        /// row's misfit, its relative RMS with the render noise taken out
+        /// (sqrt(mean (B - A).(B2 - A)) / mean A; negative where it is under the noise).
+        #[arg(long, value_name = "DIR_B2")]
+        independent: Option<PathBuf>,
         /// Also write the table as JSON.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -362,9 +367,17 @@ fn run(command: Command) -> Result<(), Error> {
             scene,
             dir_a,
             dir_b,
+            independent,
             json,
             threads,
-        }) => compare::compare_views(&scene, &dir_a, &dir_b, json.as_deref(), threads),
+        }) => compare::compare_views(
+            &scene,
+            &dir_a,
+            &dir_b,
+            independent.as_deref(),
+            json.as_deref(),
+            threads,
+        ),
         Command::Compare(CompareCommand::Materials {
             truth,
             materials,

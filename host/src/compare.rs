@@ -27,16 +27,24 @@ struct Sums {
     sum_a: f64,
     sum_b: f64,
     sum_sq_diff: f64,
+    /// `sum (B - A).(B2 - A)` over the pixels, with `B2` an independent render of B's
+    /// materials; `None` without one.
+    sum_cross: Option<f64>,
 }
 
 impl Sums {
-    fn add(&mut self, a: [f32; 3], b: [f32; 3]) {
+    /// Adds one pixel of A and B, and of B2 when the comparison has one (for every pixel
+    /// or for none).
+    fn add(&mut self, a: [f32; 3], b: [f32; 3], b2: Option<[f32; 3]>) {
         self.pixels += 1;
         for c in 0..3 {
             let (a, b) = (a[c] as f64, b[c] as f64);
             self.sum_a += a;
             self.sum_b += b;
             self.sum_sq_diff += (b - a) * (b - a);
+            if let Some(b2) = b2 {
+                *self.sum_cross.get_or_insert(0.0) += (b - a) * (b2[c] as f64 - a);
+            }
         }
     }
 
@@ -65,6 +73,10 @@ impl Sums {
             mean_b,
             rel_mean_diff: relative((mean_b - mean_a) / mean_a),
             rel_rms: relative((self.sum_sq_diff / n).sqrt() / mean_a),
+            rel_misfit: self.sum_cross.map(|cross| {
+                let mean = cross / n;
+                relative(mean.abs().sqrt().copysign(mean) / mean_a)
+            }),
             undefined,
         }
     }
@@ -84,6 +96,17 @@ pub struct ViewsRow {
     pub rel_mean_diff: f64,
     #[serde(serialize_with = "finite_or_null")]
     pub rel_rms: f64,
+    /// With an independent render B2 of B's materials (`--independent`): the relative RMS
+    /// with the render noise taken out, `sqrt(mean (B - A).(B2 - A)) / mean A`, since the
+    /// two renders' noises do not multiply to anything on average. What is left is B's
+    /// misfit and A's own noise. Negative (the root of the magnitude, signed) where the two
+    /// renders err in opposite directions more than together: a misfit under the renders'
+    /// noise. Absent without B2, and on a row with no pixel.
+    #[serde(
+        skip_serializing_if = "Option::is_none",
+        serialize_with = "finite_or_null_option"
+    )]
+    pub rel_misfit: Option<f64>,
     /// Why the relative figures are undefined (no pure pixel, or a reference of 0 over
     /// them); absent when they are defined.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -98,6 +121,11 @@ fn finite_or_null<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error
     } else {
         s.serialize_none()
     }
+}
+
+/// [`finite_or_null`] for a figure that may be absent (then skipped, not serialized).
+fn finite_or_null_option<S: serde::Serializer>(v: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
+    finite_or_null(&v.unwrap_or(f64::NAN), s)
 }
 
 #[derive(Serialize, Clone, Debug)]
@@ -143,16 +171,20 @@ impl ViewImages<'_> {
 
 /// Compares `dir_a/<view>.exr` with `dir_b/<view>.exr` for every view of the scene over
 /// pure pixels (whole footprint on one group; lights and silhouettes left out).
+/// With `dir_b2` (an independent render of B's materials, on another seed), each row also
+/// has its misfit with the render noise taken out (`ViewsRow::rel_misfit`).
 pub fn views_report(
     scene_path: &Path,
     dir_a: &Path,
     dir_b: &Path,
+    dir_b2: Option<&Path>,
     threads: Option<usize>,
 ) -> Result<ViewsReport, Error> {
     views_report_of(
         scene_path,
         ViewImages::Folder(dir_a),
         ViewImages::Folder(dir_b),
+        dir_b2.map(ViewImages::Folder),
         threads,
     )
 }
@@ -162,6 +194,7 @@ pub fn views_report_of(
     scene_path: &Path,
     a: ViewImages<'_>,
     b: ViewImages<'_>,
+    b2: Option<ViewImages<'_>>,
     threads: Option<usize>,
 ) -> Result<ViewsReport, Error> {
     let mut owned = assemble::load_and_assemble(scene_path, MaterialSource::GeometryOnly)?;
@@ -179,6 +212,7 @@ pub fn views_report_of(
     for (desc, view) in descs.iter().zip(&views) {
         let a = a.read(desc, scene_path)?;
         let b = b.read(desc, scene_path)?;
+        let b2 = b2.map(|b2| b2.read(desc, scene_path)).transpose()?;
         let labels = parallel::map_pixels(&pool, view, |x, y| {
             render::pixel_surface(&scene, view, x, y, LABEL_RAYS_PER_SIDE)
         });
@@ -186,9 +220,10 @@ pub fn views_report_of(
         for (i, label) in labels.iter().enumerate() {
             if let Some(Surface::Group(g)) = label {
                 let g = *g as usize;
-                groups[g].add(a.pixels[i], b.pixels[i]);
-                sums.add(a.pixels[i], b.pixels[i]);
-                all.add(a.pixels[i], b.pixels[i]);
+                let (a, b, b2) = (a.pixels[i], b.pixels[i], b2.as_ref().map(|b2| b2.pixels[i]));
+                groups[g].add(a, b, b2);
+                sums.add(a, b, b2);
+                all.add(a, b, b2);
                 if seen_in[g].last() != Some(&desc.name.as_str()) {
                     seen_in[g].push(&desc.name);
                 }
@@ -246,9 +281,16 @@ impl ViewsReport {
 /// The table, with `-` for the relative figures a row does not have and a note under it
 /// for each such row, saying why.
 fn print_views_table(report: &ViewsReport) {
+    let with_misfit = report.all.rel_misfit.is_some();
     println!(
-        "{:<16} {:>8} {:>11} {:>11} {:>10} {:>9}",
-        "group", "pixels", "mean A", "mean B", "rel mean", "rel RMS"
+        "{:<16} {:>8} {:>11} {:>11} {:>10} {:>9}{}",
+        "group",
+        "pixels",
+        "mean A",
+        "mean B",
+        "rel mean",
+        "rel RMS",
+        if with_misfit { "    misfit" } else { "" }
     );
     let percent = |v: f64, sign: bool| match (v.is_finite(), sign) {
         (false, _) => "-".to_string(),
@@ -257,13 +299,19 @@ fn print_views_table(report: &ViewsReport) {
     };
     let line = |r: &ViewsRow| {
         println!(
-            "{:<16} {:>8} {:>11.5} {:>11.5} {:>10} {:>9}",
+            "{:<16} {:>8} {:>11.5} {:>11.5} {:>10} {:>9}{}",
             r.name,
             r.pixels,
             r.mean_a,
             r.mean_b,
             percent(r.rel_mean_diff, true),
-            percent(r.rel_rms, false)
+            percent(r.rel_rms, false),
+            // A row with no pixel has no B2 sums either: `-`, as for its RMS.
+            if with_misfit {
+                format!(" {:>9}", percent(r.rel_misfit.unwrap_or(f64::NAN), true))
+            } else {
+                String::new()
+            }
         )
     };
     report.groups.iter().for_each(line);
@@ -275,12 +323,14 @@ fn print_views_table(report: &ViewsReport) {
     }
 }
 
-/// `relume compare views`: the table, and `json` if given. The JSON may replace none of
-/// the run's inputs (the scene's files, the images compared), checked before the work.
+/// `relume compare views`: the table (with a misfit column given `dir_b2`, an independent
+/// render of B's materials), and `json` if given. The JSON may replace none of the run's
+/// inputs (the scene's files, the images compared), checked before the work.
 pub fn compare_views(
     scene: &Path,
     dir_a: &Path,
     dir_b: &Path,
+    dir_b2: Option<&Path>,
     json: Option<&Path>,
     threads: Option<usize>,
 ) -> Result<(), Error> {
@@ -296,12 +346,18 @@ pub fn compare_views(
             dir_b.join(&image),
             format!("the compared image of view '{}' (B)", v.name),
         ));
+        if let Some(dir_b2) = dir_b2 {
+            inputs.push((
+                dir_b2.join(&image),
+                format!("the independent image of view '{}' (B2)", v.name),
+            ));
+        }
     }
     let mut set = OutputSet::keeping(inputs);
     if let Some(path) = json {
         set.check_target(path)?;
     }
-    let report = views_report(scene, dir_a, dir_b, threads)?;
+    let report = views_report(scene, dir_a, dir_b, dir_b2, threads)?;
     print_views_table(&report);
     if let Some(path) = json {
         let text =
@@ -713,6 +769,35 @@ fn class_summary(rows: &[MaterialRow]) -> String {
 mod tests {
     use super::*;
 
+    /// Four pixels of A = 1 whose renders B and B2 are off by a bias of 0.1 plus noises of
+    /// +-0.2, in all four pairings: the RMS holds the noise (sqrt(0.1^2 + 0.2^2)); the
+    /// misfit is the bias alone. Renders that err in opposite directions more than
+    /// together read a negative misfit; without B2 there is none.
+    #[test]
+    fn the_misfit_takes_the_renders_noise_out_of_the_rms() {
+        let mut sums = Sums::default();
+        for (n1, n2) in [(0.2, 0.2), (0.2, -0.2), (-0.2, 0.2), (-0.2, -0.2)] {
+            sums.add([1.0; 3], [1.1 + n1; 3], Some([1.1 + n2; 3]));
+        }
+        let row = sums.row("g", "group 'g'");
+        assert!(
+            (row.rel_rms - libm::sqrt(0.05)).abs() < 1e-6,
+            "{}",
+            row.rel_rms
+        );
+        let misfit = row.rel_misfit.unwrap();
+        assert!((misfit - 0.1).abs() < 1e-6, "{misfit}");
+
+        let mut opposite = Sums::default();
+        opposite.add([1.0; 3], [1.1; 3], Some([0.9; 3]));
+        let misfit = opposite.row("g", "group 'g'").rel_misfit.unwrap();
+        assert!((misfit + 0.1).abs() < 1e-6, "{misfit}");
+
+        let mut without = Sums::default();
+        without.add([1.0; 3], [1.1; 3], None);
+        assert_eq!(without.row("g", "group 'g'").rel_misfit, None);
+    }
+
     fn image(width: u32, height: u32, value: impl Fn(u32, u32) -> f32) -> Image {
         let pixels = (0..height)
             .flat_map(|y| (0..width).map(move |x| (x, y)))
@@ -798,8 +883,8 @@ mod tests {
             empty.undefined.as_deref(),
             Some("group 'lamp': no pure pixel, nothing to compare")
         );
-        sums.add([0.0; 3], [0.5; 3]);
-        sums.add([0.0; 3], [0.25; 3]);
+        sums.add([0.0; 3], [0.5; 3], None);
+        sums.add([0.0; 3], [0.25; 3], None);
         let black = sums.row("floor", "group 'floor' (in views px)");
         assert!(black.rel_mean_diff.is_nan(), "{black:?}");
         let why = black.undefined.clone().unwrap();
@@ -814,7 +899,7 @@ mod tests {
             "{json}"
         );
         let mut lit = Sums::default();
-        lit.add([1.0; 3], [1.5; 3]);
+        lit.add([1.0; 3], [1.5; 3], None);
         let row = lit.row("floor", "group 'floor'");
         assert_eq!((row.rel_mean_diff, row.rel_rms), (0.5, 0.5));
         let json = serde_json::to_string(&row).unwrap();
