@@ -538,8 +538,9 @@ fn compare_views_says_where_the_reference_is_zero_instead_of_printing_nan() {
 /// `--independent B2` adds each row's misfit, the relative RMS with two renders' noise
 /// taken out: flat renders 10% bright read +10% (their errors agree), a B2 10% dark against
 /// them -10% (under the noise); a group whose reference is 0 has none, as it has no RMS;
-/// the JSON has it beside the RMS, and leaves it out without B2. A B2 missing a view's
-/// image is refused, naming it.
+/// the JSON has it beside the RMS, and leaves it out without B2. B's own folder given as
+/// B2 (which would read the RMS as the misfit) and a B2 missing a view's image are refused,
+/// naming them.
 #[test]
 fn compare_views_with_an_independent_render_gives_the_misfit() {
     let dir = tempfile::tempdir().unwrap();
@@ -630,6 +631,20 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
     let text = std::fs::read_to_string(dir.path().join("plain.json")).unwrap();
     assert!(!text.contains("rel_misfit"), "{text}");
     assert!(!String::from_utf8_lossy(&run.stdout).contains("misfit"));
+
+    let run = relume(
+        dir.path(),
+        &[
+            "compare",
+            "views",
+            "scene.toml",
+            "A",
+            "B",
+            "--independent",
+            "./B/",
+        ],
+    );
+    fails(&run, USAGE, &["--independent ./B/ is B's folder"]);
 
     std::fs::remove_file(dir.path().join("dark/b.exr")).unwrap();
     let run = relume(
