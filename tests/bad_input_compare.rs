@@ -556,21 +556,13 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
         flat(&dir.path().join(sub).join("a.exr"), a);
         flat(&dir.path().join(sub).join("b.exr"), b);
     }
+    // `compare views scene.toml A B`, then `more`.
+    let views = |more: &[&str]| {
+        let args = [&["compare", "views", "scene.toml", "A", "B"][..], more].concat();
+        relume(dir.path(), &args)
+    };
     let compare = |b2: &str| {
-        let run = relume(
-            dir.path(),
-            &[
-                "compare",
-                "views",
-                "scene.toml",
-                "A",
-                "B",
-                "--independent",
-                b2,
-                "--json",
-                &format!("{b2}.json"),
-            ],
-        );
+        let run = views(&["--independent", b2, "--json", &format!("{b2}.json")]);
         let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
         assert!(run.status.success(), "{stdout}");
         let json: serde_json::Value = serde_json::from_str(
@@ -579,11 +571,7 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
         .unwrap();
         (stdout, json)
     };
-    let (stdout, json) = compare("same");
-    assert!(
-        stdout.lines().next().unwrap().ends_with("misfit"),
-        "{stdout}"
-    );
+    // The last two figures of a group's line: its relative RMS and misfit.
     let last_two = |stdout: &str, group: &str| -> Vec<String> {
         let line = stdout.lines().find(|l| l.starts_with(group)).unwrap();
         let mut words: Vec<String> = line
@@ -595,6 +583,11 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
         words.reverse();
         words
     };
+    let (stdout, json) = compare("same");
+    assert!(
+        stdout.lines().next().unwrap().ends_with("misfit"),
+        "{stdout}"
+    );
     assert_eq!(
         last_two(&stdout, "shelf "),
         ["10.00%", "+10.00%"],
@@ -615,50 +608,20 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
         "{stdout}"
     );
 
-    let run = relume(
-        dir.path(),
-        &[
-            "compare",
-            "views",
-            "scene.toml",
-            "A",
-            "B",
-            "--json",
-            "plain.json",
-        ],
-    );
+    let run = views(&["--json", "plain.json"]);
     assert!(run.status.success());
     let text = std::fs::read_to_string(dir.path().join("plain.json")).unwrap();
     assert!(!text.contains("rel_misfit"), "{text}");
     assert!(!String::from_utf8_lossy(&run.stdout).contains("misfit"));
 
-    let run = relume(
-        dir.path(),
-        &[
-            "compare",
-            "views",
-            "scene.toml",
-            "A",
-            "B",
-            "--independent",
-            "./B/",
-        ],
-    );
+    let run = views(&["--independent", "./B/"]);
     fails(&run, USAGE, &["--independent ./B/ is B's folder"]);
 
     std::fs::remove_file(dir.path().join("dark/b.exr")).unwrap();
-    let run = relume(
-        dir.path(),
-        &[
-            "compare",
-            "views",
-            "scene.toml",
-            "A",
-            "B",
-            "--independent",
-            "dark",
-        ],
-    );
     // A file that cannot be read is an I/O error (4), as for A's and B's images.
-    fails(&run, 4, &["dark/b.exr", "No such file"]);
+    fails(
+        &views(&["--independent", "dark"]),
+        4,
+        &["dark/b.exr", "No such file"],
+    );
 }
