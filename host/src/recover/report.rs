@@ -65,6 +65,9 @@ pub struct GroupReport {
     /// it. The colour's noise is counted at these (`uncertainty::EstimateSamples`).
     #[serde(skip)]
     pub colour_samples: Option<u64>,
+    /// For a textured group, the share of its panorama light that the lobe under its map
+    /// renders (`texture::lobe_share`): what the map's level depends on.
+    pub map_lobe_share: Option<f64>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
     /// What the stages that work group by group spent on this group, in the order they
@@ -105,6 +108,7 @@ impl GroupReport {
             lobe_from_ladder: false,
             lobe_sigmas: Vec::new(),
             colour_samples: None,
+            map_lobe_share: None,
             uncertainty: Vec::new(),
             work: Vec::new(),
         }

@@ -128,6 +128,7 @@ fn solve_map(
         settings.seed,
         settings.cache_settings,
     )?;
+    report.map_lobe_share = Some(summary.lobe_share);
     if let Some(r) = summary.lobe_refit {
         report.decisions.push(format!(
             "stage 5: the stand-in's lobe fitted again with a first map, on the {} highlight pixels of the group's cache (where the map was filled from neighbours, not solved): specularity {:.4} -> {:.4}, roughness {:.4} -> {:.4}, squared residual {:.5} -> {:.5}",

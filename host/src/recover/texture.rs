@@ -45,6 +45,10 @@ pub struct MapSummary {
     pub unseen_texels: usize,
     /// The isotropic lobe fitted again with the map, where it was.
     pub lobe_refit: Option<LobeRefit>,
+    /// The share of the group's light in the panorama (over its pure pixels) that the
+    /// lobe renders: the map holds the rest, so an error of the lobe's there is the map's
+    /// too, with the opposite sign ([`lobe_share`]).
+    pub lobe_share: f64,
 }
 
 fn median(mut values: Vec<f64>) -> f64 {
@@ -223,6 +227,11 @@ pub fn recover_map(
         }
     }
     let solved = solve.solve(rec, &observed, Highlights::Kept)?;
+    let pure = &pixels[..pure_count];
+    let real: Vec<Vec3> = pure
+        .iter()
+        .map(|p| pixels::real_value(&rec.real, &rec.views, p))
+        .collect();
     Ok(MapSummary {
         side: solved.side,
         pixels: pure_count,
@@ -234,7 +243,24 @@ pub fn recover_map(
         shadows: solved.shadows,
         unseen_texels: solved.unseen_texels,
         lobe_refit,
+        lobe_share: lobe_share(&observed.specular[..pure_count], &real),
     })
+}
+
+/// The share of the light of `real` (luminance, summed over a group's pixels) that a lobe
+/// renders, `specular` per pixel: 0 without light.
+///
+/// A map is solved so that map and lobe together give each pixel its panorama value, and
+/// the panorama sees each texel from one direction only, so a lobe that sends too much
+/// light that way leaves its map too dark by as much, which shows from another viewpoint
+/// or under another light (the living room's picture_2 at 64 px: a lobe 26% broad, a
+/// map 4-7% dark, the picture -5.5% in the novel view; docs/edits.md).
+pub fn lobe_share(specular: &[Vec3], real: &[Vec3]) -> f64 {
+    let total: f64 = real.iter().map(|v| luminance(*v) as f64).sum();
+    if total.is_nan() || total <= 0.0 {
+        return 0.0;
+    }
+    specular.iter().map(|v| luminance(*v) as f64).sum::<f64>() / total
 }
 
 /// One solve of a group's map under its current lobe: what [`MapSolve::run`] needs.
@@ -587,5 +613,16 @@ mod tests {
             pairs,
             pixels::step_pairs(&[view(100)], &small, fit::TEXTURE_STEP)
         );
+    }
+
+    /// The lobe's share is its light over the panorama's, summed over the pixels before
+    /// dividing (a bright pixel counts for more), and 0 where the group has no light.
+    #[test]
+    fn a_lobes_share_is_its_light_over_the_panoramas() {
+        let grey = |v: f32| Vec3::splat(v);
+        let share = lobe_share(&[grey(0.1), grey(0.0)], &[grey(0.2), grey(0.6)]);
+        assert!((share - 0.125).abs() < 1e-6, "{share}");
+        assert_eq!(lobe_share(&[grey(0.1)], &[grey(0.0)]), 0.0);
+        assert_eq!(lobe_share(&[], &[]), 0.0);
     }
 }

@@ -31,6 +31,12 @@ pub const SMALL_VIEW: u32 = 32;
 /// seeds on box-diffuse, against 0.31% at the default effort's 32.
 pub const FEW_LOOP_SAMPLES: u32 = 32;
 
+/// A textured group's map level uncertain by more than this (relative), from its lobe's
+/// specularity's standard error and the lobe's share of the panorama's light: 1%, the
+/// issue's target for a diffuse reflectance, so that a map is not trusted further than
+/// the diffuse groups beside it.
+pub const MAP_LEVEL_SPREAD: f64 = 0.01;
+
 /// What the warnings look at.
 pub struct Inputs<'a> {
     pub groups: &'a [GroupReport],
@@ -82,6 +88,14 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
             warnings.push(format!(
                 "group '{name}': {}: a picture's lobe, or its absence, is decided on a uniform stand-in from one view per texel; on the references such lobes were missed (living room picture_3), found where there is none at 64 px (picture_1, past the pattern test) and their parameters came out 10-65% off (docs/recovery.md, stage 5)",
                 model.name()
+            ));
+        }
+        if let Some((share, relative_sigma)) = map_level_spread(report, model) {
+            warnings.push(format!(
+                "group '{name}': its map's level hangs on its lobe: the lobe renders {:.1}% of the group's light in the panorama and the map the rest, and the lobe's specularity is known to +-{:.0}%, so the map may be off by about {:.1}% the other way (more with its roughness), which shows from other viewpoints and under other lights, not in the panorama (the living room's picture_2 at 64 px: a lobe 26% broad, its map 4-7% dark, -5.5% from a novel viewpoint; docs/edits.md)",
+                100.0 * share,
+                100.0 * relative_sigma,
+                100.0 * share * relative_sigma
             ));
         }
         if let Some(s) = specularity(model).filter(|&s| s > 0.0 && s < WEAK_SPECULARITY) {
@@ -163,6 +177,21 @@ pub fn brighter_than_lit(name: &str, model: &GroupModel, fit: &GroupFit) -> Opti
             ["red", "green", "blue"][c]
         )
     })
+}
+
+/// A textured group's lobe share and its specularity's relative standard error, when
+/// their product (how far the map's level may be off) exceeds [`MAP_LEVEL_SPREAD`].
+fn map_level_spread(report: &GroupReport, model: &GroupModel) -> Option<(f64, f64)> {
+    let GroupModel::Textured { .. } = model else {
+        return None;
+    };
+    let share = report.map_lobe_share?;
+    let p = report
+        .uncertainty
+        .iter()
+        .find(|p| p.parameter == "specularity")?;
+    let relative_sigma = p.sigma / p.value;
+    (p.value > 0.0 && share * relative_sigma > MAP_LEVEL_SPREAD).then_some((share, relative_sigma))
 }
 
 /// A group's reported specularity and its standard error when the lobe is not
@@ -412,5 +441,56 @@ mod tests {
             w[0].contains("'picture': textured-diffuse: a picture's lobe"),
             "{w:?}"
         );
+    }
+
+    /// A textured group is told how far its map's level may be off when its lobe's share
+    /// of the panorama's light times its specularity's relative standard error exceeds
+    /// `MAP_LEVEL_SPREAD`; a lobe known well enough, or a map with no share recorded, is not.
+    #[test]
+    fn a_map_whose_level_hangs_on_an_uncertain_lobe_is_warned_of() {
+        let picture = |name: &str, share: Option<f64>, sigma: f64| GroupReport {
+            map_lobe_share: share,
+            uncertainty: vec![crate::recover::uncertainty::ParameterUncertainty {
+                parameter: "specularity".into(),
+                value: 0.05,
+                sigma,
+            }],
+            ..group(name, 900, vec![])
+        };
+        let textured = GroupModel::Textured {
+            map: 0,
+            lobe: crate::recover::model::MapLobe::isotropic(0.05, 0.1),
+        };
+        let level = |w: &[String], name: &str| {
+            w.iter()
+                .find(|w| w.contains(&format!("'{name}': its map's level")))
+                .cloned()
+        };
+        // Picture_2's figures at 64 px: a share of 24%, 0.05 +- 0.018 (36%): 8.6%.
+        let groups = [
+            picture("uncertain", Some(0.24), 0.018),
+            picture("certain", Some(0.24), 0.001),
+            picture("unrecorded", None, 0.018),
+        ];
+        let w = warnings_for(&groups, &[textured; 3], 0.025, 64, Effort::Default);
+        let uncertain = level(&w, "uncertain").expect("warned");
+        assert!(
+            uncertain.contains("24.0% of the group's light"),
+            "{uncertain}"
+        );
+        assert!(uncertain.contains("+-36%"), "{uncertain}");
+        assert!(uncertain.contains("off by about 8.6%"), "{uncertain}");
+        // 0.24 x 2% = 0.48%, under MAP_LEVEL_SPREAD.
+        assert_eq!(level(&w, "certain"), None, "{w:?}");
+        assert_eq!(level(&w, "unrecorded"), None, "{w:?}");
+        // The same figures on an untextured lobe: no map to be off.
+        let lobe = GroupModel::Isotropic {
+            kind: Kind::Plastic,
+            color: [0.3; 3],
+            specularity: 0.05,
+            roughness: 0.1,
+        };
+        let w = warnings_for(&groups[..1], &[lobe], 0.025, 64, Effort::Default);
+        assert_eq!(level(&w, "uncertain"), None, "{w:?}");
     }
 }
