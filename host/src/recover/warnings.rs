@@ -92,7 +92,7 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
         }
         if let Some((share, relative_sigma)) = map_level_spread(report, model) {
             warnings.push(format!(
-                "group '{name}': its map's level hangs on its lobe: the lobe renders {:.1}% of the group's light in the panorama and the map the rest, and the lobe's specularity is known to +-{:.0}%, so the map may be off by about {:.1}% the other way (more with its roughness), which shows from other viewpoints and under other lights, not in the panorama (the living room's picture_2 at 64 px: a lobe 26% broad, its map 4-7% dark, -5.5% from a novel viewpoint; docs/edits.md)",
+                "group '{name}': its map's level hangs on its lobe: the lobe renders {:.1}% of the group's light in the panorama and the map the rest, and the lobe's specularity is known to +-{:.0}%, so the map may be off by about {:.1}% the other way, which shows from other viewpoints and under other lights, not in the panorama; that is from the specularity's standard error alone, and the lobe's shape adds to it (the living room's picture_2 at 64 px: 7.5-8.6% claimed, its map 5-6% dark, -5.5% from a novel viewpoint; textured's checker, whose specularity came out 10-16% high at standard errors of 5-6%: 1.5-1.9% claimed, its map 5-8% dark; docs/edits.md)",
                 100.0 * share,
                 100.0 * relative_sigma,
                 100.0 * share * relative_sigma
