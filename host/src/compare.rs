@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use relume_core::geometry::Surface;
 use relume_core::material::texture::bilinear_taps;
+use relume_core::math::{luminance, Vec3};
 use relume_core::render;
 use serde::Serialize;
 
@@ -398,6 +399,10 @@ pub struct MaterialRow {
     /// map of that resolution can reach.
     #[serde(serialize_with = "psnr_json")]
     pub diffuse_map_psnr_ceiling_db: Option<f64>,
+    /// The recovered map's mean luminance over the truth's, less 1 (signed): its level,
+    /// which the panorama sees only through the lobe beside it (a lobe sending too much
+    /// light towards the views leaves its map too dark; docs/edits.md).
+    pub diffuse_map_level_err: Option<f64>,
 }
 
 /// A PSNR in JSON: a number, `"inf"` for a map equal to the truth's (JSON has no
@@ -521,17 +526,36 @@ fn area_average(image: &Image, width: u32, height: u32) -> Image {
     }
 }
 
-/// The recovered map's PSNR, and the PSNR of the truth itself area-averaged to the
-/// recovered map's size: the ceiling of any map of that size. A map has about one texel
-/// per pixel that sees it; finer detail of the truth is not in the views.
-fn map_psnrs(truth: &Path, recovered: &Path) -> Result<(Option<f64>, Option<f64>), Error> {
+/// Sets `row`'s map figures: the recovered map's PSNR, the PSNR of the truth itself
+/// area-averaged to the recovered map's size (the ceiling of any map of that size: a map
+/// has about one texel per pixel that sees it, and finer detail of the truth is not in
+/// the views), and its level ([`map_level_err`]). None for an empty recovered map.
+fn set_map_measures(row: &mut MaterialRow, truth: &Path, recovered: &Path) -> Result<(), Error> {
     let t = images::read_image(truth, 1.0)?;
     let r = images::read_image(recovered, 1.0)?;
     if r.pixels.is_empty() {
-        return Ok((None, None));
+        return Ok(());
     }
-    let ceiling = map_psnr(&t, &area_average(&t, r.width, r.height));
-    Ok((map_psnr(&t, &r), ceiling))
+    row.diffuse_map_psnr_db = map_psnr(&t, &r);
+    row.diffuse_map_psnr_ceiling_db = map_psnr(&t, &area_average(&t, r.width, r.height));
+    row.diffuse_map_level_err = map_level_err(&t, &r);
+    Ok(())
+}
+
+/// The recovered map's mean luminance over the truth's, less 1. Both maps span the same
+/// texture square, whatever their sizes, so the mean over texels is the mean over the
+/// picture. `None` for an empty map or a black truth.
+fn map_level_err(truth: &Image, recovered: &Image) -> Option<f64> {
+    let mean = |i: &Image| {
+        let sum: f64 = i
+            .pixels
+            .iter()
+            .map(|p| luminance(Vec3::from_array(*p)) as f64)
+            .sum();
+        (!i.pixels.is_empty()).then(|| sum / i.pixels.len() as f64)
+    };
+    let (t, r) = (mean(truth)?, mean(recovered)?);
+    (t > 0.0).then(|| r / t - 1.0)
 }
 
 /// Each group of the truth against `materials` (its row `(missing)` where `materials` has
@@ -595,7 +619,7 @@ fn materials_rows(t: &MaterialsDesc, m: &MaterialsDesc) -> Result<Vec<MaterialRo
                 row.direction_err_deg = Some(angle_between_axes_deg(a, b));
             }
             if let (Some(a), Some(b)) = (&rm.diffuse_map, &tm.diffuse_map) {
-                (row.diffuse_map_psnr_db, row.diffuse_map_psnr_ceiling_db) = map_psnrs(b, a)?;
+                set_map_measures(&mut row, b, a)?;
             }
         }
         rows.push(row);
@@ -624,7 +648,7 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
     let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.2}%", 100.0 * v));
     let db = |v: Option<f64>| v.map_or("-".to_string(), |p| format!("{p:.1}dB"));
     println!(
-        "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8}",
+        "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>9}",
         "group",
         "true model",
         "model",
@@ -636,11 +660,12 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
         "rough_v",
         "dir",
         "map PSNR",
-        "ceiling"
+        "ceiling",
+        "map level"
     );
     for r in &rows {
         println!(
-            "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8}",
+            "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>9}",
             r.group,
             r.true_model,
             r.model.as_deref().unwrap_or("(missing)"),
@@ -654,6 +679,8 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
                 .map_or("-".to_string(), |d| format!("{d:.1}deg")),
             db(r.diffuse_map_psnr_db),
             db(r.diffuse_map_psnr_ceiling_db),
+            r.diffuse_map_level_err
+                .map_or("-".to_string(), |v| format!("{:+.2}%", 100.0 * v)),
         );
     }
     println!("{}", class_summary(&rows));
@@ -862,6 +889,18 @@ mod tests {
         );
         let grey = image(4, 4, |_, _| 0.5);
         assert!((map_psnr(&checker, &grey).unwrap() - ceiling).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_maps_level_is_its_mean_luminance_over_the_truths_whatever_its_size() {
+        let checker = image(8, 8, |x, y| if (x + y) % 2 == 0 { 0.8 } else { 0.2 });
+        // A grey of the checker's mean is level with it, at a quarter of its texels.
+        let level = map_level_err(&checker, &image(4, 4, |_, _| 0.5)).unwrap();
+        assert!(level.abs() < 1e-6, "{level}");
+        let dark = map_level_err(&checker, &image(2, 2, |_, _| 0.475)).unwrap();
+        assert!((dark + 0.05).abs() < 1e-6, "{dark}");
+        assert_eq!(map_level_err(&image(2, 2, |_, _| 0.0), &checker), None);
+        assert_eq!(map_level_err(&checker, &image(0, 0, |_, _| 0.5)), None);
     }
 
     #[test]
