@@ -822,13 +822,29 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         )?);
     }
 
-    // Final render: errors, views and error images.
+    // Final render: the views, their error images and every group's final error, from two
+    // independent halves of at least VIEW_MIN_SAMPLES per view.
     let stage_start = Instant::now();
     let final_spp = args.budget.final_spp;
     let final_seed = args.seed ^ 0xF1A1;
-    let final_fits = rec.evaluate(final_spp, final_seed, &|_| true)?;
+    let smallest_view = rec
+        .views
+        .iter()
+        .map(|v| v.width.saturating_mul(v.height))
+        .min();
+    let view_spp = min_samples_spp(final_spp, smallest_view.unwrap_or(1), VIEW_MIN_SAMPLES);
+    let final_renders = output::render_views(&mut rec, view_spp, final_seed)?;
+    let final_fits = pixels::fits_of_halves(
+        pixels::Observed {
+            views: &rec.views,
+            real: &rec.real,
+            pure: &rec.pure,
+        },
+        [&final_renders.halves[0], &final_renders.halves[1]],
+        n_groups,
+    );
     for (g, r) in reports.iter_mut().enumerate() {
-        r.error_final = final_fits[g].relative_error();
+        r.error_final = final_fits[g].bias_only_error();
         r.model = rec.models[g].name().into();
         warnings.extend(warnings::brighter_than_lit(
             &names[g],
@@ -836,13 +852,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             &final_fits[g],
         ));
     }
-    let smallest_view = rec
-        .views
-        .iter()
-        .map(|v| v.width.saturating_mul(v.height))
-        .min();
-    let view_spp = min_samples_spp(final_spp, smallest_view.unwrap_or(1), VIEW_MIN_SAMPLES);
-    let renders = output::render_views(&mut rec, view_spp, final_seed)?;
+    let renders = final_renders.mean;
     let view_readings = calibration::read_views(&rec.pure, &rec.real, &renders, &view_names);
     warnings.extend(calibration::view_warnings(&view_readings));
 
@@ -870,11 +880,10 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     stages.push(StageReport {
         stage: "final render".into(),
         evaluations: 1,
-        samples_per_pixel: final_spp,
+        samples_per_pixel: view_spp.div_ceil(2).saturating_mul(2),
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![
-            format!("every group's pure pixels rendered with the recovered model at {final_spp} spp; error_final comes from it"),
-            format!("every view rendered at {view_spp} spp (at least VIEW_MIN_SAMPLES {VIEW_MIN_SAMPLES} per view) for the views, error images and view readings"),
+            format!("every view rendered twice with independent samples, {} spp each (at least the effort's {final_spp} and VIEW_MIN_SAMPLES {VIEW_MIN_SAMPLES} per view in all): the views, error images and view readings are their mean; error_final is each group's bias-only error from the two", view_spp.div_ceil(2)),
         ],
     });
 
@@ -902,7 +911,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         scene: args.scene.display().to_string(),
         seed: args.seed,
         budget: args.budget,
-        error_definition: "sqrt(max(0, sum |R-T|^2 - sum var(R)) / sum |T|^2) over the group's pure pixels, RGB pooled (relume_core::fit)",
+        error_definition: "relative error over the group's pure pixels, RGB pooled (relume_core::fit): error_diffuse, error_decided, error_final and every comparison are bias-only, sqrt(max(0, sum (A-T).(B-T)) / sum |T|^2) with A, B two renders with independent samples; error_initial is sqrt(max(0, sum |R-T|^2 - sum var(R)) / sum |T|^2) of one render",
         thresholds: serde_json::json!({
             "DIFFUSE_THRESHOLD": fit::DIFFUSE_THRESHOLD,
             "DIFFUSE_CONVERGED": fit::DIFFUSE_CONVERGED,

@@ -15,31 +15,46 @@ use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialsDesc};
 use crate::parallel;
 
-/// Renders every view with the current models.
-pub(super) fn render_views(
-    rec: &mut Recovery,
-    spp: u32,
-    seed: u64,
-) -> Result<Vec<Vec<Vec3>>, Error> {
+/// The final views, rendered twice with independent samples: what the views and error
+/// images show is their mean; the two halves give each group's bias-only error
+/// ([`pixels::fits_of_halves`](super::pixels::fits_of_halves)), in which the render's noise
+/// has no part.
+pub(super) struct FinalRenders {
+    /// Per view, the mean of the two halves.
+    pub mean: Vec<Vec<Vec3>>,
+    /// Per half, per view, its pixels.
+    pub halves: [Vec<Vec<Vec3>>; 2],
+}
+
+/// Renders every view with the current models at `spp` samples per pixel in all, as two
+/// independent halves of `spp / 2` (rounded up) each ([`FinalRenders`]).
+pub(super) fn render_views(rec: &mut Recovery, spp: u32, seed: u64) -> Result<FinalRenders, Error> {
     rec.apply_models();
-    let settings = relume_core::render::RenderSettings {
-        spp,
+    let (a, b) = super::pixels::cross_settings(&relume_core::render::RenderSettings {
+        spp: spp.div_ceil(2).saturating_mul(2),
         seed,
         ..Default::default()
-    };
+    });
     let total_rows: u64 = rec.views.iter().map(|v| v.height as u64).sum();
-    let bar = super::progress_bar(total_rows, "final render");
+    let bar = super::progress_bar(2 * total_rows, "final render");
     let views = rec.views.clone();
     let scene = rec.owned.build()?;
-    let renders = views
-        .iter()
-        .enumerate()
-        .map(|(vi, view)| {
-            parallel::render_view(&rec.pool, &scene, view, vi as u32, &settings, &bar)
-        })
-        .collect();
+    let halves = [a, b].map(|settings| {
+        views
+            .iter()
+            .enumerate()
+            .map(|(vi, view)| {
+                parallel::render_view(&rec.pool, &scene, view, vi as u32, &settings, &bar)
+            })
+            .collect::<Vec<_>>()
+    });
     bar.finish_and_clear();
-    Ok(renders)
+    let mean = halves[0]
+        .iter()
+        .zip(&halves[1])
+        .map(|(a, b)| a.iter().zip(b).map(|(a, b)| 0.5 * (*a + *b)).collect())
+        .collect();
+    Ok(FinalRenders { mean, halves })
 }
 
 /// The output set of a recovery into `out`, with its folders made: called before the

@@ -343,14 +343,39 @@ pub fn evaluate_cross(
         (real_value(real, views, p), ra, rb)
     };
     sum_by_group(pool, pure, n_groups, wanted, measure, |(t, ra, rb), fit| {
-        fit.pixels += 1;
-        for c in 0..3 {
-            fit.sum_real[c] += t[c] as f64;
-            fit.sum_rendered[c] += 0.5 * (ra[c] as f64 + rb[c] as f64);
-        }
-        fit.sum_sq_diff += (ra - t).dot(rb - t) as f64;
-        fit.sum_sq_real += t.dot(t) as f64;
+        add_cross(fit, t, ra, rb)
     })
+}
+
+/// Adds one pixel to a bias-only fit: the panorama's value `t` and two renders of it with
+/// independent samples.
+fn add_cross(fit: &mut GroupFit, t: Vec3, ra: Vec3, rb: Vec3) {
+    fit.pixels += 1;
+    for c in 0..3 {
+        fit.sum_real[c] += t[c] as f64;
+        fit.sum_rendered[c] += 0.5 * (ra[c] as f64 + rb[c] as f64);
+    }
+    fit.sum_sq_diff += (ra - t).dot(rb - t) as f64;
+    fit.sum_sq_real += t.dot(t) as f64;
+}
+
+/// Each group's bias-only fit (as [`evaluate_cross`]'s) from two whole renders of every
+/// view with independent samples (`halves[h][view][pixel]`), over its pure pixels in
+/// order: the same sums for any thread count.
+pub fn fits_of_halves(
+    observed: Observed,
+    halves: [&[Vec<Vec3>]; 2],
+    n_groups: usize,
+) -> Vec<GroupFit> {
+    let Observed { views, real, pure } = observed;
+    let mut fits = vec![GroupFit::default(); n_groups];
+    for p in pure {
+        let i = (p.y * views[p.view as usize].width + p.x) as usize;
+        let [ra, rb] = halves.map(|h| h[p.view as usize][i]);
+        let t = real_value(real, views, p);
+        add_cross(&mut fits[p.group as usize], t, ra, rb);
+    }
+    fits
 }
 
 /// Per pixel of `pixels`, in order: two independent measurements of the bias-only squared
