@@ -852,6 +852,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             &final_fits[g],
         ));
     }
+    let spp_per_half = final_renders.spp_per_half;
     let renders = final_renders.mean;
     let view_readings = calibration::read_views(&rec.pure, &rec.real, &renders, &view_names);
     warnings.extend(calibration::view_warnings(&view_readings));
@@ -880,10 +881,10 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     stages.push(StageReport {
         stage: "final render".into(),
         evaluations: 1,
-        samples_per_pixel: view_spp.div_ceil(2).saturating_mul(2),
+        samples_per_pixel: spp_per_half.saturating_mul(2),
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![
-            format!("every view rendered twice with independent samples, {} spp each (at least the effort's {final_spp} and VIEW_MIN_SAMPLES {VIEW_MIN_SAMPLES} per view in all): the views, error images and view readings are their mean; error_final is each group's bias-only error from the two", view_spp.div_ceil(2)),
+            format!("every view rendered twice with independent samples, {} spp each (at least the effort's {final_spp} and VIEW_MIN_SAMPLES {VIEW_MIN_SAMPLES} per view in all): the views, error images and view readings are their mean; error_final is each group's bias-only error from the two", spp_per_half),
         ],
     });
 

@@ -24,14 +24,17 @@ pub(super) struct FinalRenders {
     pub mean: Vec<Vec<Vec3>>,
     /// Per half, per view, its pixels.
     pub halves: [Vec<Vec<Vec3>>; 2],
+    /// Samples per pixel of each half.
+    pub spp_per_half: u32,
 }
 
 /// Renders every view with the current models at `spp` samples per pixel in all, as two
 /// independent halves of `spp / 2` (rounded up) each ([`FinalRenders`]).
 pub(super) fn render_views(rec: &mut Recovery, spp: u32, seed: u64) -> Result<FinalRenders, Error> {
     rec.apply_models();
+    let spp_per_half = spp.div_ceil(2);
     let (a, b) = super::pixels::cross_settings(&relume_core::render::RenderSettings {
-        spp: spp.div_ceil(2).saturating_mul(2),
+        spp: spp_per_half.saturating_mul(2),
         seed,
         ..Default::default()
     });
@@ -54,7 +57,11 @@ pub(super) fn render_views(rec: &mut Recovery, spp: u32, seed: u64) -> Result<Fi
         .zip(&halves[1])
         .map(|(a, b)| a.iter().zip(b).map(|(a, b)| 0.5 * (*a + *b)).collect())
         .collect();
-    Ok(FinalRenders { mean, halves })
+    Ok(FinalRenders {
+        mean,
+        halves,
+        spp_per_half,
+    })
 }
 
 /// The output set of a recovery into `out`, with its folders made: called before the
