@@ -2,7 +2,8 @@
 //! a copy of the bundled scene (scenes/cornell) broken in one place: the same materials
 //! file given twice, a diffuse map that is a folder, `hide` naming a group, an object
 //! defined again in an extra OBJ, `--view` naming no view, a name TOML must escape in a
-//! downsampled scene, and an edit's own materials file given as `--truth`. Each is refused
+//! downsampled scene, an edit's own materials file given as `--truth`, and a lobe's kind
+//! missing where scene.toml says "auto" or against what it says. Each is refused
 //! with its exit code and a message that names the file (and line) and what is wrong,
 //! never a panic, and leaves no output; the downsampled scene is one that can be read back.
 
@@ -397,6 +398,77 @@ fn an_edits_own_materials_given_as_truth_is_named() {
         &["--truth e/materials.toml is also e/materials.toml, which gives the materials of the objects edit e/scene.toml adds"],
     );
     assert!(!stderr.contains("only in this file"), "{stderr}");
+}
+
+/// The views `render` wrote into `out` (every EXR, with its bytes).
+fn rendered_views(case: &Case, out: &str) -> Vec<(PathBuf, Vec<u8>)> {
+    files_and_bytes(&case.path(out))
+        .into_iter()
+        .filter(|(p, _)| p.extension().is_some_and(|e| e == "exr"))
+        .collect()
+}
+
+/// The line of `group = "<group>"`'s `[[material]]` in the case's materials.toml.
+fn material_line(case: &Case, group: &str) -> usize {
+    let text = std::fs::read_to_string(case.path("materials.toml")).unwrap();
+    let at = format!("group = \"{group}\"");
+    text.lines().position(|l| l == at).unwrap()
+}
+
+/// A group of kind "auto" takes its lobe's kind from its material, where a recovery of it
+/// writes the kind it chose: given there, the scene renders as with the kind in
+/// scene.toml, to the byte. Missing, or against the kind scene.toml gives, it is refused
+/// at the material's line. (Before, a recovery of an "auto" group could not be rendered
+/// with its own scene: materials.toml had no place for the kind.)
+#[test]
+fn a_lobes_kind_comes_from_the_scene_or_else_its_material() {
+    let case = Case::new();
+    let line = material_line(&case, "sphere");
+    let at_line = format!("materials.toml:{line}");
+    relume_ok(&case.path(""), &render_args(&["materials.toml"]));
+    let as_given = rendered_views(&case, "out");
+    assert!(!as_given.is_empty());
+
+    case.edit(
+        "scene.toml",
+        "name = \"sphere\"\nkind = \"metal\"",
+        "name = \"sphere\"\nkind = \"auto\"",
+    );
+    case.fails(
+        &render_args(&["materials.toml"]),
+        INPUT,
+        &[
+            &at_line,
+            "group 'sphere' has kind \"auto\"",
+            "kind = \"metal\"",
+        ],
+    );
+    case.edit(
+        "materials.toml",
+        "group = \"sphere\"\nmodel = \"isotropic\"\n",
+        "group = \"sphere\"\nmodel = \"isotropic\"\nkind = \"metal\"\n",
+    );
+    std::fs::remove_dir_all(case.path("out")).unwrap();
+    relume_ok(&case.path(""), &render_args(&["materials.toml"]));
+    assert!(
+        rendered_views(&case, "out") == as_given,
+        "the kind from the material differs"
+    );
+
+    case.edit(
+        "scene.toml",
+        "name = \"sphere\"\nkind = \"auto\"",
+        "name = \"sphere\"\nkind = \"plastic\"",
+    );
+    case.fails(
+        &render_args(&["materials.toml"]),
+        INPUT,
+        &[
+            &at_line,
+            "group 'sphere' is kind \"plastic\" in",
+            "but its material says kind \"metal\"",
+        ],
+    );
 }
 
 /// The helper's own check: a case's files are where the tests expect them.

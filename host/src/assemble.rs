@@ -8,14 +8,12 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3};
 use relume_core::bvh::{Bvh, BvhBuffers, BvhNode, PackedTriangle};
 use relume_core::geometry::{Surface, Triangle, View};
-use relume_core::material::{
-    Kind, Material, Params, SurfaceMaterial, TextureId, TextureInfo, Textures,
-};
+use relume_core::material::{Kind, Material, SurfaceMaterial, TextureId, TextureInfo, Textures};
 use relume_core::scene::{BuiltCounts, BuiltStorage, LightTriangle, Scene, SceneStorage};
 
 use crate::error::Error;
 use crate::images;
-use crate::materials_file::{MaterialsDesc, Model};
+use crate::materials_file::{self, MaterialDesc, MaterialsDesc, Model};
 use crate::obj::{self, ObjObject};
 use crate::scene_file::{self, GroupDesc, GroupKind, SceneDesc};
 
@@ -265,6 +263,42 @@ fn check_texture_coordinates(
     Ok(())
 }
 
+/// The kind a group's material `m` (from `file`) is rendered with: the scene's, or for a
+/// group of kind "auto" the one the material gives (a recovery writes the kind it chose);
+/// either without a lobe, whose reflectance does not depend on it. A material whose kind
+/// contradicts the scene's, or a lobe with no kind from either, is an error at its line.
+fn material_kind(desc: &SceneDesc, file: &MaterialsDesc, m: &MaterialDesc) -> Result<Kind, Error> {
+    let scene_kind = match kind_of(desc, &m.group) {
+        Some(GroupKind::Plastic) => Some(Kind::Plastic),
+        Some(GroupKind::Metal) => Some(Kind::Metal),
+        Some(GroupKind::Auto) | None => None,
+    };
+    match (scene_kind, m.kind) {
+        (Some(s), Some(k)) if s != k => Err(Error::at_line(
+            &file.path,
+            m.line,
+            format!(
+                "group '{}' is kind \"{}\" in {}, but its material says kind \"{}\"",
+                m.group,
+                materials_file::kind_name(s),
+                desc.path.display(),
+                materials_file::kind_name(k)
+            ),
+        )),
+        (Some(kind), _) | (None, Some(kind)) => Ok(kind),
+        (None, None) if !m.model.has_lobe() => Ok(Kind::Plastic),
+        (None, None) => Err(Error::at_line(
+            &file.path,
+            m.line,
+            format!(
+                "group '{}' has kind \"auto\" in {}: a material with a lobe needs its kind, `kind = \"plastic\"` or `kind = \"metal\"` in the material (a recovery writes the kind it chose)",
+                m.group,
+                desc.path.display()
+            ),
+        )),
+    }
+}
+
 /// One material per group, from one or more files: an error names the group and the
 /// file(s) when a group has none or two, or when a file names a group the scene lacks.
 fn resolve_materials(
@@ -299,25 +333,7 @@ fn resolve_materials(
                     ),
                 ));
             }
-            let kind = match kind_of(desc, &m.group) {
-                Some(GroupKind::Plastic) => Kind::Plastic,
-                Some(GroupKind::Metal) => Kind::Metal,
-                Some(GroupKind::Auto) | None => {
-                    if matches!(m.params(), Params::Diffuse | Params::Mirror) {
-                        Kind::Plastic
-                    } else {
-                        return Err(Error::at_line(
-                            &file.path,
-                            m.line,
-                            format!(
-                                "group '{}' has kind \"auto\" in {}: a specular material needs the kind (plastic or metal)",
-                                m.group,
-                                desc.path.display()
-                            ),
-                        ));
-                    }
-                }
-            };
+            let kind = material_kind(desc, file, m)?;
             let textured = matches!(
                 m.model,
                 Model::TexturedDiffuse | Model::TexturedIsotropic | Model::TexturedAnisotropic

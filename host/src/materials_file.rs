@@ -13,6 +13,12 @@
 //! | textured-isotropic    | -     | R           | R         | -                          | R           |
 //! | textured-anisotropic  | -     | R           | -         | R                          | R           |
 //!
+//! `kind` ("plastic" or "metal") is optional on the models with a lobe (isotropic,
+//! anisotropic and, as "plastic" only, their textured forms) and forbidden on the others,
+//! whose reflectance does not depend on it. scene-format.md gives the kind in scene.toml
+//! alone; a recovery of a group of kind "auto" writes the kind it chose here, so that its
+//! materials.toml renders with the scene it came from.
+//!
 //! Ranges: colour components and specularity in [0, 1]; roughness, roughness_u and roughness_v
 //! in (0, 1] (reflectance.md keeps Ward's model to (0, 0.3]; larger values are accepted so
 //! that a recovery can report them, the core checks what it renders); direction_u is
@@ -23,7 +29,7 @@ use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
-use relume_core::material::Params;
+use relume_core::material::{Kind, Params};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -68,6 +74,17 @@ impl Model {
 
     pub fn from_name(s: &str) -> Option<Model> {
         Model::ALL.into_iter().find(|m| m.name() == s)
+    }
+
+    /// Whether the model has a specular lobe, whose colour the kind decides.
+    pub fn has_lobe(self) -> bool {
+        matches!(
+            self,
+            Model::Isotropic
+                | Model::Anisotropic
+                | Model::TexturedIsotropic
+                | Model::TexturedAnisotropic
+        )
     }
 
     pub fn is_textured(self) -> bool {
@@ -125,6 +142,9 @@ pub struct MaterialDesc {
     pub direction_u: Option<[f32; 3]>,
     /// Resolved against the materials file's folder.
     pub diffuse_map: Option<PathBuf>,
+    /// The kind of its lobe, where the file gives it (see the module's comment); else the
+    /// scene's.
+    pub kind: Option<Kind>,
     /// Line of its `[[material]]` in the file (0 when not read from a file).
     pub line: usize,
 }
@@ -164,6 +184,7 @@ impl MaterialDesc {
             roughness_v: None,
             direction_u: None,
             diffuse_map: None,
+            kind: None,
             line: 0,
         }
     }
@@ -288,8 +309,37 @@ impl MaterialDesc {
                 ));
             }
         }
-        Ok(())
+        match self.kind {
+            Some(_) if !self.model.has_lobe() => Err((
+                KIND_KEY,
+                format!("group '{g}': model \"{model}\" has no lobe, so it takes no `kind`"),
+            )),
+            Some(Kind::Metal) if self.model.is_textured() => Err((
+                KIND_KEY,
+                format!(
+                    "group '{g}': model \"{model}\" takes kind \"plastic\" only: textured models apply to plastic groups"
+                ),
+            )),
+            _ => Ok(()),
+        }
     }
+}
+
+/// The index that [`MaterialDesc::check`] gives a fault of `kind` (after [`KEYS`]).
+const KIND_KEY: usize = KEYS.len();
+
+/// `kind`'s value in the file.
+pub fn kind_name(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Plastic => "plastic",
+        Kind::Metal => "metal",
+    }
+}
+
+fn kind_from_name(name: &str) -> Option<Kind> {
+    [Kind::Plastic, Kind::Metal]
+        .into_iter()
+        .find(|&k| kind_name(k) == name)
 }
 
 #[derive(Deserialize)]
@@ -313,6 +363,7 @@ struct RawMaterial {
     roughness_v: Option<Spanned<f64>>,
     direction_u: Option<Spanned<Vec<f64>>>,
     diffuse_map: Option<Spanned<String>>,
+    kind: Option<Spanned<String>>,
 }
 
 impl RawMaterial {
@@ -325,7 +376,8 @@ impl RawMaterial {
             3 => self.roughness_u.as_ref().map(|v| v.span()),
             4 => self.roughness_v.as_ref().map(|v| v.span()),
             5 => self.direction_u.as_ref().map(|v| v.span()),
-            _ => self.diffuse_map.as_ref().map(|v| v.span()),
+            6 => self.diffuse_map.as_ref().map(|v| v.span()),
+            _ => self.kind.as_ref().map(|v| v.span()),
         }
     }
 }
@@ -370,6 +422,18 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
             Some(s) => Some(file.resolve(&file.name(s, "diffuse_map")?)),
             None => None,
         };
+        let kind = match &m.kind {
+            Some(k) => Some(kind_from_name(k.get_ref()).ok_or_else(|| {
+                file.at(
+                    k.span(),
+                    format!(
+                        "group '{group}': unknown kind '{}' (expected plastic or metal)",
+                        k.get_ref()
+                    ),
+                )
+            })?),
+            None => None,
+        };
         let desc = MaterialDesc {
             group,
             model,
@@ -380,6 +444,7 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
             roughness_v: num(&m.roughness_v, "roughness_v")?,
             direction_u: vec3(&m.direction_u, "direction_u")?,
             diffuse_map,
+            kind,
             line,
         };
         if let Err((k, msg)) = desc.check() {
@@ -431,6 +496,9 @@ pub fn materials_text(path: &Path, m: &MaterialsDesc) -> Result<String, Error> {
         out.push_str("\n[[material]]\n");
         let _ = writeln!(out, "group = {}", toml_string(&d.group));
         let _ = writeln!(out, "model = {}", toml_string(d.model.name()));
+        if let Some(kind) = d.kind {
+            let _ = writeln!(out, "kind = {}", toml_string(kind_name(kind)));
+        }
         if let Some(c) = d.color {
             let _ = writeln!(out, "color = {}", float_array(&c));
         }
@@ -623,6 +691,41 @@ mod tests {
                 assert_eq!(d.color_or_white(), [0.5, 0.4, 0.3]);
             }
         }
+    }
+
+    /// A lobe's kind loads where the model has a lobe (a textured one as plastic only),
+    /// and is refused, at its line, on the others and when it is neither kind.
+    #[test]
+    fn kind_is_given_only_to_a_lobe() {
+        for model in Model::ALL {
+            for kind in [Kind::Plastic, Kind::Metal] {
+                let line = format!("kind = \"{}\"\n", kind_name(kind));
+                let text = file_text(model, &format!("{line}{}", body(model, None, None)));
+                if model.has_lobe() && !(model.is_textured() && kind == Kind::Metal) {
+                    let (_dir, path) = write(&text);
+                    let m = load_materials(&path).unwrap_or_else(|e| panic!("{e}\n{text}"));
+                    assert_eq!(m.materials[0].kind, Some(kind), "{model:?}");
+                } else if model.has_lobe() {
+                    bad(&text, 6, &["group 'g'", "takes kind \"plastic\" only"]);
+                } else {
+                    bad(&text, 6, &["group 'g'", model.name(), "takes no `kind`"]);
+                }
+            }
+        }
+        let text = file_text(
+            Model::Isotropic,
+            &format!("kind = \"gold\"\n{}", body(Model::Isotropic, None, None)),
+        );
+        bad(
+            &text,
+            6,
+            &["group 'g'", "unknown kind 'gold'", "plastic or metal"],
+        );
+        let (_dir, path) = write(&file_text(
+            Model::Isotropic,
+            &body(Model::Isotropic, None, None),
+        ));
+        assert_eq!(load_materials(&path).unwrap().materials[0].kind, None);
     }
 
     #[test]
@@ -884,6 +987,7 @@ mod tests {
             d.color = Some([next(), next(), next()]);
             d.specularity = Some(next());
             d.roughness = Some(next());
+            d.kind = [None, Some(Kind::Plastic), Some(Kind::Metal)][i % 3];
             materials.push(d);
         }
         let mut a = desc("plate", Model::TexturedAnisotropic);
@@ -905,6 +1009,10 @@ mod tests {
         write_materials(&path, &m).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.contains("diffuse_map = \"../maps/t.exr\""), "{text}");
+        assert!(
+            text.contains("model = \"isotropic\"\nkind = \"metal\"\ncolor = "),
+            "{text}"
+        );
         assert!(
             text.contains("color = [0.45, 0.36, 0.26]\nspecularity = 0.0\nroughness = 0.0\n"),
             "{text}"

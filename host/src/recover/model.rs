@@ -198,6 +198,17 @@ impl GroupModel {
         }
     }
 
+    /// The kind of its lobe (`None` without one; a textured model's lobe is a plastic's).
+    pub fn lobe_kind(&self) -> Option<Kind> {
+        match *self {
+            GroupModel::Isotropic { kind, .. } | GroupModel::Anisotropic { kind, .. } => Some(kind),
+            GroupModel::Textured { lobe, .. } if lobe.textured_model().has_lobe() => {
+                Some(Kind::Plastic)
+            }
+            _ => None,
+        }
+    }
+
     /// Diffuse and specular reflectances `(rho_d, rho_s)` (reflectance.md); for a textured
     /// model `rho_d` is in its map and given here as zero.
     pub fn reflectances(&self) -> ([f64; 3], [f64; 3]) {

@@ -14,6 +14,7 @@ use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialsDesc};
 use crate::parallel;
+use crate::scene_file::GroupKind;
 
 /// The final views, rendered twice with independent samples: what the views and error
 /// images show is their mean; the two halves give each group's bias-only error
@@ -215,7 +216,12 @@ pub(super) fn write_all(
             .enumerate()
             .filter_map(|(g, m)| {
                 let path = matches!(m, GroupModel::Textured { .. }).then(|| map_path(g));
-                m.material_desc(&names[g], path.as_deref())
+                let mut d = m.material_desc(&names[g], path.as_deref())?;
+                // scene.toml does not say which kind a group of kind "auto" turned out.
+                if rec.owned.desc.groups[g].kind == GroupKind::Auto {
+                    d.kind = m.lobe_kind();
+                }
+                Some(d)
             })
             .collect(),
     };
