@@ -103,11 +103,35 @@ pub(super) fn run(
             bar.inc(1);
             continue;
         };
+        let cache = rec.group_cache(g, cache_settings)?;
+        // A textured group is a plastic (reflectance.md, "Textures"): where stage 2 gave a
+        // group of kind "auto" a metal lobe, it is fitted again as a plastic's.
+        if let (
+            true,
+            GroupModel::Isotropic {
+                kind: Kind::Metal, ..
+            },
+        ) = (textured[g], stage2)
+        {
+            let (iso, alpha, n) = fit_ward(&rec.pool, &cache, Kind::Plastic);
+            evaluations += n;
+            stage2 = GroupModel::Isotropic {
+                kind: Kind::Plastic,
+                color: iso.color,
+                specularity: iso.specularity,
+                roughness: alpha,
+            };
+            rec.models[g] = stage2;
+            reports[g].decisions.push(format!(
+                "stage 4: textured, so a plastic: stage 2's metal lobe fitted again as a plastic's on its cache (s {:.4}, roughness {alpha:.4})",
+                iso.specularity
+            ));
+        }
         let kinds_to_try = match stage2 {
             GroupModel::Isotropic { kind, .. } => vec![kind],
+            _ if textured[g] => vec![Kind::Plastic],
             _ => lobe_kinds(kinds[g]).to_vec(),
         };
-        let cache = rec.group_cache(g, cache_settings)?;
         // A textured group's lobe is fitted on a uniform stand-in, whose misfit is the
         // picture: the lobe must explain a highlight, not follow the picture.
         let pictured = match textured[g] {

@@ -90,6 +90,15 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
                 model.name()
             ));
         }
+        if let Some(c) = undecided_kind(report, model) {
+            warnings.push(format!(
+                "group '{name}': kind auto: its panorama does not tell plastic from metal (metal {} plastic by {:.4} +- {:.4} of relative error, z {:.1}), so it was kept plastic, the simpler; the two explain the panorama alike but not with the same parameters (glossy's steel box, a metal of colour 0.62-0.66 and s 0.95: plastic of s 0.70 with a blue diffuse part, its diffuse reflectance 70% off; docs/recovery.md, \"Kind auto\"): give its kind in scene.toml if it is known",
+                if c.gain >= 0.0 { "better than" } else { "worse than" },
+                c.gain.abs(),
+                c.gain_sigma,
+                c.z
+            ));
+        }
         if let Some((share, relative_sigma)) = map_level_spread(report, model) {
             warnings.push(format!(
                 "group '{name}': its map's level hangs on its lobe: the lobe renders {:.1}% of the group's light in the panorama and the map the rest, and the lobe's specularity is known to +-{:.0}%, so the map may be off by about {:.1}% the other way, which shows from other viewpoints and under other lights, not in the panorama; that is from the specularity's standard error alone, and the lobe's shape adds to it (the living room's picture_2 at 64 px: 7.5-8.6% claimed, its map 5-6% dark, -5.5% from a novel viewpoint; textured's checker, whose specularity came out 10-16% high at standard errors of 5-6%: 1.5-1.9% claimed, its map 5-8% dark; docs/edits.md)",
@@ -138,6 +147,23 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
     }
     warnings
 }
+
+/// The kind comparison of a group of kind "auto" (stage 2, `choose_kind`) when it showed
+/// neither kind better (metal short of the rule, and not worse than plastic at the z the
+/// rule asks) and the group kept a lobe, whose parameters then hang on that choice.
+fn undecided_kind<'a>(
+    report: &'a GroupReport,
+    model: &GroupModel,
+) -> Option<&'a super::ComparisonReport> {
+    model.lobe_kind()?;
+    report
+        .comparisons
+        .iter()
+        .find(|c| c.stage == KIND_COMPARISON && !c.passed_test && c.z > -c.z_needed)
+}
+
+/// The stage name of stage 2's kind comparison in report.json.
+pub const KIND_COMPARISON: &str = "2 kind";
 
 fn specularity(model: &GroupModel) -> Option<f64> {
     match *model {
@@ -319,6 +345,51 @@ mod tests {
         // The noise bound a clean reference reads (glossy, 2.5%).
         let w = warnings_for(&groups, &models, 0.025, 64, Effort::Default);
         assert!(w.is_empty(), "{w:?}");
+    }
+
+    /// Kind auto: a group whose kind comparison showed neither kind better and that kept
+    /// a lobe is warned of; one where metal passed, or was measurably worse, or a group
+    /// left without a lobe, is not.
+    #[test]
+    fn a_kind_its_panorama_does_not_decide_is_warned_of() {
+        let kind_comparison = |effect: f64, sigma: f64| ComparisonReport {
+            stage: KIND_COMPARISON.into(),
+            simple: "isotropic plastic".into(),
+            complex: "isotropic metal".into(),
+            ..comparison(effect, sigma)
+        };
+        let lobe = GroupModel::Isotropic {
+            kind: Kind::Plastic,
+            color: [0.3; 3],
+            specularity: 0.3,
+            roughness: 0.1,
+        };
+        let cases = [
+            // glossy's steel box: 0.0001 +- 0.0005.
+            ("steel", kind_comparison(0.0001, 0.0005), lobe, true),
+            ("gold", kind_comparison(0.2, 0.01), lobe, false),
+            // glossy's yellow box: -0.0106 +- 0.0022, z -4.8.
+            ("yellow", kind_comparison(-0.0106, 0.0022), lobe, false),
+            (
+                "wall",
+                kind_comparison(0.0, 0.001),
+                GroupModel::Diffuse { color: [0.5; 3] },
+                false,
+            ),
+        ];
+        for (name, c, model, warned) in cases {
+            let w = warnings_for(
+                &[group(name, 900, vec![c])],
+                &[model],
+                0.025,
+                64,
+                Effort::Default,
+            );
+            let said = w
+                .iter()
+                .any(|w| w.contains("does not tell plastic from metal"));
+            assert_eq!(said, warned, "{name}: {w:?}");
+        }
     }
 
     /// A lobe whose own standard error leaves its specularity within two of zero is
