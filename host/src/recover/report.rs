@@ -68,6 +68,9 @@ pub struct GroupReport {
     /// For a textured group, the share of its panorama light that the lobe under its map
     /// renders (`texture::lobe_share`): what the map's level depends on.
     pub map_lobe_share: Option<f64>,
+    /// For a group of kind "auto" that stage 2 fitted a lobe on: the relative errors of
+    /// its best plastic and metal fits on its transport cache (`stage2::choose_kind`).
+    pub kind_cache_errors: Option<[f64; 2]>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
     /// What the stages that work group by group spent on this group, in the order they
@@ -109,6 +112,7 @@ impl GroupReport {
             lobe_sigmas: Vec::new(),
             colour_samples: None,
             map_lobe_share: None,
+            kind_cache_errors: None,
             uncertainty: Vec::new(),
             work: Vec::new(),
         }

@@ -91,6 +91,7 @@ fn choose_kind(
         (only, _) => return Ok((only, 0)),
     };
     debug_assert!(plastic.kind == Kind::Plastic && metal.kind == Kind::Metal);
+    report.kind_cache_errors = Some([plastic.ward.relative_error, metal.ward.relative_error]);
     let on_cache = format!(
         "relative error on its transport cache plastic {:.4}, metal {:.4}",
         plastic.ward.relative_error, metal.ward.relative_error

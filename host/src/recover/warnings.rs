@@ -90,13 +90,9 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
                 model.name()
             ));
         }
-        if let Some(c) = undecided_kind(report, model) {
+        if let Some(evidence) = undecided_kind(report, model) {
             warnings.push(format!(
-                "group '{name}': kind auto: its panorama does not tell plastic from metal (metal {} plastic by {:.4} +- {:.4} of relative error, z {:.1}), so it was kept plastic, the simpler; the two explain the panorama alike but not with the same parameters (glossy's steel box, a metal of colour 0.62-0.66 and s 0.95: plastic of s 0.70 with a blue diffuse part, its diffuse reflectance 70% off; docs/recovery.md, \"Kind auto\"): give its kind in scene.toml if it is known",
-                if c.gain >= 0.0 { "better than" } else { "worse than" },
-                c.gain.abs(),
-                c.gain_sigma,
-                c.z
+                "group '{name}': kind auto: its panorama does not tell plastic from metal ({evidence}), so it was kept plastic, the simpler; the two can explain a panorama alike with different parameters (glossy's steel box, a metal of colour 0.62-0.66 and s 0.95: plastic of s 0.70 with a blue diffuse part, its diffuse reflectance 70% off; docs/recovery.md, \"Kind auto\"): give its kind in scene.toml if it is known"
             ));
         }
         if let Some((share, relative_sigma)) = map_level_spread(report, model) {
@@ -148,18 +144,37 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
     warnings
 }
 
-/// The kind comparison of a group of kind "auto" (stage 2, `choose_kind`) when it showed
-/// neither kind better (metal short of the rule, and not worse than plastic at the z the
-/// rule asks) and the group kept a lobe, whose parameters then hang on that choice.
-fn undecided_kind<'a>(
-    report: &'a GroupReport,
-    model: &GroupModel,
-) -> Option<&'a super::ComparisonReport> {
+/// For a group of kind "auto" that kept a lobe, what showed neither kind better, if
+/// nothing did (stage 2, `choose_kind`): its cache's two fits within
+/// `SPECULAR_GAIN_THRESHOLD` of each other either way, so that no render was asked, or a
+/// render that showed metal short of the keep rule and not worse than plastic at the z
+/// the rule asks. A lobe's parameters then hang on the choice.
+fn undecided_kind(report: &GroupReport, model: &GroupModel) -> Option<String> {
     model.lobe_kind()?;
-    report
+    let [plastic, metal] = report.kind_cache_errors?;
+    let rendered = report
         .comparisons
         .iter()
-        .find(|c| c.stage == KIND_COMPARISON && !c.passed_test && c.z > -c.z_needed)
+        .find(|c| c.stage == KIND_COMPARISON);
+    match rendered {
+        Some(c) if !c.passed_test && c.z > -c.z_needed => Some(format!(
+            "in a render metal fits {} by {:.4} +- {:.4} of relative error, z {:.1}",
+            if c.gain >= 0.0 { "better" } else { "worse" },
+            c.gain.abs(),
+            c.gain_sigma,
+            c.z
+        )),
+        Some(_) => None,
+        None => {
+            let apart = fit::cache_effect(plastic, metal).max(fit::cache_effect(metal, plastic));
+            (apart <= fit::SPECULAR_GAIN_THRESHOLD).then(|| {
+                format!(
+                    "on its transport cache the two fits are {apart:.4} of relative error apart, at most SPECULAR_GAIN_THRESHOLD {} (plastic {plastic:.4}, metal {metal:.4})",
+                    fit::SPECULAR_GAIN_THRESHOLD
+                )
+            })
+        }
+    }
 }
 
 /// The stage name of stage 2's kind comparison in report.json.
@@ -347,9 +362,11 @@ mod tests {
         assert!(w.is_empty(), "{w:?}");
     }
 
-    /// Kind auto: a group whose kind comparison showed neither kind better and that kept
-    /// a lobe is warned of; one where metal passed, or was measurably worse, or a group
-    /// left without a lobe, is not.
+    /// Kind auto: a group that kept a lobe is warned of when neither kind showed better:
+    /// its render comparison inconclusive, or its cache's two fits within 1% of each other
+    /// either way. Not when metal passed or was measurably worse in a render, when plastic
+    /// fits its cache clearly better, for a group left without a lobe, or without a kind
+    /// choice.
     #[test]
     fn a_kind_its_panorama_does_not_decide_is_warned_of() {
         let kind_comparison = |effect: f64, sigma: f64| ComparisonReport {
@@ -364,27 +381,42 @@ mod tests {
             specularity: 0.3,
             roughness: 0.1,
         };
+        let diffuse = GroupModel::Diffuse { color: [0.5; 3] };
         let cases = [
-            // glossy's steel box: 0.0001 +- 0.0005.
-            ("steel", kind_comparison(0.0001, 0.0005), lobe, true),
-            ("gold", kind_comparison(0.2, 0.01), lobe, false),
-            // glossy's yellow box: -0.0106 +- 0.0022, z -4.8.
-            ("yellow", kind_comparison(-0.0106, 0.0022), lobe, false),
+            // glossy's steel box: 0.0001 +- 0.0005 in a render.
             (
-                "wall",
-                kind_comparison(0.0, 0.001),
-                GroupModel::Diffuse { color: [0.5; 3] },
+                "steel",
+                Some([0.1285, 0.1275]),
+                Some(kind_comparison(0.0001, 0.0005)),
+                lobe,
+                true,
+            ),
+            (
+                "gold",
+                Some([0.2156, 0.0566]),
+                Some(kind_comparison(0.2, 0.01)),
+                lobe,
                 false,
             ),
+            // glossy's yellow box: -0.0106 +- 0.0022, z -4.8.
+            (
+                "yellow",
+                Some([0.1049, 0.1042]),
+                Some(kind_comparison(-0.0106, 0.0022)),
+                lobe,
+                false,
+            ),
+            // glossy's teal box: no render asked.
+            ("teal", Some([0.0803, 0.0805]), None, lobe, true),
+            // glossy's red sphere: plastic 0.0525 better on the cache.
+            ("red", Some([0.0524, 0.0742]), None, lobe, false),
+            ("wall", Some([0.0759, 0.0759]), None, diffuse, false),
+            ("given", None, None, lobe, false),
         ];
-        for (name, c, model, warned) in cases {
-            let w = warnings_for(
-                &[group(name, 900, vec![c])],
-                &[model],
-                0.025,
-                64,
-                Effort::Default,
-            );
+        for (name, cache, c, model, warned) in cases {
+            let mut report = group(name, 900, c.into_iter().collect());
+            report.kind_cache_errors = cache;
+            let w = warnings_for(&[report], &[model], 0.025, 64, Effort::Default);
             let said = w
                 .iter()
                 .any(|w| w.contains("does not tell plastic from metal"));
