@@ -66,6 +66,11 @@ pub fn propose_from_cache(
     stage::propose(&grid_fits, fit_at).map_err(|e| Error::core("stage 4 proposal", e))
 }
 
+/// The anisotropic model a cache's `proposal` of `kind` stands for.
+pub fn proposed_model(kind: Kind, proposal: &Proposal, basis: (Vec3, Vec3)) -> GroupModel {
+    model_at(kind, &proposal.fit, proposal.x, basis)
+}
+
 /// The anisotropic model of `proposal`'s reflectances and lobe `x`.
 fn model_at(kind: Kind, fit: &WardFit, x: [f64; 3], basis: (Vec3, Vec3)) -> GroupModel {
     let (roughness_u, roughness_v, d) = lobe_at(x, basis);

@@ -24,6 +24,7 @@
 mod anisotropic;
 mod cache;
 mod calibration;
+mod kind;
 mod ladder;
 mod model;
 mod output;

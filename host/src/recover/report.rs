@@ -68,9 +68,8 @@ pub struct GroupReport {
     /// For a textured group, the share of its panorama light that the lobe under its map
     /// renders (`texture::lobe_share`): what the map's level depends on.
     pub map_lobe_share: Option<f64>,
-    /// For a group of kind "auto" that stage 2 fitted a lobe on: the relative errors of
-    /// its best plastic and metal fits on its transport cache (`stage2::choose_kind`).
-    pub kind_cache_errors: Option<[f64; 2]>,
+    /// For a group of kind "auto": the last choice of its lobe's kind (`kind::choose`).
+    pub kind_choice: Option<KindChoice>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
     /// What the stages that work group by group spent on this group, in the order they
@@ -112,7 +111,7 @@ impl GroupReport {
             lobe_sigmas: Vec::new(),
             colour_samples: None,
             map_lobe_share: None,
-            kind_cache_errors: None,
+            kind_choice: None,
             uncertainty: Vec::new(),
             work: Vec::new(),
         }
@@ -168,6 +167,14 @@ impl GroupReport {
         self.error_measurements
             .extend([c.simple_estimate(), c.complex_estimate()]);
     }
+}
+
+/// Where a group of kind "auto" had its lobe's kind chosen: the stage (2 or 4) and the
+/// relative errors of its best plastic and metal fits on its transport cache there.
+#[derive(Serialize, Clone, Copy, Debug, PartialEq)]
+pub struct KindChoice {
+    pub stage: u32,
+    pub cache_errors: [f64; 2],
 }
 
 /// One keep-or-reject comparison of two models of a group ([`fit::ModelComparison`]).

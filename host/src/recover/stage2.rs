@@ -7,7 +7,7 @@
 //! whose proposal fails gets a second look on a ladder of roughnesses (`ladder`). A weak
 //! candidate whose best lobe on its own cache cannot account for the threshold
 //! (`fit::cache_effect`) stays diffuse without those renders. A group of kind "auto" is
-//! plastic unless a render shows metal better (`choose_kind`).
+//! plastic unless a render shows metal better (`kind`).
 
 use std::time::Instant;
 
@@ -15,13 +15,14 @@ use relume_core::fit;
 use relume_core::material::{Kind, Material};
 use relume_core::render::RenderSettings;
 use relume_core::stages::diffuse;
-use relume_core::stages::isotropic::{self, WardFit};
+use relume_core::stages::isotropic;
 
+use super::kind::{self, KindFit};
 use super::model::GroupModel;
 use super::report::Laps;
 use super::{
     cache, fit_ward, keep_rule, ladder, lobe_kinds, min_samples_spp, mirror_test, progress_bar,
-    refine, uncertainty, warnings, Budget, ComparisonReport, GroupReport, Recovery, StageReport,
+    refine, uncertainty, Budget, ComparisonReport, GroupReport, Recovery, StageReport,
 };
 use crate::error::Error;
 use crate::scene_file::GroupKind;
@@ -48,93 +49,6 @@ fn more_precise(
         Some(e) if e.sigma < decided.sigma => e,
         _ => decided,
     }
-}
-
-/// A group's best isotropic fit on its transport cache for one kind: reflectances in
-/// closed form, roughness `alpha`.
-struct KindFit {
-    ward: WardFit,
-    alpha: f64,
-    kind: Kind,
-}
-
-impl KindFit {
-    fn model(&self) -> GroupModel {
-        GroupModel::Isotropic {
-            kind: self.kind,
-            color: self.ward.color,
-            specularity: self.ward.specularity,
-            roughness: self.alpha,
-        }
-    }
-}
-
-/// Of a group's cache fits, one per kind tried (plastic first), the one stage 2 goes on
-/// with, and the renders spent. One kind: its fit. Kind "auto": plastic, the simpler
-/// explanation (an uncoloured highlight), unless metal accounts for more than the gain
-/// threshold over it on the cache (`fit::cache_effect`) and a render at `spp` then shows
-/// the metal proposal better by the rule every more complex model must pass
-/// (`fit::ModelComparison::favours_complex`). Chosen on the cache alone (a tie
-/// within 1e-4 to plastic), glossy's yellow box at 64 px, seed 1, a plastic of s 0.1 whose
-/// broad highlight hardly shows its colour, came out metal, its specular reflectance 23%
-/// off (3% with the kind given).
-fn choose_kind(
-    rec: &mut Recovery,
-    g: usize,
-    fits: Vec<KindFit>,
-    spp: u32,
-    report: &mut GroupReport,
-) -> Result<(Option<KindFit>, u32), Error> {
-    let mut fits = fits.into_iter();
-    let (plastic, metal) = match (fits.next(), fits.next()) {
-        (Some(plastic), Some(metal)) => (plastic, metal),
-        (only, _) => return Ok((only, 0)),
-    };
-    debug_assert!(plastic.kind == Kind::Plastic && metal.kind == Kind::Metal);
-    report.kind_cache_errors = Some([plastic.ward.relative_error, metal.ward.relative_error]);
-    let on_cache = format!(
-        "relative error on its transport cache plastic {:.4}, metal {:.4}",
-        plastic.ward.relative_error, metal.ward.relative_error
-    );
-    // As for a lobe against none: what metal adds over plastic on the cache, where its fit
-    // also takes in the cache's noise, is at least what a render would show.
-    let metal_on_cache = fit::cache_effect(plastic.ward.relative_error, metal.ward.relative_error);
-    if metal_on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
-        report.decisions.push(format!(
-            "stage 2: kind auto: plastic, the simpler: metal accounts for {metal_on_cache:.4} more on its transport cache, at most SPECULAR_GAIN_THRESHOLD {} ({on_cache})",
-            fit::SPECULAR_GAIN_THRESHOLD
-        ));
-        return Ok((Some(plastic), 0));
-    }
-    let Some((c, decision_spp)) = rec.compare_models(g, plastic.model(), metal.model(), spp)?
-    else {
-        report.decisions.push(format!(
-            "stage 2: kind auto: plastic, the simpler: no lit pixel to compare the kinds on ({on_cache})"
-        ));
-        return Ok((Some(plastic), 2));
-    };
-    let metal_wins = c.favours_complex();
-    report.decisions.push(format!(
-        "stage 2: kind auto: {}: metal accounts for {metal_on_cache:.4} more on its transport cache ({on_cache}); in a render at {decision_spp} spp it accounts for {:.4} more (removes {:.4} +- {:.4}, z {:.1}), {} {}",
-        if metal_wins { "metal" } else { "plastic, the simpler" },
-        c.effect(),
-        c.gain,
-        c.gain_sigma,
-        c.z(),
-        if metal_wins { "passing the rule" } else { "short of the rule" },
-        keep_rule(&c)
-    ));
-    report.add_comparison(
-        ComparisonReport::new(
-            warnings::KIND_COMPARISON,
-            "isotropic plastic",
-            "isotropic metal",
-            &c,
-            decision_spp,
-        ),
-        &c,
-    );
-    Ok((Some(if metal_wins { metal } else { plastic }), 2))
 }
 
 /// Group `g`'s diffuse model `stage1` with its colour re-fitted under the materials found
@@ -285,15 +199,26 @@ pub(super) fn run(
             let (fit, alpha, n) = fit_ward(&rec.pool, &cache, kind);
             evaluations += n;
             fits.push(KindFit {
-                ward: fit,
-                alpha,
                 kind,
+                cache_error: fit.relative_error,
+                model: GroupModel::Isotropic {
+                    kind,
+                    color: fit.color,
+                    specularity: fit.specularity,
+                    roughness: alpha,
+                },
+                fit: (fit, alpha),
             });
         }
         bar.inc(1);
-        let (chosen, n) = choose_kind(rec, g, fits, 4 * verify_spp, &mut reports[g])?;
+        let (chosen, n) = kind::choose(rec, g, fits, (2, 4 * verify_spp), &mut reports[g])?;
         evaluations += n;
-        let Some(KindFit { ward, alpha, kind }) = chosen else {
+        let Some(KindFit {
+            kind,
+            fit: (ward, alpha),
+            ..
+        }) = chosen
+        else {
             continue;
         };
         let proposal_roughness = alpha;

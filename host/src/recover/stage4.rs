@@ -9,8 +9,8 @@ use std::time::Instant;
 use relume_core::fit;
 use relume_core::material::Kind;
 use relume_core::render::RenderSettings;
-use relume_core::stages::anisotropic::Proposal;
 
+use super::kind::{self, KindFit};
 use super::model::GroupModel;
 use super::refine::RACE_SIGNIFICANCE;
 use super::report::Laps;
@@ -171,19 +171,25 @@ pub(super) fn run(
         // The anisotropic side as stage 2 found the isotropic one: the cache proposes
         // (reflectances in closed form, the lobe by grid and simplex), annealing on
         // renders refines, a race on fresh samples chooses.
-        let mut best: Option<(Proposal, Kind)> = None;
+        let mut fits = Vec::new();
         for &kind in &kinds_to_try {
             let (proposal, n) = anisotropic::propose_from_cache(&rec.pool, &cache, kind, basis)?;
             evaluations += n;
-            // Ties go to the first kind tried (plastic): the simpler explanation.
-            if best
-                .as_ref()
-                .is_none_or(|(b, _)| proposal.fit.relative_error < b.fit.relative_error - 1e-4)
-            {
-                best = Some((proposal, kind));
-            }
+            fits.push(KindFit {
+                kind,
+                cache_error: proposal.fit.relative_error,
+                model: anisotropic::proposed_model(kind, &proposal, basis),
+                fit: proposal,
+            });
         }
-        let Some((proposal, kind)) = best else {
+        let (chosen, n) = kind::choose(rec, g, fits, (4, 4 * verify_spp), &mut reports[g])?;
+        evaluations += n;
+        let Some(KindFit {
+            kind,
+            fit: proposal,
+            ..
+        }) = chosen
+        else {
             bar.inc(1);
             continue;
         };

@@ -7,6 +7,7 @@
 use relume_core::fit::{self, GroupFit};
 use relume_core::stages::diffuse;
 
+use super::kind;
 use super::model::GroupModel;
 use super::{Budget, GroupReport};
 
@@ -151,11 +152,10 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
 /// the rule asks. A lobe's parameters then hang on the choice.
 fn undecided_kind(report: &GroupReport, model: &GroupModel) -> Option<String> {
     model.lobe_kind()?;
-    let [plastic, metal] = report.kind_cache_errors?;
-    let rendered = report
-        .comparisons
-        .iter()
-        .find(|c| c.stage == KIND_COMPARISON);
+    let choice = report.kind_choice?;
+    let [plastic, metal] = choice.cache_errors;
+    let stage = kind::comparison_stage(choice.stage);
+    let rendered = report.comparisons.iter().find(|c| c.stage == stage);
     match rendered {
         Some(c) if !c.passed_test && c.z > -c.z_needed => Some(format!(
             "in a render metal fits {} by {:.4} +- {:.4} of relative error, z {:.1}",
@@ -176,9 +176,6 @@ fn undecided_kind(report: &GroupReport, model: &GroupModel) -> Option<String> {
         }
     }
 }
-
-/// The stage name of stage 2's kind comparison in report.json.
-pub const KIND_COMPARISON: &str = "2 kind";
 
 fn specularity(model: &GroupModel) -> Option<f64> {
     match *model {
@@ -370,7 +367,7 @@ mod tests {
     #[test]
     fn a_kind_its_panorama_does_not_decide_is_warned_of() {
         let kind_comparison = |effect: f64, sigma: f64| ComparisonReport {
-            stage: KIND_COMPARISON.into(),
+            stage: kind::comparison_stage(2),
             simple: "isotropic plastic".into(),
             complex: "isotropic metal".into(),
             ..comparison(effect, sigma)
@@ -415,7 +412,10 @@ mod tests {
         ];
         for (name, cache, c, model, warned) in cases {
             let mut report = group(name, 900, c.into_iter().collect());
-            report.kind_cache_errors = cache;
+            report.kind_choice = cache.map(|cache_errors| crate::recover::report::KindChoice {
+                stage: 2,
+                cache_errors,
+            });
             let w = warnings_for(&[report], &[model], 0.025, 64, Effort::Default);
             let said = w
                 .iter()

@@ -1,0 +1,99 @@
+//! Kind "auto": which kind, plastic or metal, a group whose scene leaves it open is
+//! fitted as (stages 2 and 4). Plastic is the simpler explanation (an uncoloured
+//! highlight); metal is kept only where it is measurably better, by the rule every more
+//! complex model passes. Chosen on the cache alone (a tie within 1e-4 to plastic),
+//! glossy's yellow box at 64 px, seed 1, a plastic of s 0.1 whose broad highlight hardly
+//! shows its colour, came out metal, its specular reflectance 23% off (3% with the kind
+//! given). docs/recovery.md, "Kind auto".
+
+use relume_core::fit;
+use relume_core::material::Kind;
+
+use super::model::GroupModel;
+use super::report::{keep_rule, KindChoice};
+use super::{ComparisonReport, GroupReport, Recovery};
+use crate::error::Error;
+
+/// The stage name of a kind comparison in report.json is the stage's number and this.
+pub const KIND_COMPARISON: &str = "kind";
+
+/// One kind's best fit of a group on its transport cache: its relative error there, the
+/// model it proposes, and what the stage goes on with if it is chosen.
+pub(super) struct KindFit<T> {
+    pub kind: Kind,
+    pub cache_error: f64,
+    pub model: GroupModel,
+    pub fit: T,
+}
+
+/// Of a group's cache fits, one per kind tried (plastic first), the one stage `stage`
+/// goes on with, and the renders spent. One kind: its fit. Two: plastic, unless metal
+/// accounts for more than `SPECULAR_GAIN_THRESHOLD` over it on the cache
+/// (`fit::cache_effect`, whose fit takes in the cache's noise and reads more gain, not
+/// less, than a render) and a render at `spp` then shows the metal proposal better by
+/// the keep rule (`fit::ModelComparison::favours_complex`). The choice is a decision in
+/// the report, the render a comparison of stage "<stage> kind", and the stage with the
+/// two cache errors `kind_choice`.
+pub(super) fn choose<T>(
+    rec: &mut Recovery,
+    g: usize,
+    fits: Vec<KindFit<T>>,
+    (stage, spp): (u32, u32),
+    report: &mut GroupReport,
+) -> Result<(Option<KindFit<T>>, u32), Error> {
+    let mut fits = fits.into_iter();
+    let (plastic, metal) = match (fits.next(), fits.next()) {
+        (Some(plastic), Some(metal)) => (plastic, metal),
+        (only, _) => return Ok((only, 0)),
+    };
+    debug_assert!(plastic.kind == Kind::Plastic && metal.kind == Kind::Metal);
+    report.kind_choice = Some(KindChoice {
+        stage,
+        cache_errors: [plastic.cache_error, metal.cache_error],
+    });
+    let on_cache = format!(
+        "relative error on its transport cache plastic {:.4}, metal {:.4}",
+        plastic.cache_error, metal.cache_error
+    );
+    let metal_on_cache = fit::cache_effect(plastic.cache_error, metal.cache_error);
+    if metal_on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
+        report.decisions.push(format!(
+            "stage {stage}: kind auto: plastic, the simpler: metal accounts for {metal_on_cache:.4} more on its transport cache, at most SPECULAR_GAIN_THRESHOLD {} ({on_cache})",
+            fit::SPECULAR_GAIN_THRESHOLD
+        ));
+        return Ok((Some(plastic), 0));
+    }
+    let Some((c, decision_spp)) = rec.compare_models(g, plastic.model, metal.model, spp)? else {
+        report.decisions.push(format!(
+            "stage {stage}: kind auto: plastic, the simpler: no lit pixel to compare the kinds on ({on_cache})"
+        ));
+        return Ok((Some(plastic), 2));
+    };
+    let metal_wins = c.favours_complex();
+    report.decisions.push(format!(
+        "stage {stage}: kind auto: {}: metal accounts for {metal_on_cache:.4} more on its transport cache ({on_cache}); in a render at {decision_spp} spp it accounts for {:.4} more (removes {:.4} +- {:.4}, z {:.1}), {} {}",
+        if metal_wins { "metal" } else { "plastic, the simpler" },
+        c.effect(),
+        c.gain,
+        c.gain_sigma,
+        c.z(),
+        if metal_wins { "passing the rule" } else { "short of the rule" },
+        keep_rule(&c)
+    ));
+    report.add_comparison(
+        ComparisonReport::new(
+            &comparison_stage(stage),
+            &format!("{} plastic", plastic.model.name()),
+            &format!("{} metal", metal.model.name()),
+            &c,
+            decision_spp,
+        ),
+        &c,
+    );
+    Ok((Some(if metal_wins { metal } else { plastic }), 2))
+}
+
+/// The report.json stage name of stage `stage`'s kind comparison.
+pub fn comparison_stage(stage: u32) -> String {
+    format!("{stage} {KIND_COMPARISON}")
+}
