@@ -333,6 +333,70 @@ fn compare_materials_refuses_a_file_of_another_scene_and_judges_a_partial_one() 
     );
 }
 
+/// `--scene` judges the kinds of the recovered lobes against the truth's scene: the
+/// truth against itself has every kind right; a lobe whose material says another kind (as
+/// a recovery of a group of kind "auto" writes) is named; a scene whose groups are not
+/// the truth's is refused, naming them.
+#[test]
+fn compare_materials_judges_kinds_against_the_truths_scene() {
+    let case = Case::new();
+    let args = |materials: &str, scene: &str| {
+        [
+            "compare",
+            "materials",
+            "c/materials.toml",
+            materials,
+            "--scene",
+            scene,
+        ]
+        .map(str::to_string)
+    };
+    let stdout = |materials: &str, scene: &str| {
+        let a = args(materials, scene);
+        let run = case.run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        let out = String::from_utf8_lossy(&run.stdout).into_owned();
+        assert!(
+            run.status.success(),
+            "{out}{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        out
+    };
+    let out = stdout("c/materials.toml", "c/scene.toml");
+    assert!(
+        out.contains("kinds right: 3 of 3 (groups with a lobe in both)"),
+        "{out}"
+    );
+    let truth = std::fs::read_to_string(case.path("c/materials.toml")).unwrap();
+    let sphere = "group = \"sphere\"\nmodel = \"isotropic\"\n";
+    assert!(truth.contains(sphere));
+    let plastic = truth.replace(sphere, &format!("{sphere}kind = \"plastic\"\n"));
+    std::fs::write(case.path("auto.toml"), plastic).unwrap();
+    let out = stdout("auto.toml", "c/scene.toml");
+    assert!(
+        out.contains("kinds right: 2 of 3 (groups with a lobe in both) (wrong: sphere: plastic, truth metal)"),
+        "{out}"
+    );
+    let odd = case.edit("odd");
+    let text = std::fs::read_to_string(case.path(&odd)).unwrap();
+    std::fs::write(
+        case.path(&odd),
+        text.replace("name = \"floor\"", "name = \"floor2\""),
+    )
+    .unwrap();
+    let a = args("c/materials.toml", &odd);
+    let run = case.run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    fails(
+        &run,
+        INPUT,
+        &[
+            "odd/scene.toml",
+            "only in this file: 'floor2'",
+            "only in the truth: 'floor'",
+        ],
+    );
+}
+
 /// The same report twice pooled its parameters twice, claiming a coverage over two
 /// recoveries: refused, naming it, under any spelling of its path.
 #[test]

@@ -142,6 +142,10 @@ enum CompareCommand {
     Materials {
         truth: PathBuf,
         materials: PathBuf,
+        /// The truth's scene.toml: its kinds judge the kinds of the recovered lobes (a
+        /// recovery of kind "auto" groups writes the kind it chose).
+        #[arg(long)]
+        scene: Option<PathBuf>,
         #[arg(long)]
         json: Option<PathBuf>,
     },
@@ -381,8 +385,9 @@ fn run(command: Command) -> Result<(), Error> {
         Command::Compare(CompareCommand::Materials {
             truth,
             materials,
+            scene,
             json,
-        }) => compare::compare_materials(&truth, &materials, json.as_deref()),
+        }) => compare::compare_materials(&truth, &materials, scene.as_deref(), json.as_deref()),
         Command::Compare(CompareCommand::Uncertainty {
             truth,
             report,

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use relume_core::geometry::Surface;
 use relume_core::material::texture::bilinear_taps;
+use relume_core::material::Kind;
 use relume_core::math::{luminance, Vec3};
 use relume_core::render;
 use serde::Serialize;
@@ -16,7 +17,7 @@ use crate::fsutil::{self, OutputSet};
 use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialDesc, MaterialsDesc, Model};
 use crate::parallel;
-use crate::scene_file::{self, ViewDesc};
+use crate::scene_file::{self, GroupKind, SceneDesc, ViewDesc};
 
 /// Sub-rays per pixel side used to decide that a pixel's whole footprint sees one group.
 pub const LABEL_RAYS_PER_SIDE: u32 = 4;
@@ -403,6 +404,11 @@ pub struct MaterialRow {
     /// which the panorama sees only through the lobe beside it (a lobe sending too much
     /// light towards the views leaves its map too dark; docs/edits.md).
     pub diffuse_map_level_err: Option<f64>,
+    /// With `--scene`, where both models have a lobe: the kind of the recovered lobe (its
+    /// material's `kind`, written for a group of kind "auto", else the scene's) and the
+    /// truth's (the scene's).
+    pub kind: Option<String>,
+    pub true_kind: Option<String>,
 }
 
 /// A PSNR in JSON: a number, `"inf"` for a map equal to the truth's (JSON has no
@@ -635,16 +641,100 @@ fn angle_between_axes_deg(a: [f32; 3], b: [f32; 3]) -> f64 {
     libm::acos(cos.min(1.0)).to_degrees()
 }
 
+/// Each row's `kind` and `true_kind` (see [`MaterialRow`]) from `scene`, the scene whose
+/// kinds the truth has: a recovery of kind "auto" groups is judged on the kinds it chose.
+/// A scene whose groups are not the truth's is an error.
+fn set_kinds(
+    rows: &mut [MaterialRow],
+    scene: &SceneDesc,
+    t: &MaterialsDesc,
+    m: &MaterialsDesc,
+) -> Result<(), Error> {
+    let scene_groups: Vec<&str> = scene.groups.iter().map(|g| g.name.as_str()).collect();
+    check_groups(
+        &scene.path,
+        &scene_groups,
+        "the truth",
+        &t.path,
+        &groups_of(t),
+        Groups::Same,
+        "the truth's own scene.toml gives its kinds",
+    )?;
+    let scene_kind = |group: &str| match scene.groups.iter().find(|g| g.name == group)?.kind {
+        GroupKind::Plastic => Some(Kind::Plastic),
+        GroupKind::Metal => Some(Kind::Metal),
+        GroupKind::Auto => None,
+    };
+    let lobe = |d: &MaterialsDesc, group: &str| {
+        d.materials
+            .iter()
+            .find(|x| x.group == group && x.model.has_lobe())
+            .map(|x| x.kind)
+    };
+    for row in rows.iter_mut() {
+        if let (Some(recovered), Some(_)) = (lobe(m, &row.group), lobe(t, &row.group)) {
+            let name = |k: Option<Kind>| k.map(|k| materials_file::kind_name(k).to_string());
+            row.kind = name(recovered.or(scene_kind(&row.group)));
+            row.true_kind = name(scene_kind(&row.group));
+        }
+    }
+    Ok(())
+}
+
+/// The line that counts the kinds right (where [`set_kinds`] gave both).
+fn kind_summary(rows: &[MaterialRow]) -> String {
+    let judged: Vec<&MaterialRow> = rows
+        .iter()
+        .filter(|r| r.kind.is_some() && r.true_kind.is_some())
+        .collect();
+    let wrong: Vec<String> = judged
+        .iter()
+        .filter(|r| r.kind != r.true_kind)
+        .map(|r| {
+            format!(
+                "{}: {}, truth {}",
+                r.group,
+                r.kind.as_deref().unwrap_or("-"),
+                r.true_kind.as_deref().unwrap_or("-")
+            )
+        })
+        .collect();
+    let mut line = format!(
+        "kinds right: {} of {} (groups with a lobe in both)",
+        judged.len() - wrong.len(),
+        judged.len()
+    );
+    if !wrong.is_empty() {
+        line += &format!(" (wrong: {})", wrong.join("; "));
+    }
+    line
+}
+
 /// `relume compare materials`: the table, and `json` if given. The JSON may replace none
 /// of the run's inputs (either materials file or their maps), checked before the work.
-pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) -> Result<(), Error> {
+/// With `scene` (the truth's scene.toml), each group with a lobe in both is judged on its
+/// kind too.
+pub fn compare_materials(
+    truth: &Path,
+    materials: &Path,
+    scene: Option<&Path>,
+    json: Option<&Path>,
+) -> Result<(), Error> {
     let t = materials_file::load_materials(truth)?;
     let m = materials_file::load_materials(materials)?;
-    let mut set = OutputSet::keeping([t.input_files(), m.input_files()].concat());
+    let scene = scene.map(scene_file::load_scene).transpose()?;
+    let mut inputs = [t.input_files(), m.input_files()].concat();
+    if let Some(scene) = &scene {
+        inputs.push((scene.path.clone(), "the scene".to_string()));
+    }
+    let mut set = OutputSet::keeping(inputs);
     if let Some(path) = json {
         set.check_target(path)?;
     }
-    let rows = materials_rows(&t, &m)?;
+    let mut rows = materials_rows(&t, &m)?;
+    if let Some(scene) = &scene {
+        set_kinds(&mut rows, scene, &t, &m)?;
+    }
     let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.2}%", 100.0 * v));
     let db = |v: Option<f64>| v.map_or("-".to_string(), |p| format!("{p:.1}dB"));
     println!(
@@ -684,6 +774,9 @@ pub fn compare_materials(truth: &Path, materials: &Path, json: Option<&Path>) ->
         );
     }
     println!("{}", class_summary(&rows));
+    if scene.is_some() {
+        println!("{}", kind_summary(&rows));
+    }
     if let Some(path) = json {
         let text = serde_json::to_string_pretty(&rows).map_err(|e| Error::Usage(e.to_string()))?;
         set.add(path, text.as_bytes())?;
@@ -1028,7 +1121,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let truth = materials_file_of(dir.path(), "t.toml", &["floor"]);
         let before = std::fs::read(&truth).unwrap();
-        let e = compare_materials(&truth, &truth, Some(&truth))
+        let e = compare_materials(&truth, &truth, None, Some(&truth))
             .unwrap_err()
             .to_string();
         assert!(
