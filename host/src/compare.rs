@@ -699,15 +699,13 @@ fn kind_summary(rows: &[MaterialRow]) -> String {
             )
         })
         .collect();
-    let mut line = format!(
-        "kinds right: {} of {} (groups with a lobe in both)",
-        judged.len() - wrong.len(),
-        judged.len()
-    );
-    if !wrong.is_empty() {
-        line += &format!(" (wrong: {})", wrong.join("; "));
-    }
-    line
+    count_right(
+        "kinds right",
+        judged.len(),
+        " (groups with a lobe in both)",
+        &wrong,
+        "; ",
+    )
 }
 
 /// `relume compare materials`: the table, and `json` if given. The JSON may replace none
@@ -876,18 +874,20 @@ pub fn check_uncertainty_run(
 /// The table's closing line: how many groups have their true model, and which do not (the
 /// first of the targets, and what a reader of a long table looks for first).
 fn class_summary(rows: &[MaterialRow]) -> String {
-    let wrong: Vec<&str> = rows
+    let wrong: Vec<String> = rows
         .iter()
         .filter(|r| !r.class_ok)
-        .map(|r| r.group.as_str())
+        .map(|r| r.group.clone())
         .collect();
-    let mut line = format!(
-        "classes right: {} of {}",
-        rows.len() - wrong.len(),
-        rows.len()
-    );
+    count_right("classes right", rows.len(), "", &wrong, ", ")
+}
+
+/// `"<what>: <right> of <total><note>"`, then ` (wrong: ...)` listing `wrong` with `sep`
+/// unless it is empty.
+fn count_right(what: &str, total: usize, note: &str, wrong: &[String], sep: &str) -> String {
+    let mut line = format!("{what}: {} of {total}{note}", total - wrong.len());
     if !wrong.is_empty() {
-        line += &format!(" (wrong: {})", wrong.join(", "));
+        line += &format!(" (wrong: {})", wrong.join(sep));
     }
     line
 }
