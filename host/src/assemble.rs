@@ -268,11 +268,7 @@ fn check_texture_coordinates(
 /// either without a lobe, whose reflectance does not depend on it. A material whose kind
 /// contradicts the scene's, or a lobe with no kind from either, is an error at its line.
 fn material_kind(desc: &SceneDesc, file: &MaterialsDesc, m: &MaterialDesc) -> Result<Kind, Error> {
-    let scene_kind = match kind_of(desc, &m.group) {
-        Some(GroupKind::Plastic) => Some(Kind::Plastic),
-        Some(GroupKind::Metal) => Some(Kind::Metal),
-        Some(GroupKind::Auto) | None => None,
-    };
+    let scene_kind = kind_of(desc, &m.group).and_then(GroupKind::given);
     match (scene_kind, m.kind) {
         (Some(s), Some(k)) if s != k => Err(Error::at_line(
             &file.path,

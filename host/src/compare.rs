@@ -17,7 +17,7 @@ use crate::fsutil::{self, OutputSet};
 use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialDesc, MaterialsDesc, Model};
 use crate::parallel;
-use crate::scene_file::{self, GroupKind, SceneDesc, ViewDesc};
+use crate::scene_file::{self, SceneDesc, ViewDesc};
 
 /// Sub-rays per pixel side used to decide that a pixel's whole footprint sees one group.
 pub const LABEL_RAYS_PER_SIDE: u32 = 4;
@@ -660,11 +660,7 @@ fn set_kinds(
         Groups::Same,
         "the truth's own scene.toml gives its kinds",
     )?;
-    let scene_kind = |group: &str| match scene.groups.iter().find(|g| g.name == group)?.kind {
-        GroupKind::Plastic => Some(Kind::Plastic),
-        GroupKind::Metal => Some(Kind::Metal),
-        GroupKind::Auto => None,
-    };
+    let scene_kind = |group: &str| scene.groups.iter().find(|g| g.name == group)?.kind.given();
     let lobe = |d: &MaterialsDesc, group: &str| {
         d.materials
             .iter()
@@ -674,8 +670,9 @@ fn set_kinds(
     for row in rows.iter_mut() {
         if let (Some(recovered), Some(_)) = (lobe(m, &row.group), lobe(t, &row.group)) {
             let name = |k: Option<Kind>| k.map(|k| materials_file::kind_name(k).to_string());
-            row.kind = name(recovered.or(scene_kind(&row.group)));
-            row.true_kind = name(scene_kind(&row.group));
+            let given = scene_kind(&row.group);
+            row.kind = name(recovered.or(given));
+            row.true_kind = name(given);
         }
     }
     Ok(())

@@ -40,6 +40,17 @@ pub enum GroupKind {
     Auto,
 }
 
+impl GroupKind {
+    /// The kind scene.toml gives (`None` for "auto").
+    pub fn given(self) -> Option<relume_core::material::Kind> {
+        match self {
+            GroupKind::Plastic => Some(relume_core::material::Kind::Plastic),
+            GroupKind::Metal => Some(relume_core::material::Kind::Metal),
+            GroupKind::Auto => None,
+        }
+    }
+}
+
 /// One calibrated view of the panorama.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ViewDesc {

@@ -97,3 +97,31 @@ pub(super) fn choose<T>(
 pub fn comparison_stage(stage: u32) -> String {
     format!("{stage} {KIND_COMPARISON}")
 }
+
+/// What showed neither kind better in `choice`, if nothing did: its cache's two fits
+/// within `SPECULAR_GAIN_THRESHOLD` of each other either way, so that [`choose`] asked no
+/// render, or the render among `comparisons` showing metal short of the keep rule and not
+/// worse than plastic at the z the rule asks.
+pub fn undecided(choice: &KindChoice, comparisons: &[ComparisonReport]) -> Option<String> {
+    let [plastic, metal] = choice.cache_errors;
+    let stage = comparison_stage(choice.stage);
+    match comparisons.iter().find(|c| c.stage == stage) {
+        Some(c) if !c.passed_test && c.z > -c.z_needed => Some(format!(
+            "in a render metal fits {} by {:.4} +- {:.4} of relative error, z {:.1}",
+            if c.gain >= 0.0 { "better" } else { "worse" },
+            c.gain.abs(),
+            c.gain_sigma,
+            c.z
+        )),
+        Some(_) => None,
+        None => {
+            let apart = fit::cache_effect(plastic, metal).max(fit::cache_effect(metal, plastic));
+            (apart <= fit::SPECULAR_GAIN_THRESHOLD).then(|| {
+                format!(
+                    "on its transport cache the two fits are {apart:.4} of relative error apart, at most SPECULAR_GAIN_THRESHOLD {} (plastic {plastic:.4}, metal {metal:.4})",
+                    fit::SPECULAR_GAIN_THRESHOLD
+                )
+            })
+        }
+    }
+}

@@ -146,35 +146,10 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
 }
 
 /// For a group of kind "auto" that kept a lobe, what showed neither kind better, if
-/// nothing did (stage 2, `choose_kind`): its cache's two fits within
-/// `SPECULAR_GAIN_THRESHOLD` of each other either way, so that no render was asked, or a
-/// render that showed metal short of the keep rule and not worse than plastic at the z
-/// the rule asks. A lobe's parameters then hang on the choice.
+/// nothing did ([`kind::undecided`]): a lobe's parameters then hang on the choice.
 fn undecided_kind(report: &GroupReport, model: &GroupModel) -> Option<String> {
     model.lobe_kind()?;
-    let choice = report.kind_choice?;
-    let [plastic, metal] = choice.cache_errors;
-    let stage = kind::comparison_stage(choice.stage);
-    let rendered = report.comparisons.iter().find(|c| c.stage == stage);
-    match rendered {
-        Some(c) if !c.passed_test && c.z > -c.z_needed => Some(format!(
-            "in a render metal fits {} by {:.4} +- {:.4} of relative error, z {:.1}",
-            if c.gain >= 0.0 { "better" } else { "worse" },
-            c.gain.abs(),
-            c.gain_sigma,
-            c.z
-        )),
-        Some(_) => None,
-        None => {
-            let apart = fit::cache_effect(plastic, metal).max(fit::cache_effect(metal, plastic));
-            (apart <= fit::SPECULAR_GAIN_THRESHOLD).then(|| {
-                format!(
-                    "on its transport cache the two fits are {apart:.4} of relative error apart, at most SPECULAR_GAIN_THRESHOLD {} (plastic {plastic:.4}, metal {metal:.4})",
-                    fit::SPECULAR_GAIN_THRESHOLD
-                )
-            })
-        }
-    }
+    kind::undecided(&report.kind_choice?, &report.comparisons)
 }
 
 fn specularity(model: &GroupModel) -> Option<f64> {
