@@ -377,6 +377,27 @@ fn compare_materials_judges_kinds_against_the_truths_scene() {
         out.contains("kinds right: 2 of 3 (groups with a lobe in both) (wrong: sphere: plastic, truth metal)"),
         "{out}"
     );
+    // The same numbers as a plastic reflect s, white, where the metal reflects c s: the
+    // specularity agrees, the specular reflectance is off by the mean of 1/c - 1 over the
+    // sphere's colour (0.9, 0.72, 0.4), 2/3.
+    let a = args("auto.toml", "c/scene.toml");
+    let a: Vec<&str> = a
+        .iter()
+        .map(String::as_str)
+        .chain(["--json", "auto.json"])
+        .collect();
+    assert!(case.run(&a).status.success());
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(case.path("auto.json")).unwrap()).unwrap();
+    let sphere = json
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["group"] == "sphere")
+        .unwrap();
+    assert_eq!(sphere["specularity_rel_err"].as_f64(), Some(0.0));
+    let reflectance = sphere["specular_reflectance_rel_err"].as_f64().unwrap();
+    assert!((reflectance - 2.0 / 3.0).abs() < 1e-6, "{sphere}");
     let odd = case.edit("odd");
     let text = std::fs::read_to_string(case.path(&odd)).unwrap();
     std::fs::write(

@@ -409,6 +409,11 @@ pub struct MaterialRow {
     /// truth's (the scene's).
     pub kind: Option<String>,
     pub true_kind: Option<String>,
+    /// With `--scene`, where both models have a lobe: mean over channels of
+    /// |S - S true| / S true, with S = s for plastic and c s for metal (reflectance.md).
+    /// Where the kinds differ, `specularity` means different things on the two sides; this
+    /// compares the light the lobes reflect.
+    pub specular_reflectance_rel_err: Option<f64>,
 }
 
 /// A PSNR in JSON: a number, `"inf"` for a map equal to the truth's (JSON has no
@@ -436,6 +441,16 @@ fn diffuse_of(m: &MaterialDesc) -> Option<[f64; 3]> {
     match m.model {
         Model::Mirror => None,
         _ => Some(c.map(|c| c as f64 * (1.0 - s))),
+    }
+}
+
+/// The specular reflectance S of a lobe of `kind` (reflectance.md): s, white, for
+/// plastic; c s for metal. `None` without a specularity or, for metal, a colour.
+fn specular_reflectance_of(m: &MaterialDesc, kind: Kind) -> Option<[f64; 3]> {
+    let s = m.specularity? as f64;
+    match kind {
+        Kind::Plastic => Some([s; 3]),
+        Kind::Metal => Some(m.color?.map(|c| c as f64 * s)),
     }
 }
 
@@ -641,14 +656,15 @@ fn angle_between_axes_deg(a: [f32; 3], b: [f32; 3]) -> f64 {
     libm::acos(cos.min(1.0)).to_degrees()
 }
 
-/// Each row's `kind` and `true_kind` (see [`MaterialRow`]) from `scene`, the scene whose
-/// kinds the truth has: a recovery of kind "auto" groups is judged on the kinds it chose.
+/// Each row's `kind`, `true_kind` and `specular_reflectance_rel_err` (see [`MaterialRow`])
+/// from `scene`, the scene whose kinds the truth has: a recovery of kind "auto" groups is
+/// judged on the kinds it chose.
 /// A scene whose groups are not the truth's is an error.
-fn set_kinds(
+fn set_kinds<'a>(
     rows: &mut [MaterialRow],
     scene: &SceneDesc,
-    t: &MaterialsDesc,
-    m: &MaterialsDesc,
+    t: &'a MaterialsDesc,
+    m: &'a MaterialsDesc,
 ) -> Result<(), Error> {
     let scene_groups: Vec<&str> = scene.groups.iter().map(|g| g.name.as_str()).collect();
     check_groups(
@@ -661,18 +677,24 @@ fn set_kinds(
         "the truth's own scene.toml gives its kinds",
     )?;
     let scene_kind = |group: &str| scene.groups.iter().find(|g| g.name == group)?.kind.given();
-    let lobe = |d: &MaterialsDesc, group: &str| {
+    let lobe = |d: &'a MaterialsDesc, group: &str| {
         d.materials
             .iter()
             .find(|x| x.group == group && x.model.has_lobe())
-            .map(|x| x.kind)
     };
     for row in rows.iter_mut() {
-        if let (Some(recovered), Some(_)) = (lobe(m, &row.group), lobe(t, &row.group)) {
+        if let (Some(recovered), Some(truth)) = (lobe(m, &row.group), lobe(t, &row.group)) {
             let name = |k: Option<Kind>| k.map(|k| materials_file::kind_name(k).to_string());
             let given = scene_kind(&row.group);
-            row.kind = name(recovered.or(given));
+            let kind = recovered.kind.or(given);
+            row.kind = name(kind);
             row.true_kind = name(given);
+            let reflectance = |d: &MaterialDesc, k: Option<Kind>| specular_reflectance_of(d, k?);
+            if let (Some(a), Some(b)) = (reflectance(recovered, kind), reflectance(truth, given)) {
+                row.specular_reflectance_rel_err = (0..3)
+                    .all(|c| b[c] > 0.0)
+                    .then(|| (0..3).map(|c| rel(a[c], b[c])).sum::<f64>() / 3.0);
+            }
         }
     }
     Ok(())
@@ -733,13 +755,14 @@ pub fn compare_materials(
     let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.2}%", 100.0 * v));
     let db = |v: Option<f64>| v.map_or("-".to_string(), |p| format!("{p:.1}dB"));
     println!(
-        "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>9}",
+        "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>9}",
         "group",
         "true model",
         "model",
         "class",
         "diffuse",
         "spec",
+        "S refl",
         "rough",
         "rough_u",
         "rough_v",
@@ -750,13 +773,14 @@ pub fn compare_materials(
     );
     for r in &rows {
         println!(
-            "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>9}",
+            "{:<16} {:<22} {:<22} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>9}",
             r.group,
             r.true_model,
             r.model.as_deref().unwrap_or("(missing)"),
             if r.class_ok { "ok" } else { "WRONG" },
             pct(r.diffuse_rel_err),
             pct(r.specularity_rel_err),
+            pct(r.specular_reflectance_rel_err),
             pct(r.roughness_rel_err),
             pct(r.roughness_u_rel_err),
             pct(r.roughness_v_rel_err),
