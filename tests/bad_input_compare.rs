@@ -398,6 +398,26 @@ fn compare_materials_judges_kinds_against_the_truths_scene() {
     assert_eq!(sphere["specularity_rel_err"].as_f64(), Some(0.0));
     let reflectance = sphere["specular_reflectance_rel_err"].as_f64().unwrap();
     assert!((reflectance - 2.0 / 3.0).abs() < 1e-6, "{sphere}");
+    // A scene that leaves a lobe's kind to the recovery cannot judge it: refused, naming
+    // the groups, rather than left out of the count.
+    let auto = case.edit("auto");
+    let text = std::fs::read_to_string(case.path(&auto)).unwrap();
+    assert!(text.contains("kind = \"metal\""));
+    std::fs::write(
+        case.path(&auto),
+        text.replace("kind = \"metal\"", "kind = \"auto\""),
+    )
+    .unwrap();
+    let a = args("c/materials.toml", &auto);
+    let run = case.run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    fails(
+        &run,
+        INPUT,
+        &[
+            "auto/scene.toml",
+            "groups 'sphere', 'plate' of kind \"auto\"",
+        ],
+    );
     let odd = case.edit("odd");
     let text = std::fs::read_to_string(case.path(&odd)).unwrap();
     std::fs::write(

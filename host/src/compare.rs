@@ -677,6 +677,29 @@ fn set_kinds<'a>(
         "the truth's own scene.toml gives its kinds",
     )?;
     let scene_kind = |group: &str| scene.groups.iter().find(|g| g.name == group)?.kind.given();
+    // A truth's lobe whose kind the scene leaves to "auto" could not be judged: refused
+    // rather than left out of the count in silence.
+    let undecided: Vec<String> = t
+        .materials
+        .iter()
+        .filter(|x| x.model.has_lobe() && scene_kind(&x.group).is_none())
+        .map(|x| format!("'{}'", x.group))
+        .collect();
+    if !undecided.is_empty() {
+        return Err(Error::input(
+            &scene.path,
+            format!(
+                "{} {} of kind \"auto\", whose truth has a lobe: the truth's own scene.toml \
+                 gives each lobe's kind, \"plastic\" or \"metal\"",
+                if undecided.len() == 1 {
+                    "group"
+                } else {
+                    "groups"
+                },
+                undecided.join(", ")
+            ),
+        ));
+    }
     let lobe = |d: &'a MaterialsDesc, group: &str| {
         d.materials
             .iter()
