@@ -426,10 +426,15 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
             Some(k) => Some(kind_from_name(k.get_ref()).ok_or_else(|| {
                 file.at(
                     k.span(),
-                    format!(
-                        "group '{group}': unknown kind '{}' (expected plastic or metal)",
-                        k.get_ref()
-                    ),
+                    match k.get_ref().as_str() {
+                        "auto" => format!(
+                            "group '{group}': kind \"auto\" belongs in scene.toml; a \
+                             material's kind is the one its lobe has, plastic or metal"
+                        ),
+                        other => format!(
+                            "group '{group}': unknown kind '{other}' (expected plastic or metal)"
+                        ),
+                    },
                 )
             })?),
             None => None,
@@ -720,6 +725,19 @@ mod tests {
             &text,
             6,
             &["group 'g'", "unknown kind 'gold'", "plastic or metal"],
+        );
+        let text = file_text(
+            Model::Isotropic,
+            &format!("kind = \"auto\"\n{}", body(Model::Isotropic, None, None)),
+        );
+        bad(
+            &text,
+            6,
+            &[
+                "group 'g'",
+                "\"auto\" belongs in scene.toml",
+                "plastic or metal",
+            ],
         );
         let (_dir, path) = write(&file_text(
             Model::Isotropic,
