@@ -398,43 +398,28 @@ fn compare_materials_judges_kinds_against_the_truths_scene() {
     assert_eq!(sphere["specularity_rel_err"].as_f64(), Some(0.0));
     let reflectance = sphere["specular_reflectance_rel_err"].as_f64().unwrap();
     assert!((reflectance - 2.0 / 3.0).abs() < 1e-6, "{sphere}");
+    // The truth's scene edited (`from` replaced by `to`) is refused, the error naming it
+    // and saying `what`.
+    let refused_scene = |name: &str, (from, to): (&str, &str), what: &[&str]| {
+        let scene = case.edit(name);
+        let text = std::fs::read_to_string(case.path(&scene)).unwrap();
+        assert!(text.contains(from));
+        std::fs::write(case.path(&scene), text.replace(from, to)).unwrap();
+        let a = args("c/materials.toml", &scene);
+        let run = case.run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        fails(&run, INPUT, &[&[scene.as_str()][..], what].concat());
+    };
     // A scene that leaves a lobe's kind to the recovery cannot judge it: refused, naming
     // the groups, rather than left out of the count.
-    let auto = case.edit("auto");
-    let text = std::fs::read_to_string(case.path(&auto)).unwrap();
-    assert!(text.contains("kind = \"metal\""));
-    std::fs::write(
-        case.path(&auto),
-        text.replace("kind = \"metal\"", "kind = \"auto\""),
-    )
-    .unwrap();
-    let a = args("c/materials.toml", &auto);
-    let run = case.run(&a.iter().map(String::as_str).collect::<Vec<_>>());
-    fails(
-        &run,
-        INPUT,
-        &[
-            "auto/scene.toml",
-            "groups 'sphere', 'plate' of kind \"auto\"",
-        ],
+    refused_scene(
+        "auto",
+        ("kind = \"metal\"", "kind = \"auto\""),
+        &["groups 'sphere', 'plate' of kind \"auto\""],
     );
-    let odd = case.edit("odd");
-    let text = std::fs::read_to_string(case.path(&odd)).unwrap();
-    std::fs::write(
-        case.path(&odd),
-        text.replace("name = \"floor\"", "name = \"floor2\""),
-    )
-    .unwrap();
-    let a = args("c/materials.toml", &odd);
-    let run = case.run(&a.iter().map(String::as_str).collect::<Vec<_>>());
-    fails(
-        &run,
-        INPUT,
-        &[
-            "odd/scene.toml",
-            "only in this file: 'floor2'",
-            "only in the truth: 'floor'",
-        ],
+    refused_scene(
+        "odd",
+        ("name = \"floor\"", "name = \"floor2\""),
+        &["only in this file: 'floor2'", "only in the truth: 'floor'"],
     );
 }
 
