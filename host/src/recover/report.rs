@@ -6,6 +6,7 @@ use std::time::Instant;
 use relume_core::fit;
 use serde::Serialize;
 
+use super::model::GroupModel;
 use super::{uncertainty, Budget};
 
 /// What the report says of one group.
@@ -70,6 +71,11 @@ pub struct GroupReport {
     pub map_lobe_share: Option<f64>,
     /// For a group of kind "auto": the last choice of its lobe's kind (`kind::choose`).
     pub kind_choice: Option<KindChoice>,
+    /// For a group of kind "auto" whose lobe was chosen plastic: the metal proposal it was
+    /// chosen over, which stage 4 puts up again under the scene as then known
+    /// (`kind::choose_again`).
+    #[serde(skip)]
+    pub metal_passed_over: Option<GroupModel>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
     /// What the stages that work group by group spent on this group, in the order they
@@ -112,6 +118,7 @@ impl GroupReport {
             colour_samples: None,
             map_lobe_share: None,
             kind_choice: None,
+            metal_passed_over: None,
             uncertainty: Vec::new(),
             work: Vec::new(),
         }

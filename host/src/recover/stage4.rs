@@ -322,9 +322,64 @@ pub(super) fn run(
             };
             reports[g].decisions.push(decision);
         }
+        // Kind "auto": a plastic lobe that still leaves this much error may be a metal's
+        // highlight that stage 2 could not tell apart on its proposals, whose colours
+        // were fitted under the scene as it was then (glossy's steel box: 10% bright).
+        if let (
+            GroupKind::Auto,
+            false,
+            GroupModel::Isotropic {
+                kind: Kind::Plastic,
+                ..
+            },
+            Some(GroupModel::Isotropic {
+                kind: Kind::Metal,
+                color,
+                specularity,
+                roughness,
+            }),
+        ) = (kinds[g], textured[g], kept, reports[g].metal_passed_over)
+        {
+            let (metal_fit, _, n) = fit_ward(&rec.pool, &cache, Kind::Metal);
+            evaluations += n;
+            let spp = min_samples_spp(
+                POLISH_SPP_FACTOR.saturating_mul(verify_spp),
+                reports[g].pure_pixels,
+                POLISH_MIN_SAMPLES,
+            );
+            rec.models[g] = reports[g].metal_passed_over.unwrap_or(kept);
+            let (levelled, change) = polish::colour_step(rec, g, color, spp, LEVEL_KEY)?;
+            rec.models[g] = kept;
+            evaluations += 1;
+            let metal = GroupModel::Isotropic {
+                kind: Kind::Metal,
+                color: levelled,
+                specularity,
+                roughness,
+            };
+            let levelled_by = format!(
+                "its colour levelled by a render at {spp} spp (largest change {:.2}%)",
+                100.0 * change
+            );
+            let (chosen, n) = kind::choose_again(
+                rec,
+                g,
+                (kept, metal),
+                [iso.relative_error, metal_fit.relative_error],
+                (4 * verify_spp, &levelled_by),
+                &mut reports[g],
+            )?;
+            evaluations += n;
+            if let Some(metal) = chosen {
+                kept = metal;
+                rival = metal;
+                replaced = true;
+            }
+        }
         if let (
             true,
             GroupModel::Isotropic {
+                kind,
                 specularity,
                 roughness,
                 ..
