@@ -322,9 +322,10 @@ pub(super) fn run(
             };
             reports[g].decisions.push(decision);
         }
-        // Kind "auto": a plastic lobe that still leaves this much error may be a metal's
-        // highlight that stage 2 could not tell apart on its proposals, whose colours
-        // were fitted under the scene as it was then (glossy's steel box: 10% bright).
+        // Kind "auto": a plastic lobe whose group came on to this stage (more than
+        // DIFFUSE_THRESHOLD of error left) may be a metal's highlight that stage 2 could
+        // not tell apart on its proposals, whose colours were fitted under the scene as it
+        // was then (glossy's steel box: 10% bright).
         if let (
             GroupKind::Auto,
             false,
@@ -347,16 +348,17 @@ pub(super) fn run(
                 reports[g].pure_pixels,
                 POLISH_MIN_SAMPLES,
             );
-            rec.models[g] = reports[g].metal_passed_over.unwrap_or(kept);
-            let (levelled, change) = polish::colour_step(rec, g, color, spp, LEVEL_KEY)?;
-            rec.models[g] = kept;
-            evaluations += 1;
-            let metal = GroupModel::Isotropic {
+            let metal = |color| GroupModel::Isotropic {
                 kind: Kind::Metal,
-                color: levelled,
+                color,
                 specularity,
                 roughness,
             };
+            let before = rec.models[g];
+            rec.models[g] = metal(color);
+            let (levelled, change) = polish::colour_step(rec, g, color, spp, LEVEL_KEY)?;
+            rec.models[g] = before;
+            evaluations += 1;
             let levelled_by = format!(
                 "its colour levelled by a render at {spp} spp (largest change {:.2}%)",
                 100.0 * change
@@ -364,7 +366,7 @@ pub(super) fn run(
             let (chosen, n) = kind::choose_again(
                 rec,
                 g,
-                (kept, metal),
+                (kept, metal(levelled)),
                 [iso.relative_error, metal_fit.relative_error],
                 (4 * verify_spp, &levelled_by),
                 &mut reports[g],
