@@ -57,29 +57,32 @@ pub(super) fn choose<T>(
         plastic.cache_error, metal.cache_error
     );
     let metal_on_cache = fit::cache_effect(plastic.cache_error, metal.cache_error);
-    if metal_on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
+    let (metal_wins, renders) = if metal_on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
         report.decisions.push(format!(
             "stage {stage}: kind auto: plastic, the simpler: metal accounts for {metal_on_cache:.4} more on its transport cache, at most SPECULAR_GAIN_THRESHOLD {} ({on_cache})",
             fit::SPECULAR_GAIN_THRESHOLD
         ));
-        report.metal_passed_over = Some(metal.model);
-        return Ok((Some(plastic), 0));
+        (false, 0)
+    } else {
+        let why = format!(
+            "metal accounts for {metal_on_cache:.4} more on its transport cache ({on_cache})"
+        );
+        let wins = by_render(
+            rec,
+            g,
+            plastic.model,
+            metal.model,
+            (stage, spp),
+            &why,
+            report,
+        )?;
+        (wins, 2)
+    };
+    if metal_wins {
+        return Ok((Some(metal), renders));
     }
-    let why =
-        format!("metal accounts for {metal_on_cache:.4} more on its transport cache ({on_cache})");
-    let metal_wins = by_render(
-        rec,
-        g,
-        plastic.model,
-        metal.model,
-        (stage, spp),
-        &why,
-        report,
-    )?;
-    if !metal_wins {
-        report.metal_passed_over = Some(metal.model);
-    }
-    Ok((Some(if metal_wins { metal } else { plastic }), 2))
+    report.metal_passed_over = Some(metal.model);
+    Ok((Some(plastic), renders))
 }
 
 /// Stage 4, for a group of kind "auto" with the plastic lobe `kept`: `passed_over`, the

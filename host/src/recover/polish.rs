@@ -62,11 +62,7 @@ pub(super) fn polish_colours(
         };
         laps.start(g, evaluations, reports);
         let report = &mut reports[g];
-        let group_spp = min_samples_spp(
-            POLISH_SPP_FACTOR.saturating_mul(spp),
-            report.pure_pixels,
-            POLISH_MIN_SAMPLES,
-        );
+        let group_spp = group_spp(spp, report.pure_pixels);
         // The polish renders every pure pixel of the group.
         let group_samples = group_spp as u64 * report.pure_pixels as u64;
         match kind {
@@ -147,6 +143,16 @@ fn plastic_colour_step(
     let specular = rec.evaluate(spp, seed, &only_g);
     rec.models[g] = model;
     Ok(diffuse::update_beside_lobe(color, &full, &specular?[g]))
+}
+
+/// The samples per pixel of a colour step on a group of `pixels` pure pixels, the loop's
+/// being `spp`: `POLISH_SPP_FACTOR` times them, and at least `POLISH_MIN_SAMPLES` in all.
+pub(super) fn group_spp(spp: u32, pixels: u32) -> u32 {
+    min_samples_spp(
+        POLISH_SPP_FACTOR.saturating_mul(spp),
+        pixels,
+        POLISH_MIN_SAMPLES,
+    )
 }
 
 /// One ratio step of group `g`'s `color` from a render of its pixels alone at `spp`, on

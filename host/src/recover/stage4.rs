@@ -15,9 +15,9 @@ use super::model::GroupModel;
 use super::refine::RACE_SIGNIFICANCE;
 use super::report::Laps;
 use super::{
-    anisotropic, cache, fit_ward, fit_ward_by, keep_rule, lobe_kinds, min_samples_spp, pattern,
-    polish, progress_bar, uncertainty, Budget, ComparisonReport, GroupReport, Recovery,
-    StageReport, CACHE_MIN_SAMPLES, POLISH_MIN_SAMPLES, POLISH_SPP_FACTOR,
+    anisotropic, cache, fit_ward, fit_ward_by, keep_rule, lobe_kinds, pattern, polish,
+    progress_bar, uncertainty, Budget, ComparisonReport, GroupReport, Recovery, StageReport,
+    CACHE_MIN_SAMPLES, POLISH_MIN_SAMPLES,
 };
 use crate::error::Error;
 use crate::scene_file::GroupKind;
@@ -249,11 +249,7 @@ pub(super) fn run(
         // after stage 5 takes up.
         let mut rival = stage2;
         if let (GroupModel::Diffuse { color }, false) = (stage2, textured[g]) {
-            let spp = min_samples_spp(
-                POLISH_SPP_FACTOR.saturating_mul(verify_spp),
-                reports[g].pure_pixels,
-                POLISH_MIN_SAMPLES,
-            );
+            let spp = polish::group_spp(verify_spp, reports[g].pure_pixels);
             rec.models[g] = stage2;
             let (levelled, change) = polish::colour_step(rec, g, color, spp, LEVEL_KEY)?;
             evaluations += 1;
@@ -343,11 +339,7 @@ pub(super) fn run(
         {
             let (metal_fit, _, n) = fit_ward(&rec.pool, &cache, Kind::Metal);
             evaluations += n;
-            let spp = min_samples_spp(
-                POLISH_SPP_FACTOR.saturating_mul(verify_spp),
-                reports[g].pure_pixels,
-                POLISH_MIN_SAMPLES,
-            );
+            let spp = polish::group_spp(verify_spp, reports[g].pure_pixels);
             let metal = |color| GroupModel::Isotropic {
                 kind: Kind::Metal,
                 color,
