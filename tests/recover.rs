@@ -949,6 +949,46 @@ fn living_room_small_renders_no_lobe_its_cache_rules_out() {
     }
 }
 
+/// Glossy's floor reads 0.062 of error after stage 1, above `DIFFUSE_THRESHOLD`: the light
+/// the spheres and boxes reflect onto it, whose lobes stage 1 does not know. Its best lobe
+/// on its own cache accounts for 0.0008, so stage 2 renders none (as for a weak
+/// candidate), and stage 4, measuring it again under the scene as stage 2 left it, does
+/// not search it: no comparison anywhere, and diffuse. The metals, strong candidates with
+/// lobes, are still rendered and tested.
+#[test]
+fn glossy_small_renders_no_lobe_for_a_floor_its_cache_and_the_scene_as_known_rule_out() {
+    let (out, rows) = glossy_small();
+    let floor = group_report(out, "floor");
+    assert!(
+        floor["error_diffuse"].as_f64().unwrap() > 0.05,
+        "the floor no longer enters as a strong candidate: {floor}"
+    );
+    let decided = decisions(&floor);
+    for expected in [
+        "stage 2: stays diffuse, its lobe not rendered",
+        "stage 4: stays diffuse without a search",
+    ] {
+        assert!(
+            decided.iter().any(|d| d.starts_with(expected)),
+            "{expected}: {decided:?}"
+        );
+    }
+    assert!(
+        floor["comparisons"].as_array().unwrap().is_empty(),
+        "{floor}"
+    );
+    let row = rows.iter().find(|r| r.group == "floor").unwrap();
+    assert!(
+        row.class_ok && row.diffuse_rel_err.unwrap() < 0.01,
+        "{row:?}"
+    );
+    for metal in ["metal_gold", "metal_steel"] {
+        let report = group_report(out, metal);
+        let stage2 = comparison(&report, |c| c["stage"] == "2 isotropic");
+        assert_eq!(stage2["kept_complex"], true, "{metal}: {stage2}");
+    }
+}
+
 /// A mirror's colour scales the room it reflects, and stage 5's maps and the diffuse
 /// refinement change that room after the first colour polish. The living room's mirror
 /// came out 1.12% bright at 64 px, seed 1, from the first polish alone; polished once more

@@ -225,13 +225,16 @@ pub(super) fn run(
         let r = &mut reports[g];
         r.cache_error_diffuse = Some(diffuse_fit.relative_error);
         r.cache_error_specular = Some(ward.relative_error);
-        // A weak candidate's best lobe on its own cache is the most a render could show:
-        // where even that is under the threshold, the search, the test and the ladder
-        // could only keep noise. (The living room's floor and accent wall at 64 px: 0.0016
-        // and 0.0009, a third of stage 2's time; the lobes found are 0.0136 and above.)
+        // A candidate's best lobe on its own cache is the most a render could show: where
+        // even that is under the threshold, the search, the test and the ladder could only
+        // keep noise. (The living room's floor and accent wall at 64 px: 0.0016 and
+        // 0.0009, a third of stage 2's time; the lobes found are 0.0136 and above.) So for
+        // a strong candidate too, whose stage-1 error came from the other groups' lobes
+        // and mirrors, not yet known then: glossy's floor read 0.062 there, and 0.0008-0.0053
+        // on its cache.
         let stage1 = rec.models[g];
         let on_cache = fit::cache_effect(diffuse_fit.relative_error, ward.relative_error);
-        if ladder::applies(diffuse_error) && on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
+        if on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
             r.decisions.push(format!(
                 "stage 2: stays diffuse, its lobe not rendered: on its transport cache the best isotropic fit (s {:.4}, roughness {alpha:.4}) accounts for {on_cache:.4} of relative error (diffuse {:.4}, specular {:.4}), at most SPECULAR_GAIN_THRESHOLD {}; the cache's fit takes in its noise too and reads more gain, not less, than a render",
                 ward.specularity,
