@@ -71,10 +71,10 @@ const GATE_KEY: u64 = 0x6A7E_0004;
 /// The gate (its decided error above `DIFFUSE_THRESHOLD`) read stage 1's measurement,
 /// taken before stage 2 gave the other groups their lobes and mirrors: cornell's ceiling
 /// read 0.18 there, lit without the mirror it sees, and 0.045 in the final render. So the
-/// error is measured again here, with the levelled colour, and a group goes on only while
-/// the threshold is within `EXCEEDS_SIGMAS` standard errors of it or below it (the search,
-/// race and comparisons are the stage's cost: 7 of cornell's 27 s on three walls that
-/// stayed diffuse). Also returns the evaluations spent.
+/// error is measured again here, with the levelled colour, and a group goes on unless the
+/// error's upper bound at `EXCEEDS_SIGMAS` standard errors is below the threshold (the
+/// search, race and comparisons are the stage's cost: 7 of cornell's 27 s on three walls
+/// that stayed diffuse). Also returns the evaluations spent.
 fn diffuse_goes_on(
     rec: &mut Recovery,
     report: &mut GroupReport,
