@@ -64,6 +64,31 @@ const LEVEL_KEY: u64 = 0x57A6_E4D1;
 /// under the scene as now known.
 const GATE_KEY: u64 = 0x6A7E_0004;
 
+/// Group `g`'s `color` under `model` (the group's model for the render, restored after)
+/// levelled by one colour-polish step (`polish::colour_step` at `polish::group_spp` for
+/// the loop's `verify_spp` and the group's `pixels`, at least `POLISH_MIN_SAMPLES`
+/// samples): the new colour, the step's samples per pixel, and
+/// what the report says of it.
+fn levelled_colour(
+    rec: &mut Recovery,
+    g: usize,
+    model: GroupModel,
+    color: [f64; 3],
+    (verify_spp, pixels): (u32, u32),
+) -> Result<([f64; 3], u32, String), Error> {
+    let spp = polish::group_spp(verify_spp, pixels);
+    let found = rec.models[g];
+    rec.models[g] = model;
+    let step = polish::colour_step(rec, g, color, spp, LEVEL_KEY);
+    rec.models[g] = found;
+    let (levelled, change) = step?;
+    let said = format!(
+        "levelled by a render at {spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
+        100.0 * change
+    );
+    Ok((levelled, spp, said))
+}
+
 /// Whether a group that stage 2 left diffuse goes on to this stage's search, and its
 /// colour levelled by the colour polish's step (`polish::colour_step`, at least
 /// `POLISH_MIN_SAMPLES` samples), against which the lobes are weighed.
@@ -82,16 +107,12 @@ fn diffuse_goes_on(
     color: [f64; 3],
     verify_spp: u32,
 ) -> Result<([f64; 3], bool, u32), Error> {
-    let spp = polish::group_spp(verify_spp, report.pure_pixels);
-    let (levelled, change) = polish::colour_step(rec, g, color, spp, LEVEL_KEY)?;
     let stage2 = rec.models[g];
+    let (levelled, spp, levelling) =
+        levelled_colour(rec, g, stage2, color, (verify_spp, report.pure_pixels))?;
     rec.models[g] = GroupModel::Diffuse { color: levelled };
     let now = rec.error_estimate(g, spp, rec.decision_seed() ^ GATE_KEY);
     rec.models[g] = stage2;
-    let levelling = format!(
-        "levelled by a render at {spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
-        100.0 * change
-    );
     let Some(now) = now? else {
         report.decisions.push(format!(
             "stage 4: the lobes are weighed against the diffuse model {levelling}"
@@ -403,22 +424,21 @@ pub(super) fn run(
         {
             let (metal_fit, _, n) = fit_ward(&rec.pool, &cache, Kind::Metal);
             evaluations += n;
-            let spp = polish::group_spp(verify_spp, reports[g].pure_pixels);
             let metal = |color| GroupModel::Isotropic {
                 kind: Kind::Metal,
                 color,
                 specularity,
                 roughness,
             };
-            let before = rec.models[g];
-            rec.models[g] = metal(color);
-            let (levelled, change) = polish::colour_step(rec, g, color, spp, LEVEL_KEY)?;
-            rec.models[g] = before;
+            let (levelled, _, levelling) = levelled_colour(
+                rec,
+                g,
+                metal(color),
+                color,
+                (verify_spp, reports[g].pure_pixels),
+            )?;
             evaluations += 1;
-            let levelled_by = format!(
-                "its colour levelled by a render at {spp} spp (largest change {:.2}%)",
-                100.0 * change
-            );
+            let levelled_by = format!("its colour {levelling}");
             let (chosen, n) = kind::choose_again(
                 rec,
                 g,
