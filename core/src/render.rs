@@ -96,14 +96,54 @@ pub fn render_pixel_with_variance(
     y: u32,
     settings: &RenderSettings,
 ) -> (Vec3, Vec3) {
+    let (mean, variance, _) = pixel_moments(scene, view, view_index, x, y, settings, None);
+    (mean, variance)
+}
+
+/// [`render_pixel_with_variance`], the same bits, and the part of the pixel's radiance
+/// that `group`'s diffuse lobe reflects where the pixel's rays meet it first, from the
+/// same samples (see [`radiance_with_diffuse_part`]): `(mean, variance, diffuse part's
+/// mean)`.
+pub fn render_pixel_with_diffuse_part(
+    scene: &Scene,
+    view: &View,
+    view_index: u32,
+    x: u32,
+    y: u32,
+    settings: &RenderSettings,
+    group: u16,
+) -> (Vec3, Vec3, Vec3) {
+    pixel_moments(scene, view, view_index, x, y, settings, Some(group))
+}
+
+/// A pixel's mean radiance, its variance and, with `split`, `split`'s diffuse part's
+/// mean (zero otherwise).
+fn pixel_moments(
+    scene: &Scene,
+    view: &View,
+    view_index: u32,
+    x: u32,
+    y: u32,
+    settings: &RenderSettings,
+    split: Option<u16>,
+) -> (Vec3, Vec3, Vec3) {
     let pixel = y * view.width + x;
     let mut sum = Vec3::ZERO;
     let mut sum_sq = Vec3::ZERO;
+    let mut sum_diffuse = Vec3::ZERO;
     for s in 0..settings.spp {
         let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, s);
         let [jx, jy] = sampler.next_2d();
         let ray = view.ray(x as f32 + jx, y as f32 + jy);
-        let l = radiance(scene, ray, &mut sampler, settings);
+        let l = match split {
+            Some(group) => {
+                let (l, diffuse) =
+                    radiance_with_diffuse_part(scene, ray, &mut sampler, settings, group);
+                sum_diffuse += diffuse;
+                l
+            }
+            None => radiance(scene, ray, &mut sampler, settings),
+        };
         sum += l;
         sum_sq += l * l;
     }
@@ -114,7 +154,7 @@ pub fn render_pixel_with_variance(
     } else {
         Vec3::ZERO
     };
-    (mean, variance)
+    (mean, variance, sum_diffuse / n)
 }
 
 /// Renders rows `rows` of a view into `out` (row-major, `width` pixels a row).
@@ -139,7 +179,31 @@ pub fn render_rows(
 
 /// Radiance arriving along `ray`, estimated with one path.
 pub fn radiance(scene: &Scene, ray: Ray, sampler: &mut Sampler, settings: &RenderSettings) -> Vec3 {
-    path_radiance(scene, ray, sampler, settings, None)
+    path_radiance(scene, ray, sampler, settings, None, None)
+}
+
+/// [`radiance`] and the part of it that `group`'s diffuse lobe reflects where `ray` meets
+/// it first (zero where it meets something else first): every light reaching that point
+/// is split by [`Bsdf::diffuse_share`] of the direction it arrives from. The path is
+/// [`radiance`]'s, to the bit, so the rest is what the group's specular lobe reflects
+/// there and what does not come by way of the group at all.
+pub fn radiance_with_diffuse_part(
+    scene: &Scene,
+    ray: Ray,
+    sampler: &mut Sampler,
+    settings: &RenderSettings,
+    group: u16,
+) -> (Vec3, Vec3) {
+    let mut diffuse = Vec3::ZERO;
+    let total = path_radiance(
+        scene,
+        ray,
+        sampler,
+        settings,
+        None,
+        Some((group, &mut diffuse)),
+    );
+    (total, diffuse)
 }
 
 /// [`radiance`] along `ray`, a sample of solid-angle pdf `pdf` taken at a non-delta vertex
@@ -154,18 +218,29 @@ pub fn radiance_after_sample(
     settings: &RenderSettings,
     pdf: f32,
 ) -> Vec3 {
-    path_radiance(scene, ray, sampler, settings, Some(pdf))
+    path_radiance(scene, ray, sampler, settings, Some(pdf), None)
 }
 
 /// One path's radiance along `ray`; `after_sample` is the pdf of the non-delta sample
-/// that produced `ray`, `None` for a camera ray.
+/// that produced `ray`, `None` for a camera ray. With `diffuse_first = (group, part)`,
+/// the part of it that the first vertex's diffuse lobe reflects, when that vertex is on
+/// `group`, is added to `part` (see [`radiance_with_diffuse_part`]); the path is the same
+/// either way.
 fn path_radiance(
     scene: &Scene,
     mut ray: Ray,
     sampler: &mut Sampler,
     settings: &RenderSettings,
     after_sample: Option<f32>,
+    mut diffuse_first: Option<(u16, &mut Vec3)>,
 ) -> Vec3 {
+    // Where the first vertex is on the group asked for: the diffuse part to add to, the
+    // radiance gathered at that vertex (its own light samples, split as they are taken)
+    // and the diffuse share of the direction its BSDF sample continues in, which every
+    // later contribution arrives by.
+    let mut diffuse_part: Option<&mut Vec3> = None;
+    let mut gathered_first = Vec3::ZERO;
+    let mut share_after_first = Vec3::ZERO;
     let mut total = Vec3::ZERO;
     let mut throughput = Vec3::ONE;
     // The pdf of the BSDF sample that produced `ray`, and whether it was a Dirac sample
@@ -223,6 +298,11 @@ fn path_radiance(
             }
             Surface::Group(g) => g,
         };
+        if let Some((wanted, part)) = diffuse_first.take() {
+            if wanted == group {
+                diffuse_part = Some(part);
+            }
+        }
         let Some(surface) = scene.materials.get(group as usize) else {
             break;
         };
@@ -249,12 +329,19 @@ fn path_radiance(
                     origin,
                     throughput,
                 };
-                if let Some(light) = direct_light(scene, &at, &ls) {
+                let split = |light: Vec3, wi: Vec3, part: &mut Option<&mut Vec3>| {
+                    if let (0, Some(d)) = (depth, part.as_deref_mut()) {
+                        *d += light * bsdf.diffuse_share(wo, wi);
+                    }
+                };
+                if let Some((light, wi)) = direct_light(scene, &at, &ls) {
                     total += light;
+                    split(light, wi, &mut diffuse_part);
                 }
                 for mirror in scene.mirror_planes().as_slice() {
-                    if let Some(light) = light_in_mirror(scene, mirror, &at, &ls) {
+                    if let Some((light, wi)) = light_in_mirror(scene, mirror, &at, &ls) {
                         total += light;
+                        split(light, wi, &mut diffuse_part);
                     }
                 }
             }
@@ -266,6 +353,10 @@ fn path_radiance(
         let Some(sample) = bsdf.sample(wo, u_lobe, u_dir) else {
             break;
         };
+        if depth == 0 && diffuse_part.is_some() {
+            gathered_first = total;
+            share_after_first = bsdf.diffuse_share(wo, sample.wi);
+        }
         via_mirror = if sample.delta && !delta && scene.mirror_planes().contains(group) {
             Some((bsdf_pdf, hit.t))
         } else {
@@ -287,6 +378,9 @@ fn path_radiance(
         }
         ray = Ray::new(origin, sample.wi);
     }
+    if let Some(d) = diffuse_part {
+        *d += (total - gathered_first) * share_after_first;
+    }
     total
 }
 
@@ -304,8 +398,9 @@ struct Vertex<'b> {
 }
 
 /// Light from the point `ls` arriving straight at the vertex, times the path's throughput:
-/// `f L cos w / pdf`, MIS-weighted against the BSDF sample. `None` when none arrives.
-fn direct_light(scene: &Scene, at: &Vertex, ls: &LightSample) -> Option<Vec3> {
+/// `f L cos w / pdf`, MIS-weighted against the BSDF sample, and the direction it arrives
+/// from. `None` when none arrives.
+fn direct_light(scene: &Scene, at: &Vertex, ls: &LightSample) -> Option<(Vec3, Vec3)> {
     let (bsdf, wo, n, origin) = (at.bsdf, at.wo, at.n, at.origin);
     let to_light = ls.point - origin;
     let dist2 = to_light.length_squared();
@@ -326,19 +421,22 @@ fn direct_light(scene: &Scene, at: &Vertex, ls: &LightSample) -> Option<Vec3> {
     }
     let pdf_light = ls.pdf_area * dist2 / cos_light;
     let weight = power_heuristic(pdf_light, bsdf.pdf(wo, wi));
-    Some(at.throughput * f * ls.radiance * (cos_surface * weight / pdf_light))
+    Some((
+        at.throughput * f * ls.radiance * (cos_surface * weight / pdf_light),
+        wi,
+    ))
 }
 
 /// Light from the point `ls` arriving at the vertex by way of the planar `mirror`, times
-/// the path's throughput. The same path's pdf as a BSDF sample is the BSDF's at the vertex
-/// (the mirror bounce is a delta), so the MIS weight is against it, with the unfolded
-/// length.
+/// the path's throughput, and the direction it arrives from. The same path's pdf as a
+/// BSDF sample is the BSDF's at the vertex (the mirror bounce is a delta), so the MIS
+/// weight is against it, with the unfolded length.
 fn light_in_mirror(
     scene: &Scene,
     mirror: &MirrorPlane,
     at: &Vertex,
     ls: &LightSample,
-) -> Option<Vec3> {
+) -> Option<(Vec3, Vec3)> {
     let (bsdf, wo) = (at.bsdf, at.wo);
     let mut f = Vec3::ZERO;
     let image = light_image_in_mirror(scene, mirror, at.origin, at.n, ls, |wi| {
@@ -346,7 +444,10 @@ fn light_in_mirror(
         f.max_element() > 0.0
     })?;
     let weight = power_heuristic(image.pdf, bsdf.pdf(wo, image.wi));
-    Some(at.throughput * f * mirror.rho * ls.radiance * (image.cos_surface * weight / image.pdf))
+    Some((
+        at.throughput * f * mirror.rho * ls.radiance * (image.cos_surface * weight / image.pdf),
+        image.wi,
+    ))
 }
 
 /// A light point's image in a planar mirror, seen from a surface point: the direction the
@@ -872,6 +973,75 @@ pub(crate) mod tests {
         assert!(
             through_se * 3.0 < bsdf_only_se,
             "standard errors: {through_se} through the mirror, {bsdf_only_se} without"
+        );
+    }
+
+    /// The diffuse part split from a path ([`radiance_with_diffuse_part`]): on
+    /// [`TileBesideAMirror`] with a glossy tile, which sees nothing of itself, it must be
+    /// the diffuse lobe's closed form, the rest what the tile renders with its diffuse
+    /// colour black (the two renders the colour polish took before), and the path's
+    /// radiance the same bits as [`radiance`]'s.
+    #[test]
+    fn the_diffuse_part_of_a_path_is_the_diffuse_lobes_light() {
+        let glossy = |rho_d: f32| Material::Ward {
+            rho_d: Vec3::splat(rho_d),
+            rho_s: Vec3::splat(0.1),
+            alpha: 0.15,
+        };
+        let settings = RenderSettings {
+            seed: 17,
+            ..RenderSettings::default()
+        };
+        // The tile's centre seen from above, a little off the normal: the highlight is in
+        // view, but not the whole of what the tile reflects.
+        let ray = || Ray::new(v(-0.01, 0.0, 0.5), v(0.01, 0.0, -0.5).normalize());
+        let n = 100_000;
+
+        let parts = TileBesideAMirror::new(glossy(0.4), false);
+        let mut storage = parts.storage();
+        let scene = parts.scene(&mut storage);
+        let (mut diffuse, mut rest) = (Vec::new(), Vec::new());
+        for k in 0..n {
+            let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+            let (total, part) =
+                radiance_with_diffuse_part(&scene, ray(), &mut sampler, &settings, 0);
+            let mut again = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+            let plain = radiance(&scene, ray(), &mut again, &settings);
+            assert_eq!(
+                total.to_array().map(f32::to_bits),
+                plain.to_array().map(f32::to_bits)
+            );
+            // Another group asked for: nothing of this path is its diffuse light.
+            let mut other = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+            assert_eq!(
+                radiance_with_diffuse_part(&scene, ray(), &mut other, &settings, 1).1,
+                Vec3::ZERO
+            );
+            diffuse.push(part.y as f64);
+            rest.push((total - part).y as f64);
+        }
+        let (diffuse, diffuse_se) = mean_and_standard_error(diffuse.into_iter());
+        let expected = TileBesideAMirror::diffuse_radiance(0.4);
+        assert!(
+            (diffuse - expected).abs() < 4.0 * diffuse_se + 1e-4 * expected,
+            "diffuse part {diffuse} +- {diffuse_se}, closed form {expected}"
+        );
+
+        let black_parts = TileBesideAMirror::new(glossy(0.0), false);
+        let mut black_storage = black_parts.storage();
+        let black = black_parts.scene(&mut black_storage);
+        let (lobe, lobe_se) = mean_and_standard_error((0..n).map(|k| {
+            let mut sampler = Sampler::for_pixel_sample(settings.seed + 1, 0, k, 0);
+            let (total, part) =
+                radiance_with_diffuse_part(&black, ray(), &mut sampler, &settings, 0);
+            assert_eq!(part, Vec3::ZERO, "a black diffuse lobe reflects nothing");
+            total.y as f64
+        }));
+        let (rest, rest_se) = mean_and_standard_error(rest.into_iter());
+        assert!(lobe > 0.05 * expected, "the lobe must be in view: {lobe}");
+        assert!(
+            (rest - lobe).abs() < 4.0 * libm::sqrt(rest_se * rest_se + lobe_se * lobe_se),
+            "the rest {rest} +- {rest_se}, the tile with a black colour {lobe} +- {lobe_se}"
         );
     }
 

@@ -239,6 +239,16 @@ pub struct Bsdf {
     lobes: Lobes,
 }
 
+/// `part / whole`, within [0, 1]; 0 where `whole` is not positive.
+#[inline]
+fn share(part: f32, whole: f32) -> f32 {
+    if whole > 0.0 {
+        (part / whole).clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
+}
+
 /// Negative and NaN components to zero.
 #[inline]
 fn non_negative(v: Vec3) -> Vec3 {
@@ -420,6 +430,18 @@ impl Bsdf {
             return Vec3::ZERO;
         }
         self.eval_above(wo + wi)
+    }
+
+    /// The diffuse lobe's share of `f(wo, wi)`, channel by channel: `(rho_d / pi) / f`, 0
+    /// where `f` is 0 and for a mirror. Light reflected towards `wo` from `wi` splits by it
+    /// into what the diffuse colour reflects and what the specular lobe does.
+    pub fn diffuse_share(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        let Lobes::Glossy { rho_d, .. } = self.lobes else {
+            return Vec3::ZERO;
+        };
+        let f = self.eval(wo, wi);
+        let f_d = rho_d * INV_PI;
+        Vec3::new(share(f_d.x, f.x), share(f_d.y, f.y), share(f_d.z, f.z))
     }
 
     /// [`Bsdf::eval`] for a `wo` and `wi` both above the surface, given by their sum `h`:
@@ -936,6 +958,41 @@ mod tests {
         assert_eq!(b.eval(wo, horizon), Vec3::ZERO);
         assert!(b.sample(below, 0.5, [0.3, 0.3]).is_none());
         assert!(b.eval(wo, at_angle(n, 30.0, 1.0)).x > 0.0);
+    }
+
+    /// The diffuse share splits `f` into its lobes: times `f` it is the diffuse lobe's
+    /// value, all of a diffuse material's, none of a mirror's or below the surface.
+    #[test]
+    fn diffuse_share_is_the_diffuse_lobes_part_of_f() {
+        let n = normal();
+        let wo = at_angle(n, 30.0, 0.0);
+        let rho_d = Vec3::new(0.5, 0.2, 0.0);
+        let plastic = Bsdf::new(&plastic_aniso(0.5, 0.5, 0.1, 0.2), Some(rho_d), n);
+        for (theta, phi) in [(10.0, 3.0), (30.0, 2.5), (60.0, 1.0), (85.0, 0.2)] {
+            let wi = at_angle(n, theta, phi);
+            let (f, share) = (plastic.eval(wo, wi), plastic.diffuse_share(wo, wi));
+            let diffuse = rho_d * INV_PI;
+            assert!(
+                (share * f - diffuse).abs().max_element() <= 1e-6,
+                "{share} {f}"
+            );
+            assert!(share.cmple(Vec3::ONE).all() && share.z == 0.0);
+        }
+        let mirror_direction = at_angle(n, 30.0, core::f32::consts::PI);
+        let share = plastic.diffuse_share(wo, mirror_direction);
+        assert!(
+            share.x < 0.5,
+            "the lobe's highlight is mostly the lobe's: {share}"
+        );
+        let lambert = Bsdf::new(&Material::Diffuse { rho_d }, None, n);
+        let wi = at_angle(n, 40.0, 2.0);
+        assert_eq!(lambert.diffuse_share(wo, wi), Vec3::new(1.0, 1.0, 0.0));
+        assert_eq!(
+            plastic.diffuse_share(wo, at_angle(n, 120.0, 2.0)),
+            Vec3::ZERO
+        );
+        let mirror = Bsdf::new(&Material::Mirror { rho: Vec3::ONE }, None, n);
+        assert_eq!(mirror.diffuse_share(wo, wi), Vec3::ZERO);
     }
 
     #[test]
