@@ -74,10 +74,11 @@ pub fn update_with_slope(
 
 /// The paper's update for a plastic with a lobe, whose specular part does not scale with
 /// its colour (`rho_d = c (1 - s)`, `rho_s = s`): `c <- c * (mean(real) - mean(S)) /
-/// (mean(R) - mean(S))` per channel, from a render `full` of the model and a render
-/// `specular` of the same pixels with the colour at zero (`S`, the lobe alone). `None`
-/// when a channel has no diffuse part to scale: the lobe alone renders at least as bright
-/// as the whole model, or as the panorama (the colour is then left to the caller).
+/// (mean(R) - mean(S))` per channel, from a render `full` of the model and `specular`,
+/// what its lobe alone reflects at the same pixels (`S`: the lobe's part of the same
+/// samples, or a render with the colour at zero). `None` when a channel has no diffuse
+/// part to scale: the lobe alone renders at least as bright as the whole model, or as the
+/// panorama (the colour is then left to the caller).
 /// Otherwise the new colour and its largest relative change, as [`update`].
 pub fn update_beside_lobe(
     color: [f64; 3],

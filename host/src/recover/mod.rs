@@ -204,6 +204,21 @@ impl Recovery {
         fits
     }
 
+    /// [`Recovery::evaluate`], the same fits to the bit, and beside them the fits of the
+    /// part the groups' lobes reflect, from the same samples (see
+    /// [`pixels::evaluate_with_lobe_part`]).
+    fn evaluate_with_lobe_part(
+        &mut self,
+        spp: u32,
+        seed: u64,
+        wanted: &(dyn Fn(u16) -> bool + Sync),
+    ) -> Result<(Vec<GroupFit>, Vec<GroupFit>), Error> {
+        let n = self.n_groups();
+        self.with_scene(spp, seed, |pool, scene, observed, settings| {
+            pixels::evaluate_with_lobe_part(pool, scene, observed, settings, n, wanted)
+        })
+    }
+
     /// Renders those of `pixels` (pure pixels, a subset of [`Recovery::pure`]) whose group
     /// is `wanted` with the current models.
     fn evaluate_pixels(

@@ -286,27 +286,79 @@ pub fn evaluate(
                 render::render_pixel_with_variance(scene, view, p.view, p.x, p.y, settings);
             (real_value(real, views, p), value, variance)
         },
-        |(t, value, variance), fit| fit.add(t, value, variance),
+        |(t, value, variance), fit: &mut GroupFit| fit.add(t, value, variance),
     )
+}
+
+/// Like [`evaluate`], the same fits to the bit, and beside them the fits of the part of
+/// each pixel's radiance that its group's diffuse lobe does not reflect, from the same
+/// samples (the radiance less that diffuse part,
+/// [`render::render_pixel_with_diffuse_part`]): what the lobe reflects there.
+pub fn evaluate_with_lobe_part(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    observed: Observed,
+    settings: &RenderSettings,
+    n_groups: usize,
+    wanted: &(dyn Fn(u16) -> bool + Sync),
+) -> (Vec<GroupFit>, Vec<GroupFit>) {
+    let Observed { views, real, pure } = observed;
+    let both = sum_by_group(
+        pool,
+        pure,
+        n_groups,
+        wanted,
+        |p| {
+            let view = &views[p.view as usize];
+            let (value, variance, diffuse) = render::render_pixel_with_diffuse_part(
+                scene, view, p.view, p.x, p.y, settings, p.group,
+            );
+            (real_value(real, views, p), value, variance, value - diffuse)
+        },
+        |(t, value, variance, lobe), fit: &mut (GroupFit, GroupFit)| {
+            fit.0.add(t, value, variance);
+            fit.1.add(t, lobe, Vec3::ZERO);
+        },
+    );
+    both.into_iter().unzip()
+}
+
+/// A group's sums, which [`sum_by_group`] adds up part by part in a fixed order.
+trait Sums: Default + Clone {
+    fn merge(&mut self, other: &Self);
+}
+
+impl Sums for GroupFit {
+    fn merge(&mut self, other: &Self) {
+        GroupFit::merge(self, other);
+    }
+}
+
+/// A render's fit and its lobe part's ([`evaluate_with_lobe_part`]).
+impl Sums for (GroupFit, GroupFit) {
+    fn merge(&mut self, other: &Self) {
+        self.0.merge(&other.0);
+        self.1.merge(&other.1);
+    }
 }
 
 /// Sums `add(measure(pixel), fit of its group)` over the pure pixels of the groups
 /// `wanted`. The measures (the renders) run in parallel, split finely (see
 /// [`map_in_order`]); the sums then run in one thread, in fixed chunks of [`CHUNK`] pixels
 /// of `pure` merged in order: the same sums for any thread count.
-fn sum_by_group<M: Send>(
+fn sum_by_group<M: Send, F: Sums>(
     pool: &rayon::ThreadPool,
     pure: &[PurePixel],
     n_groups: usize,
     wanted: &(dyn Fn(u16) -> bool + Sync),
     measure: impl Fn(&PurePixel) -> M + Sync,
-    add: impl Fn(M, &mut GroupFit),
-) -> Vec<GroupFit> {
+    add: impl Fn(M, &mut F),
+) -> Vec<F> {
     let chosen: Vec<PurePixel> = pure.iter().filter(|p| wanted(p.group)).copied().collect();
     let mut measures = map_in_order(pool, &chosen, measure).into_iter();
-    let mut total = vec![GroupFit::default(); n_groups];
+    let mut total = vec![F::default(); n_groups];
     for chunk in pure.chunks(CHUNK) {
-        let mut fits = vec![GroupFit::default(); n_groups];
+        let mut fits = vec![F::default(); n_groups];
         for p in chunk.iter().filter(|p| wanted(p.group)) {
             // One measure per chosen pixel, in the same order.
             if let Some(m) = measures.next() {

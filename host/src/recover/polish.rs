@@ -73,18 +73,18 @@ pub(super) fn polish_colours(
             // the diffuse groups are within 0.2%.
             Kind::Plastic => {
                 let step = plastic_colour_step(rec, g, color, group_spp, 0x3E7A_1C03)?;
-                evaluations += 2;
+                evaluations += 1;
                 report.decisions.push(match step {
                     Some((polished, change)) => {
                         set_color(&mut rec.models[g], polished);
                         report.colour_samples = Some(group_samples);
                         format!(
-                            "{label}: the diffuse part scaled by the mean ratio of renders at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples), of the model and of its lobe alone: largest change {:.2}%",
+                            "{label}: the diffuse part scaled by the mean ratio of a render at {group_spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples), its lobe's part split from the same samples: largest change {:.2}%",
                             100.0 * change
                         )
                     }
                     None => format!(
-                        "{label}: colour kept: at {group_spp} spp the lobe alone renders as bright as the group or the panorama in some channel, leaving no diffuse part to scale"
+                        "{label}: colour kept: at {group_spp} spp the lobe's part renders as bright as the group or the panorama in some channel, leaving no diffuse part to scale"
                     ),
                 });
             }
@@ -125,9 +125,15 @@ pub(super) fn polish_colours(
     })
 }
 
-/// One step of a plastic group's colour on its diffuse part alone: two renders of its
-/// pixels on the same seed, with its colour and with black (the lobe alone). `None` when
-/// no diffuse part is left to scale.
+/// One step of a plastic group's colour on its diffuse part alone, from one render of its
+/// pixels that also tells, sample by sample, what the lobe reflects there. `None` when no
+/// diffuse part is left to scale.
+///
+/// The lobe's part comes from the same paths as the whole (split at the group by the
+/// diffuse lobe's share of each direction light arrives from), not from a second render
+/// with the colour at black, which cost as much again. The two differ by the light the
+/// group sends back to itself by way of other surfaces; that changes the step's size, not
+/// where the colour settles (where the render matches the panorama, the colour stays).
 fn plastic_colour_step(
     rec: &mut Recovery,
     g: usize,
@@ -136,13 +142,8 @@ fn plastic_colour_step(
     key: u64,
 ) -> Result<Option<([f64; 3], f64)>, Error> {
     let seed = rec.seed ^ key ^ g as u64;
-    let only_g = |h: u16| h as usize == g;
-    let model = rec.models[g];
-    let full = rec.evaluate(spp, seed, &only_g)?[g];
-    set_color(&mut rec.models[g], [0.0; 3]);
-    let specular = rec.evaluate(spp, seed, &only_g);
-    rec.models[g] = model;
-    Ok(diffuse::update_beside_lobe(color, &full, &specular?[g]))
+    let (full, lobe) = rec.evaluate_with_lobe_part(spp, seed, &|h| h as usize == g)?;
+    Ok(diffuse::update_beside_lobe(color, &full[g], &lobe[g]))
 }
 
 /// The samples per pixel of a colour step on a group of `pixels` pure pixels, the loop's
