@@ -1117,6 +1117,16 @@ fn living_room_small_fits_picture_2s_lobe_again_with_its_map() {
             .contains("fitted again with a first map")
     });
     assert!(refit, "{report}");
+    // Its stage-5 work counts the renders under the refitted lobe too: two under the
+    // stand-in's lobe (a constant map and a black one), two under the new one, and the
+    // lobe's uncertainty, which decides whether it stays.
+    let stage5 = report["work"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|w| w["stage"] == "5 diffuse maps")
+        .unwrap();
+    assert_eq!(stage5["evaluations"], 5, "{stage5}");
 }
 
 /// At 256 px glossy's steel box (roughness 0.14) has 6472 pure pixels. Measured on all of

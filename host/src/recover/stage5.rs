@@ -155,5 +155,7 @@ fn solve_map(
         summary.highlights,
         summary.unseen_texels
     ));
-    Ok(2)
+    // Two renders of the group (under the constant map and under a black one), and two
+    // more under a refitted lobe.
+    Ok(if summary.lobe_refit.is_some() { 4 } else { 2 })
 }
