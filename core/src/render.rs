@@ -70,19 +70,7 @@ pub fn render_pixel(
     y: u32,
     settings: &RenderSettings,
 ) -> Vec3 {
-    let pixel = y * view.width + x;
-    let mut sum = Vec3::ZERO;
-    for s in 0..settings.spp {
-        let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, s);
-        let [jx, jy] = sampler.next_2d();
-        let ray = view.ray(x as f32 + jx, y as f32 + jy);
-        sum += radiance(scene, ray, &mut sampler, settings);
-    }
-    if settings.spp > 0 {
-        sum / settings.spp as f32
-    } else {
-        sum
-    }
+    pixel_moments(scene, view, view_index, x, y, settings, None).0
 }
 
 /// The box-filtered radiance of a pixel and the variance of that estimate (the sample
