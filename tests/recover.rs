@@ -134,6 +134,17 @@ fn group_report(out: &std::path::Path, name: &str) -> serde_json::Value {
         .clone()
 }
 
+/// The evaluations a group's report (`group_report`) charges it in `stage`.
+fn stage_evaluations(report: &serde_json::Value, stage: &str) -> u64 {
+    report["work"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|w| w["stage"] == stage)
+        .and_then(|w| w["evaluations"].as_u64())
+        .unwrap_or_else(|| panic!("no {stage} work in {report}"))
+}
+
 /// What report.json charges each group (`work`) adds up, stage by stage, to no more than
 /// the stage's own evaluations and time; every group with a lobe was charged stage 2 and
 /// the colour polish, and every group the uncertainty stage.
@@ -910,15 +921,6 @@ fn living_room_small_gives_its_15_pixel_frames_their_lobe() {
 #[test]
 fn living_room_small_renders_no_lobe_its_cache_rules_out() {
     let (out, rows) = living_room_small();
-    let stage2_work = |report: &serde_json::Value| {
-        report["work"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|w| w["stage"] == "2 isotropic")
-            .map(|w| w["evaluations"].as_u64().unwrap())
-            .unwrap()
-    };
     for (group, ruled_out) in [
         ("floor", true),
         ("wall_accent", true),
@@ -939,7 +941,10 @@ fn living_room_small_renders_no_lobe_its_cache_rules_out() {
                 report["comparisons"].as_array().unwrap().is_empty(),
                 "{group}"
             );
-            assert!(stage2_work(&report) < 100, "{group}: {report}");
+            assert!(
+                stage_evaluations(&report, "2 isotropic") < 100,
+                "{group}: {report}"
+            );
         } else {
             assert!(
                 !report["comparisons"].as_array().unwrap().is_empty(),
@@ -1120,13 +1125,7 @@ fn living_room_small_fits_picture_2s_lobe_again_with_its_map() {
     // Its stage-5 work counts the renders under the refitted lobe too: two under the
     // stand-in's lobe (a constant map and a black one), two under the new one, and the
     // lobe's uncertainty, which decides whether it stays.
-    let stage5 = report["work"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|w| w["stage"] == "5 diffuse maps")
-        .unwrap();
-    assert_eq!(stage5["evaluations"], 5, "{stage5}");
+    assert_eq!(stage_evaluations(&report, "5 diffuse maps"), 5, "{report}");
 }
 
 /// At 256 px glossy's steel box (roughness 0.14) has 6472 pure pixels. Measured on all of
