@@ -46,6 +46,22 @@ impl Staged {
         }
     }
 
+    /// Removes the temp files of live output sets that `matching` selects (all of them on
+    /// an interrupt), then the folders they created that `matching` selects and are left
+    /// empty; returns how many files. The sets' own `Drop` then finds nothing to remove.
+    fn remove_matching(&mut self, matching: impl Fn(&Path) -> bool) -> usize {
+        let selected = |paths: &[PathBuf]| -> Vec<PathBuf> {
+            paths.iter().filter(|p| matching(p)).cloned().collect()
+        };
+        let files = selected(&self.files);
+        for tmp in &files {
+            self.remove_file(tmp);
+        }
+        let dirs = selected(&self.dirs);
+        self.remove_dirs(&dirs);
+        files.len()
+    }
+
     fn forget_dir(&mut self, dir: &Path) {
         if let Some(i) = self.dirs.iter().rposition(|d| d == dir) {
             self.dirs.remove(i);
@@ -62,31 +78,16 @@ pub const INTERRUPTED_EXIT_CODE: i32 = 130;
 /// `.<name>.tmp-<pid>` files beside its outputs. Called once, at the start of `main`.
 pub fn remove_staged_files_on_interrupt() -> Result<(), String> {
     ctrlc::set_handler(|| {
-        let removed = remove_staged_files(|_| true);
+        // One hold of the lock from the removal to the exit: a set that staged a file or
+        // made a folder between the two would leave it behind (the output folder of a
+        // render interrupted before it was made, seen in CI).
+        let mut registry = staged();
         // Files of sets committed before (a stability study's finished runs) stay.
+        let removed = registry.remove_matching(|_| true);
         eprintln!("\nrelume: interrupted; {removed} unfinished output file(s) removed");
-        // Exits holding the lock: no set can stage another file meanwhile.
-        let _held = staged();
         std::process::exit(INTERRUPTED_EXIT_CODE);
     })
     .map_err(|e| e.to_string())
-}
-
-/// Removes the temp files of live output sets that `matching` selects (all of them on an
-/// interrupt), then the folders they created that `matching` selects and are left empty;
-/// returns how many files. The sets' own `Drop` then finds nothing to remove.
-fn remove_staged_files(matching: impl Fn(&Path) -> bool) -> usize {
-    let mut staged = staged();
-    let selected = |paths: &[PathBuf]| -> Vec<PathBuf> {
-        paths.iter().filter(|p| matching(p)).cloned().collect()
-    };
-    let files = selected(&staged.files);
-    for tmp in &files {
-        staged.remove_file(tmp);
-    }
-    let dirs = selected(&staged.dirs);
-    staged.remove_dirs(&dirs);
-    files.len()
 }
 
 /// Writes `bytes` to `path` atomically (temp file beside it, fsync, rename).
@@ -440,7 +441,11 @@ mod tests {
         .expect_err("the writer's error");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
         let tmp_of_a = |t: &Path| t.starts_with(dir.path());
-        assert_eq!(remove_staged_files(tmp_of_a), 0, "nothing left registered");
+        assert_eq!(
+            staged().remove_matching(tmp_of_a),
+            0,
+            "nothing left registered"
+        );
         // A writer that succeeds: the same bytes as `add`.
         set.add_written(&a, |file| {
             file.write_all(b"whole").map_err(|e| Error::io(&a, e))
@@ -530,7 +535,7 @@ mod tests {
         let mut set = OutputSet::default();
         set.create_dir(&views).unwrap();
         set.add(&views.join("px.exr"), b"px").unwrap();
-        assert_eq!(remove_staged_files(|p| p.starts_with(dir.path())), 1);
+        assert_eq!(staged().remove_matching(|p| p.starts_with(dir.path())), 1);
         assert!(!out.exists());
         drop(set);
         // Committed: the folders stay, and a later failed set leaves them.
@@ -580,10 +585,10 @@ mod tests {
                 "done.txt".into()
             ]
         );
-        assert_eq!(remove_staged_files(in_dir), 2);
+        assert_eq!(staged().remove_matching(in_dir), 2);
         assert_eq!(files(), ["done.txt"]);
         // Nothing is left registered for this folder, and the set's drop is harmless.
-        assert_eq!(remove_staged_files(in_dir), 0);
+        assert_eq!(staged().remove_matching(in_dir), 0);
         drop(live);
         assert_eq!(files(), ["done.txt"]);
     }
@@ -605,7 +610,7 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names, ["a.txt"]);
-        assert_eq!(remove_staged_files(|p| p.starts_with(dir.path())), 0);
+        assert_eq!(staged().remove_matching(|p| p.starts_with(dir.path())), 0);
     }
 
     #[test]
