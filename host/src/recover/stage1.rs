@@ -248,8 +248,7 @@ pub(super) fn refine_diffuse_groups(
     let polish_seed = rec.seed ^ 0x9011_5400;
     let subset = rec.diffuse_subset();
     let wanted = |g: u16| active[g as usize];
-    let mut fits = rec.evaluate_pixels(&subset, polish_spp, polish_seed, &wanted)?;
-    let group_spp = measure_small_groups_again(rec, &mut fits, &subset, polish_spp, &active)?;
+    let (fits, group_spp) = polish_fits(rec, &subset, polish_spp, polish_seed, &active)?;
     evaluations += group_spp.iter().filter(|&&s| s > polish_spp).count() as u32;
     // A Newton step on how every group's render responds to each group's colour (see
     // POLISH_RESPONSE_STEP); more groups than POLISH_NEWTON_MAX_GROUPS take the ratio
@@ -300,32 +299,43 @@ pub(super) fn refine_diffuse_groups(
     })
 }
 
-/// A small group's mean at the polish's samples per pixel carries the noise of few
-/// samples: the living room's 138-pixel pedestal, lit by way of the metal statue above it,
-/// had 8832 at effort fast and 64 px, and came out 0.4, 1.1 and 1.9% off on seeds 1-3. So
-/// each active group with fewer than `POLISH_MIN_SAMPLES` in `fits` is rendered again
-/// alone on its pixels of `subset` with at least that many, on a seed of its own, and its
-/// fit replaced, as a lobe's colour is polished. Returns the samples per pixel each
-/// group's fit now has.
-fn measure_small_groups_again(
+/// Every active group's fit for the polish step, over its pixels of `subset` at `spp` on
+/// `seed`, and the samples per pixel each fit has. A small group's mean at the polish's
+/// samples per pixel carries the noise of few samples: the living room's 138-pixel
+/// pedestal, lit by way of the metal statue above it, had 8832 at effort fast and 64 px,
+/// and came out 0.4, 1.1 and 1.9% off on seeds 1-3. So a group with fewer than
+/// `POLISH_MIN_SAMPLES` there is rendered alone on its pixels with at least that many, on
+/// a seed of its own, as a lobe's colour is polished, and left out of the render of the
+/// others (each pixel's samples are its own, so theirs are the same either way).
+fn polish_fits(
     rec: &mut Recovery,
-    fits: &mut [fit::GroupFit],
     subset: &[pixels::PurePixel],
     spp: u32,
+    seed: u64,
     active: &[bool],
-) -> Result<Vec<u32>, Error> {
-    let mut group_spp = vec![spp; fits.len()];
-    for g in 0..fits.len() {
-        let pixels = fits[g].pixels;
-        let more = min_samples_spp(spp, pixels, POLISH_MIN_SAMPLES);
-        if !active[g] || pixels == 0 || more <= spp {
-            continue;
-        }
-        let seed = rec.seed ^ 0x9011_5A11 ^ g as u64;
-        fits[g] = rec.evaluate_pixels(subset, more, seed, &|h| h as usize == g)?[g];
-        group_spp[g] = more;
+) -> Result<(Vec<fit::GroupFit>, Vec<u32>), Error> {
+    let mut subset_pixels = vec![0u32; active.len()];
+    for p in subset {
+        subset_pixels[p.group as usize] += 1;
     }
-    Ok(group_spp)
+    let group_spp: Vec<u32> = (0..active.len())
+        .map(|g| {
+            if active[g] && subset_pixels[g] > 0 {
+                min_samples_spp(spp, subset_pixels[g], POLISH_MIN_SAMPLES)
+            } else {
+                spp
+            }
+        })
+        .collect();
+    let small = |g: usize| group_spp[g] > spp;
+    let mut fits = rec.evaluate_pixels(subset, spp, seed, &|h| {
+        active[h as usize] && !small(h as usize)
+    })?;
+    for g in (0..active.len()).filter(|&g| small(g)) {
+        let seed = rec.seed ^ 0x9011_5A11 ^ g as u64;
+        fits[g] = rec.evaluate_pixels(subset, group_spp[g], seed, &|h| h as usize == g)?[g];
+    }
+    Ok((fits, group_spp))
 }
 
 /// One group's response for the polish's Newton step: its colour, the colour raised, and
