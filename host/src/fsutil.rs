@@ -78,16 +78,26 @@ pub const INTERRUPTED_EXIT_CODE: i32 = 130;
 /// `.<name>.tmp-<pid>` files beside its outputs. Called once, at the start of `main`.
 pub fn remove_staged_files_on_interrupt() -> Result<(), String> {
     ctrlc::set_handler(|| {
-        // One hold of the lock from the removal to the exit: a set that staged a file or
-        // made a folder between the two would leave it behind (the output folder of a
-        // render interrupted before it was made, seen in CI).
-        let mut registry = staged();
         // Files of sets committed before (a stability study's finished runs) stay.
-        let removed = registry.remove_matching(|_| true);
-        eprintln!("\nrelume: interrupted; {removed} unfinished output file(s) removed");
-        std::process::exit(INTERRUPTED_EXIT_CODE);
+        remove_staged_then(
+            |_| true,
+            |removed| {
+                eprintln!("\nrelume: interrupted; {removed} unfinished output file(s) removed");
+                std::process::exit(INTERRUPTED_EXIT_CODE)
+            },
+        )
     })
     .map_err(|e| e.to_string())
+}
+
+/// Removes what the live output sets staged that `matching` selects, then calls `and_then`
+/// with how many files, the registry's lock held all the while: a set that staged a file
+/// or made a folder between the removal and an exit would leave it behind (the output
+/// folder of a render interrupted just before it was made, seen in CI).
+fn remove_staged_then<T>(matching: impl Fn(&Path) -> bool, and_then: impl FnOnce(usize) -> T) -> T {
+    let mut registry = staged();
+    let removed = registry.remove_matching(matching);
+    and_then(removed)
 }
 
 /// Writes `bytes` to `path` atomically (temp file beside it, fsync, rename).
@@ -518,6 +528,27 @@ mod tests {
         std::fs::write(&old, b"input").unwrap();
         let mut keeping = OutputSet::keeping(vec![(old.clone(), "an input".into())]);
         assert!(keeping.remove_on_commit(&old).is_err());
+    }
+
+    /// The interrupt's exit runs under the same hold of the lock as its removal: no set
+    /// can make a folder or stage a file after the one and before the other.
+    #[test]
+    fn an_interrupt_exits_holding_the_lock_it_removed_under() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        let mut set = OutputSet::default();
+        set.create_dir(&out).unwrap();
+        set.add(&out.join("a.txt"), b"a").unwrap();
+        let locked_at_exit = remove_staged_then(
+            |p| p.starts_with(dir.path()),
+            |removed| {
+                assert_eq!(removed, 1);
+                assert!(!out.exists(), "the file and the folder it was made for go");
+                STAGED.try_lock().is_err()
+            },
+        );
+        assert!(locked_at_exit, "the lock was let go before the exit");
+        drop(set);
     }
 
     #[test]
