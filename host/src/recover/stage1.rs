@@ -314,10 +314,7 @@ fn polish_fits(
     seed: u64,
     active: &[bool],
 ) -> Result<(Vec<fit::GroupFit>, Vec<u32>), Error> {
-    let mut subset_pixels = vec![0u32; active.len()];
-    for p in subset {
-        subset_pixels[p.group as usize] += 1;
-    }
+    let subset_pixels = pixels::group_counts(subset, active.len());
     let group_spp: Vec<u32> = (0..active.len())
         .map(|g| {
             if active[g] && subset_pixels[g] > 0 {
