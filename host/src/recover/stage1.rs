@@ -248,8 +248,8 @@ pub(super) fn refine_diffuse_groups(
     let polish_seed = rec.seed ^ 0x9011_5400;
     let subset = rec.diffuse_subset();
     let wanted = |g: u16| active[g as usize];
-    let (fits, group_spp) = polish_fits(rec, &subset, polish_spp, polish_seed, &active)?;
-    evaluations += group_spp.iter().filter(|&&s| s > polish_spp).count() as u32;
+    let (fits, group_spp, renders) = polish_fits(rec, &subset, polish_spp, polish_seed, &active)?;
+    evaluations += renders;
     // A Newton step on how every group's render responds to each group's colour (see
     // POLISH_RESPONSE_STEP); more groups than POLISH_NEWTON_MAX_GROUPS take the ratio
     // step: a render each would cost more than the iteration did.
@@ -300,20 +300,21 @@ pub(super) fn refine_diffuse_groups(
 }
 
 /// Every active group's fit for the polish step, over its pixels of `subset` at `spp` on
-/// `seed`, and the samples per pixel each fit has. A small group's mean at the polish's
-/// samples per pixel carries the noise of few samples: the living room's 138-pixel
-/// pedestal, lit by way of the metal statue above it, had 8832 at effort fast and 64 px,
-/// and came out 0.4, 1.1 and 1.9% off on seeds 1-3. So a group with fewer than
-/// `POLISH_MIN_SAMPLES` there is rendered alone on its pixels with at least that many, on
-/// a seed of its own, as a lobe's colour is polished, and left out of the render of the
-/// others (each pixel's samples are its own, so theirs are the same either way).
+/// `seed`, the samples per pixel each fit has, and how many renders it took. A small
+/// group's mean at the polish's samples per pixel carries the noise of few samples: the
+/// living room's 138-pixel pedestal, lit by way of the metal statue above it, had 8832 at
+/// effort fast and 64 px, and came out 0.4, 1.1 and 1.9% off on seeds 1-3. So a group
+/// with fewer than `POLISH_MIN_SAMPLES` there is rendered alone on its pixels with at
+/// least that many, on a seed of its own, as a lobe's colour is polished, and left out of
+/// the render of the others (each pixel's samples are its own, so theirs are the same
+/// either way). That render counts only when it holds a group.
 fn polish_fits(
     rec: &mut Recovery,
     subset: &[pixels::PurePixel],
     spp: u32,
     seed: u64,
     active: &[bool],
-) -> Result<(Vec<fit::GroupFit>, Vec<u32>), Error> {
+) -> Result<(Vec<fit::GroupFit>, Vec<u32>, u32), Error> {
     let subset_pixels = pixels::group_counts(subset, active.len());
     let group_spp: Vec<u32> = (0..active.len())
         .map(|g| {
@@ -325,14 +326,15 @@ fn polish_fits(
         })
         .collect();
     let small = |g: usize| group_spp[g] > spp;
-    let mut fits = rec.evaluate_pixels(subset, spp, seed, &|h| {
-        active[h as usize] && !small(h as usize)
-    })?;
+    let shared = |g: usize| active[g] && subset_pixels[g] > 0 && !small(g);
+    let mut fits = rec.evaluate_pixels(subset, spp, seed, &|h| shared(h as usize))?;
+    let mut renders = u32::from((0..active.len()).any(shared));
     for g in (0..active.len()).filter(|&g| small(g)) {
         let seed = rec.seed ^ 0x9011_5A11 ^ g as u64;
         fits[g] = rec.evaluate_pixels(subset, group_spp[g], seed, &|h| h as usize == g)?[g];
+        renders += 1;
     }
-    Ok((fits, group_spp))
+    Ok((fits, group_spp, renders))
 }
 
 /// One group's response for the polish's Newton step: its colour, the colour raised, and
