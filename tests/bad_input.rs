@@ -571,11 +571,28 @@ fn a_folder_in_the_way_of_one_output_leaves_none_of_the_others() {
     let stderr = case.fails(IO, &["render.json", "folder"]);
     assert!(!case.path("out/front.exr").exists(), "{stderr}");
 
-    let case = case_with_panorama();
-    std::fs::create_dir_all(case.path("recovered/report.json")).unwrap();
-    let stderr = recover_fails(&case, &case.path("recovered"), &[]);
-    assert!(stderr.contains("report.json"), "{stderr}");
-    assert_eq!(files_in(&case.path("recovered")), Vec::<PathBuf>::new());
+    // A recovery that runs to its end (the tiny scene's own view sees no group whole).
+    let dir = lit_and_unlit(LIT_AND_UNLIT);
+    let recovered = dir.path().join("recovered");
+    std::fs::create_dir_all(recovered.join("report.json")).unwrap();
+    let run = relume(
+        dir.path(),
+        &[
+            "recover",
+            "scene.toml",
+            "--out",
+            "recovered",
+            "--effort",
+            "fast",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(IO), "{stderr}");
+    assert!(
+        stderr.contains("report.json") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    assert_eq!(files_in(&recovered), Vec::<PathBuf>::new());
 }
 
 /// The tiny scene with its own render (4 spp) as its panorama, for `recover`.
@@ -616,20 +633,6 @@ fn recover_naming_no_group(case: &Case, out: &str) -> (Option<i32>, String) {
         run.status.code(),
         String::from_utf8_lossy(&run.stderr).into_owned(),
     )
-}
-
-/// Runs `relume recover` of `case` into `out` at effort fast with `extra` arguments,
-/// expects the I/O exit code and no panic, and returns stderr.
-fn recover_fails(case: &Case, out: &Path, extra: &[&str]) -> String {
-    let scene = case.path("scene.toml");
-    let mut args = vec!["recover", path_str(&scene), "--out", path_str(out)];
-    args.extend(["--effort", "fast"]);
-    args.extend(extra);
-    let run = relume(case.dir.path(), &args);
-    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
-    assert_eq!(run.status.code(), Some(IO), "{stderr}");
-    assert!(!stderr.contains("panicked"), "{stderr}");
-    stderr
 }
 
 /// An output folder that cannot be made (under a file) fails at the start of a recovery,
@@ -794,19 +797,17 @@ kind = "plastic"
 objects = ["cellar"]
 "#;
 
-/// A group no light reaches renders black whatever its material: recovery says so and
-/// leaves it unrecovered (it kept its starting colour, 0.5, as a "diffuse" result with
-/// an error of 100%), and recovers the rest. With the lamp hidden too, no group is lit
-/// and recovery refuses the scene rather than write a file of starting colours.
-#[test]
-fn a_group_no_light_reaches_is_not_recovered_and_a_scene_without_light_is_refused() {
+/// A fresh folder with LIT_AND_UNLIT's geometry (the tiny scene and the cellar), its
+/// materials in m.toml, `scene` as scene.toml and that scene's own render (4 spp) in
+/// `views/`, its panorama.
+fn lit_and_unlit(scene: &str) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     let obj = format!(
         "{}o cellar\nv 0 0 -1\nv 1 0 -1\nv 1 1 -1\nv 0 1 -1\nf 8 9 10 11\n",
         OBJ
     );
     std::fs::write(dir.path().join("geo.obj"), obj).unwrap();
-    std::fs::write(dir.path().join("scene.toml"), LIT_AND_UNLIT).unwrap();
+    std::fs::write(dir.path().join("scene.toml"), scene).unwrap();
     let materials = format!("{MATERIALS}\n[[material]]\ngroup = \"cellar\"\nmodel = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]\n");
     std::fs::write(dir.path().join("m.toml"), materials).unwrap();
     common::relume_ok(
@@ -822,6 +823,16 @@ fn a_group_no_light_reaches_is_not_recovered_and_a_scene_without_light_is_refuse
             "4",
         ],
     );
+    dir
+}
+
+/// A group no light reaches renders black whatever its material: recovery says so and
+/// leaves it unrecovered (it kept its starting colour, 0.5, as a "diffuse" result with
+/// an error of 100%), and recovers the rest. With the lamp hidden too, no group is lit
+/// and recovery refuses the scene rather than write a file of starting colours.
+#[test]
+fn a_group_no_light_reaches_is_not_recovered_and_a_scene_without_light_is_refused() {
+    let dir = lit_and_unlit(LIT_AND_UNLIT);
     let run = common::relume_ok(
         dir.path(),
         &["recover", "scene.toml", "--out", "rec", "--effort", "fast"],
@@ -856,6 +867,53 @@ fn a_group_no_light_reaches_is_not_recovered_and_a_scene_without_light_is_refuse
         "{stderr}"
     );
     assert!(!dir.path().join("dark").exists());
+}
+
+/// Views that see no group in whole pixels (one looks up at the lamp, one down into the
+/// void below the cellar): there is nothing to recover. Recovery ran on and wrote an
+/// empty materials.toml with exit 0; it now refuses the scene, says what each view's
+/// pixels see, and writes nothing.
+#[test]
+fn a_panorama_that_sees_no_group_whole_is_refused() {
+    let away = LIT_AND_UNLIT
+        .replacen(
+            "direction = [0.0, 0.0, -1.0]",
+            "direction = [0.0, 0.0, 1.0]",
+            1,
+        )
+        .replace("position = [0.5, 0.5, 0.9]", "position = [0.5, 0.5, 0.5]")
+        .replace("position = [0.5, 0.5, -0.1]", "position = [0.5, 0.5, -1.5]");
+    let dir = lit_and_unlit(&away);
+    let run = relume(
+        dir.path(),
+        &["recover", "scene.toml", "--out", "rec", "--effort", "fast"],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("scene.toml: no view sees any group in whole pixels")
+            && stderr.contains(
+                "view 'cellar', 8x8 pixels: 64 see nothing, 0 only lights, 0 a group in part"
+            )
+            && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    // The view looking up sees the lamp's emitting side in some pixels and the void around it.
+    let floor = stderr
+        .split("view 'floor', 8x8 pixels: ")
+        .nth(1)
+        .and_then(|rest| rest.split(';').next())
+        .unwrap_or_else(|| panic!("{stderr}"));
+    let counts: Vec<u32> = floor
+        .split(", ")
+        .map(|part| part.split(' ').next().unwrap().parse().unwrap())
+        .collect();
+    assert!(
+        counts.len() == 3 && counts[0] > 0 && counts[1] > 0 && counts[2] == 0,
+        "{floor}"
+    );
+    assert_eq!(counts.iter().sum::<u32>(), 64, "{floor}");
+    assert!(!dir.path().join("rec").exists());
 }
 
 /// `relume compare uncertainty m.toml <report>` in the case's folder: exit code, stderr.

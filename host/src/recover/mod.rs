@@ -635,6 +635,34 @@ pub(super) fn min_samples_spp(spp: u32, pixels: u32, min_samples: u64) -> u32 {
         .min(u32::MAX as u64) as u32
 }
 
+/// The refusal of a panorama none of whose pixels falls wholly on a group: every group
+/// would be unseen, so there is nothing to recover, and a run that wrote an empty
+/// materials.toml and exited 0 would hide a scene that does not match its views. Says what
+/// each view's pixels see, from which the likely cause can be told.
+fn no_pure_pixel(
+    scene_file: &std::path::Path,
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    views: &[View],
+    names: &[String],
+) -> Error {
+    let seen: Vec<String> = views
+        .iter()
+        .zip(names)
+        .map(|(view, name)| {
+            let sight = pixels::sight(pool, scene, view);
+            format!("view '{name}', {}", sight.describe(view))
+        })
+        .collect();
+    Error::input(
+        scene_file,
+        format!(
+            "no view sees any group in whole pixels, so no material can be recovered ({}); are the views inside the geometry and facing it, the OBJ in the units of the views' positions, the groups' objects not hidden, and the views fine enough for a pixel to fall wholly on one group?",
+            seen.join("; ")
+        ),
+    )
+}
+
 /// The paper's mirror test on an isotropic model: specular part above
 /// `MIRROR_SPECULAR_FRACTION` of the reflectance, a sharp lobe, and a reflected colour close
 /// to the incident one (an untinted specular reflectance).
@@ -700,7 +728,17 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         empty_views,
     } = {
         let scene = owned.build()?;
-        pixels::label_views(&pool, &scene, &views)
+        let labels = pixels::label_views(&pool, &scene, &views);
+        if labels.pure.is_empty() {
+            return Err(no_pure_pixel(
+                &args.scene,
+                &pool,
+                &scene,
+                &views,
+                &view_names,
+            ));
+        }
+        labels
     };
     let light_readings = calibration::read_lights(
         &light_pixels,

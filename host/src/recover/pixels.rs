@@ -168,6 +168,53 @@ pub fn label_views(pool: &rayon::ThreadPool, scene: &Scene, views: &[View]) -> L
     found
 }
 
+/// What a view's pixels see, each pixel counted once by the rays that label it: told to a
+/// user whose views hold no pure pixel, so the cause (views outside the geometry, an OBJ
+/// in other units, groups hidden, views too coarse) can be told from the counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sight {
+    /// Pixels whose every ray escapes the scene.
+    pub nothing: u32,
+    /// Pixels whose rays meet lights (or escape) and no group.
+    pub lights_only: u32,
+    /// Pixels with a group in part of their footprint.
+    pub groups_in_part: u32,
+}
+
+impl Sight {
+    /// "8x8 pixels: 64 see nothing, 0 only lights, 0 a group in part".
+    pub fn describe(&self, view: &View) -> String {
+        format!(
+            "{}x{} pixels: {} see nothing, {} only lights, {} a group in part",
+            view.width, view.height, self.nothing, self.lights_only, self.groups_in_part
+        )
+    }
+}
+
+/// Counts what the pixels of `view` see (see [`Sight`]).
+pub fn sight(pool: &rayon::ThreadPool, scene: &Scene, view: &View) -> Sight {
+    let seen = parallel::map_pixels(pool, view, |x, y| {
+        let (mut light, mut group) = (false, false);
+        for surface in label_ray_surfaces(scene, view, x, y) {
+            match surface {
+                Some(Surface::Group(_)) => group = true,
+                Some(Surface::Light(_)) => light = true,
+                None => {}
+            }
+        }
+        (light, group)
+    });
+    let mut sight = Sight::default();
+    for (light, group) in seen {
+        match (light, group) {
+            (_, true) => sight.groups_in_part += 1,
+            (true, false) => sight.lights_only += 1,
+            (false, false) => sight.nothing += 1,
+        }
+    }
+    sight
+}
+
 /// Per group for which `wanted` is true, the pixels of every view whose footprint sees it
 /// in part, in at least `min_share` of the [`LABEL_RAYS_PER_SIDE`]^2 rays that label a pixel (a grid
 /// over the pixel's square, edges included, as `render::pixel_surface`'s), and sees in the
