@@ -532,6 +532,27 @@ fn a_scene_whose_light_adds_nothing_renders_black_with_a_warning() {
     );
 }
 
+/// Views that look away from the whole scene (as a scene in other units than its views'
+/// positions does) render black: the warning says they see no geometry rather than blame
+/// the lights.
+#[test]
+fn views_that_see_no_geometry_render_black_and_say_so() {
+    let case = Case::new().scene(
+        "direction = [0.0, 1.0, 0.0]",
+        "direction = [0.0, -1.0, 0.0]",
+    );
+    case.write();
+    let out = case.render("out", Some(4));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning: every pixel is black: the views of")
+            && stderr.contains("see no geometry")
+            && !stderr.contains("no light"),
+        "{stderr}"
+    );
+}
+
 /// An anisotropic direction along a flat group's normal has no projection on the surface:
 /// the lobe renders isotropic there (reflectance.md), which the render says, naming the
 /// group; a direction along the surface renders without a word.

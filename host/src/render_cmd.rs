@@ -7,7 +7,9 @@ use std::time::Instant;
 
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
+use relume_core::geometry::View;
 use relume_core::render::RenderSettings;
+use relume_core::scene::Scene;
 
 use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
@@ -155,7 +157,17 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
                 )
             }),
     );
-    if black_views.len() == selected.len() {
+    let sees_geometry = |name: &str| {
+        let i = view_descs.iter().position(|d| d.name == name);
+        i.is_some_and(|i| sees_geometry(&scene, &views[i]))
+    };
+    if black_views.len() == selected.len() && !black_views.iter().any(|v| sees_geometry(v)) {
+        // A scene in other units than its views, or cameras outside it: not the lights.
+        warnings.push(format!(
+            "every pixel is black: the views of {} see no geometry (a ray through each pixel's centre escapes the scene): are the cameras inside the scene and facing it, and the OBJ in the units of the views' positions?",
+            args.scene.display()
+        ));
+    } else if black_views.len() == selected.len() {
         warnings.push(format!(
             "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away?)",
             args.scene.display()
@@ -191,5 +203,15 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         samples,
         seconds,
         warnings,
+    })
+}
+
+/// Whether a ray through the centre of any pixel of `view` meets the scene.
+fn sees_geometry(scene: &Scene, view: &View) -> bool {
+    (0..view.height).any(|y| {
+        (0..view.width).any(|x| {
+            let ray = view.ray(x as f32 + 0.5, y as f32 + 0.5);
+            scene.intersect(&ray, f32::INFINITY).is_some()
+        })
     })
 }
