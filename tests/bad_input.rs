@@ -890,6 +890,104 @@ fn a_group_no_light_reaches_is_not_recovered_and_a_scene_without_light_is_refuse
     assert!(!dir.path().join("dark").exists());
 }
 
+/// A lit group whose pixels are all 0 in the panorama is a black surface: recovery gives
+/// it a black diffuse colour and says so (its relative error is undefined: it was called
+/// unseen, "no pure pixel in any view", and left out of materials.toml). A panorama that is
+/// 0 over every lit group is refused: an image or exposure gone wrong, not a black room.
+#[test]
+fn a_group_black_in_the_panorama_is_black_diffuse_and_a_black_panorama_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // The floor's quad in two halves, each its own group, under the lamp.
+    let obj = "o left\nv 0 0 0\nv 0.5 0 0\nv 0.5 1 0\nv 0 1 0\nf 1 2 3 4\no right\nv 0.5 0 0\nv 1 0 0\nv 1 1 0\nv 0.5 1 0\nf 5 6 7 8\no lamp\nv 0.2 0.2 1\nv 0.8 0.2 1\nv 0.5 0.8 1\nf 9 11 10\n";
+    std::fs::write(dir.path().join("geo.obj"), obj).unwrap();
+    let scene = LIT_AND_UNLIT
+        .split("[[view]]\nname = \"cellar\"")
+        .next()
+        .unwrap()
+        .to_string()
+        + "[[light]]\nobject = \"lamp\"\nradiance = [10.0, 10.0, 10.0]\n\n[[group]]\nname = \"left\"\nkind = \"plastic\"\nobjects = [\"left\"]\n\n[[group]]\nname = \"right\"\nkind = \"plastic\"\nobjects = [\"right\"]\n";
+    std::fs::write(dir.path().join("scene.toml"), &scene).unwrap();
+    let material = |group: &str, grey: f32| {
+        format!("[[material]]\ngroup = \"{group}\"\nmodel = \"diffuse\"\ncolor = [{grey}, {grey}, {grey}]\n\n")
+    };
+    let recover = |left: f32, right: f32| {
+        let materials = format!(
+            "format = 1\n\n{}{}",
+            material("left", left),
+            material("right", right)
+        );
+        std::fs::write(dir.path().join("m.toml"), materials).unwrap();
+        let render = [
+            "render",
+            "scene.toml",
+            "--materials",
+            "m.toml",
+            "--out",
+            "views",
+            "--spp",
+            "16",
+        ];
+        // A render may not replace its scene's panorama: the last one goes first.
+        let _ = std::fs::remove_dir_all(dir.path().join("views"));
+        common::relume_ok(dir.path(), &render);
+        let _ = std::fs::remove_dir_all(dir.path().join("rec"));
+        relume(
+            dir.path(),
+            &["recover", "scene.toml", "--out", "rec", "--effort", "fast"],
+        )
+    };
+
+    let run = recover(0.5, 0.0);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("group 'right': its")
+            && stderr.contains("pure pixels are 0 in the panorama, though light reaches them: recovered as black diffuse")
+            && !stderr.contains("no pure pixel"),
+        "{stderr}"
+    );
+    let recovered = materials_file(&dir.path().join("rec/materials.toml"));
+    assert_eq!(recovered["right"], ("diffuse".to_string(), [0.0; 3]));
+    let (model, left) = &recovered["left"];
+    assert_eq!(model, "diffuse");
+    assert!(left.iter().all(|c| (c - 0.5).abs() < 0.05), "{left:?}");
+
+    let run = recover(0.0, 0.0);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("scene.toml: the panorama is 0 over every group's pure pixels, though the scene's light reaches them"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("rec").exists());
+}
+
+/// Each material of a materials.toml by group: its model and colour.
+fn materials_file(path: &Path) -> std::collections::HashMap<String, (String, [f64; 3])> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let file: toml::Value = toml::from_str(&text).unwrap();
+    file["material"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| {
+            let colour: Vec<f64> = m["color"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|c| c.as_float().unwrap())
+                .collect();
+            (
+                m["group"].as_str().unwrap().to_string(),
+                (
+                    m["model"].as_str().unwrap().to_string(),
+                    [colour[0], colour[1], colour[2]],
+                ),
+            )
+        })
+        .collect()
+}
+
 /// Views that see no group in whole pixels (one looks up at the lamp, one down into the
 /// void below the cellar): there is nothing to recover. Recovery ran on and wrote an
 /// empty materials.toml with exit 0; it now refuses the scene, says what each view's

@@ -133,14 +133,18 @@ pub enum DiffuseVerdict {
     BarelySeen,
     /// No pure pixel at all: nothing can be said.
     Unseen,
+    /// Pure pixels that are all 0 in the panorama, though lit: a black diffuse surface
+    /// explains them exactly, and an error relative to the panorama is undefined.
+    Black,
 }
 
-/// Stage 1's verdict on a group of `pixels` pure pixels whose diffuse fit left `error`.
+/// Stage 1's verdict on a group of `pixels` pure pixels whose diffuse fit left `error`
+/// (`None` where the panorama is 0 over every one of them: the error is relative to it).
 pub fn verdict(pixels: u32, error: Option<ErrorEstimate>) -> DiffuseVerdict {
     match error {
         _ if pixels == 0 => DiffuseVerdict::Unseen,
         _ if pixels < MIN_PIXELS_FOR_MODEL_CHOICE => DiffuseVerdict::BarelySeen,
-        None => DiffuseVerdict::Unseen,
+        None => DiffuseVerdict::Black,
         Some(e) if e.exceeds(SPECULAR_GAIN_THRESHOLD) => DiffuseVerdict::NeedsSpecular,
         Some(_) => DiffuseVerdict::Diffuse,
     }
@@ -273,6 +277,6 @@ mod tests {
         assert_eq!(verdict(4, e(0.2, 0.01)), DiffuseVerdict::NeedsSpecular);
         assert_eq!(verdict(15, e(0.46, 0.013)), DiffuseVerdict::NeedsSpecular);
         assert_eq!(verdict(0, None), DiffuseVerdict::Unseen);
-        assert_eq!(verdict(100, None), DiffuseVerdict::Unseen);
+        assert_eq!(verdict(100, None), DiffuseVerdict::Black);
     }
 }

@@ -39,6 +39,17 @@ pub(super) fn run(
             "no light of the scene reaches what its views see: every group's pure pixels render black, so no material can be recovered (a light hidden, of radiance 0, facing away, or none?)",
         ));
     }
+    // A panorama that is 0 over every lit group's pure pixels is not a room of black
+    // materials but an image or exposure gone wrong.
+    let seen_lit: Vec<usize> = (0..n_groups)
+        .filter(|&g| pure_pixels[g] > 0 && unlit[g].is_none())
+        .collect();
+    if !seen_lit.is_empty() && seen_lit.iter().all(|&g| first[g].sum_real == [0.0; 3]) {
+        return Err(Error::input(
+            &rec.owned.desc.path,
+            "the panorama is 0 over every group's pure pixels, though the scene's light reaches them: no material can be recovered (are the views' images black, or their exposure wrong?)",
+        ));
+    }
     // Which groups go on is decided on the bias-only error, at the decisions' samples and
     // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
     // own noise (heavy-tailed paths), by whole percents either way.
@@ -100,6 +111,18 @@ pub(super) fn run(
                 warnings.push(format!(
                     "group '{}': no pure pixel in any view; its material is not recovered",
                     names[g]
+                ));
+            }
+            DiffuseVerdict::Black => {
+                // What the iteration comes to from any start: every step scales by 0.
+                rec.models[g] = GroupModel::Diffuse { color: [0.0; 3] };
+                r.decisions.push(format!(
+                    "diffuse, black: its {} pure pixels are 0 in the panorama though light reaches them (no relative error: nothing to compare with)",
+                    pure_pixels[g]
+                ));
+                warnings.push(format!(
+                    "group '{}': its {} pure pixels are 0 in the panorama, though light reaches them: recovered as black diffuse (is the panorama right there?)",
+                    names[g], pure_pixels[g]
                 ));
             }
             DiffuseVerdict::BarelySeen => {
