@@ -17,11 +17,14 @@
 //!   `f`: at least 3 vertices `v`, `v/vt`, `v//vn` or `v/vt/vn`, indices 1-based or negative
 //!   (relative), referring to vertices already read; a face uses texture coordinates on all of
 //!   its vertices or on none.
+//! - A line ending in `\` goes on in the next (errors name the line a statement starts
+//!   on); a comment line does not.
 //! - Ignored: comments, `vn` (flat shading), `s`, `mtllib`, `usemtl` (materials come from
 //!   materials.toml), `l` and `p` (lines and points have no area). Any other statement
 //!   (free-form curves, typos) is an error.
 //! - An object's `uvs` are present only when all of its faces have texture coordinates.
 
+use std::borrow::Cow;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
@@ -172,11 +175,45 @@ pub fn load_obj(path: &Path) -> Result<Vec<ObjObject>, Error> {
 /// The line (1-based) where object `name` starts in an OBJ file, for error messages.
 pub fn object_line(path: &Path, name: &str) -> Option<usize> {
     let text = crate::fsutil::read_text(path).ok()?;
-    let has_o = text.lines().any(|l| keyword(l) == Some("o"));
+    let statements = statements(&text);
+    let has_o = statements.iter().any(|(_, l)| keyword(l) == Some("o"));
     let naming = if has_o { "o" } else { "g" };
-    text.lines()
-        .position(|l| keyword(l) == Some(naming) && rest_after_keyword(l) == name)
-        .map(|i| i + 1)
+    statements
+        .iter()
+        .find(|(_, l)| keyword(l) == Some(naming) && rest_after_keyword(l) == name)
+        .map(|(line, _)| *line)
+}
+
+/// The file's statements, each with the line (1-based) it starts on: a line that ends in
+/// `\` goes on in the next one (the OBJ format's line continuation, which some exporters
+/// use to wrap long faces).
+fn statements(text: &str) -> Vec<(usize, Cow<'_, str>)> {
+    let mut out = Vec::new();
+    let mut pending: Option<(usize, String)> = None;
+    for (i, line) in text.lines().enumerate() {
+        // A comment ends at its line, whatever it ends in (a Windows path's `\`).
+        let comment = pending.is_none() && line.trim_start().starts_with('#');
+        let (body, continues) = match line.trim_end().strip_suffix('\\') {
+            Some(body) if !comment => (body.trim_end(), true),
+            _ => (line, false),
+        };
+        let statement = match pending.take() {
+            Some((first, mut joined)) => {
+                // The break reads as one space, however the lines were indented.
+                joined.push(' ');
+                joined.push_str(body.trim_start());
+                (first, Cow::Owned(joined))
+            }
+            None => (i + 1, Cow::Borrowed(body)),
+        };
+        if continues {
+            pending = Some((statement.0, statement.1.into_owned()));
+        } else {
+            out.push(statement);
+        }
+    }
+    out.extend(pending.map(|(line, joined)| (line, Cow::Owned(joined))));
+    out
 }
 
 fn keyword(line: &str) -> Option<&str> {
@@ -191,13 +228,14 @@ fn rest_after_keyword(line: &str) -> &str {
 }
 
 fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
-    let has_o = text.lines().any(|l| keyword(l) == Some("o"));
+    let statements = statements(text);
+    let has_o = statements.iter().any(|(_, l)| keyword(l) == Some("o"));
     let naming = if has_o { "o" } else { "g" };
     let mut objects: Vec<ObjectInfo> = Vec::new();
     let mut out = String::with_capacity(text.len());
     let (mut n_v, mut n_vt) = (0usize, 0usize);
-    for (i, raw_line) in text.lines().enumerate() {
-        let line_no = i + 1;
+    for (line_no, raw_line) in &statements {
+        let (line_no, raw_line) = (*line_no, raw_line.as_ref());
         let err = |msg: String| Error::at_line(path, line_no, msg);
         let mut tokens = raw_line.split_whitespace();
         let Some(key) = tokens.next() else { continue };
@@ -400,6 +438,41 @@ mod tests {
             vec![[v[0], v[1], v[4]], [v[4], v[1], v[2]]]
         );
         assert_eq!(objs[0].uvs, None);
+    }
+
+    /// A statement wrapped with `\` reads as the one line it stands for; an error in it
+    /// names the line it starts on, later lines keep their numbers, and a comment that
+    /// ends in `\` (a Windows folder) does not swallow the statement after it.
+    #[test]
+    fn a_line_ending_in_a_backslash_goes_on_in_the_next() {
+        // What a file holds, less where it is.
+        let geometry = |objs: Vec<ObjObject>| -> Vec<_> {
+            objs.into_iter()
+                .map(|o| (o.name, o.triangles, o.uvs))
+                .collect()
+        };
+        let load = |text: &str| geometry(load(text));
+        let plain = load(&format!("o a\n{QUAD}f 1 2 3 4\no b\nf 1 2 3\n"));
+        let wrapped = load(&format!(
+            "o a\nv 0 0 0\nv 1 \\\n 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 \\\n3 \\\n 4\no b\nf 1 2 3\n"
+        ));
+        assert_eq!(wrapped, plain);
+        let commented = load(&format!(
+            "# from C:\\models\\\no a\n{QUAD}f 1 2 3 4\no b\nf 1 2 3\n"
+        ));
+        assert_eq!(commented, plain);
+        bad(
+            &format!("o a\n{QUAD}f 1 2 \\\n 3 9\n"),
+            6,
+            &["vertex index 9 is out of range"],
+        );
+        bad(
+            &format!("o a\nv 0 \\\n0 0\n{QUAD}f 1 2 3\nbogus\n"),
+            9,
+            &["unknown OBJ statement 'bogus'"],
+        );
+        let (_dir, path) = write(&format!("o a\n{QUAD}f 1 2 \\\n 3\no b \\\nc\nf 1 2 3\n"));
+        assert_eq!(object_line(&path, "b c"), Some(8));
     }
 
     /// An object without faces is no object of the geometry, wherever it stands (tobj
