@@ -453,9 +453,9 @@ mod tests {
         };
         let load = |text: &str| geometry(load(text));
         let plain = load(&format!("o a\n{QUAD}f 1 2 3 4\no b\nf 1 2 3\n"));
-        let wrapped = load(&format!(
-            "o a\nv 0 0 0\nv 1 \\\n 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 \\\n3 \\\n 4\no b\nf 1 2 3\n"
-        ));
+        let wrapped = load(
+            "o a\nv 0 0 0\nv 1 \\\n 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 \\\n3 \\\n 4\no b\nf 1 2 3\n",
+        );
         assert_eq!(wrapped, plain);
         let commented = load(&format!(
             "# from C:\\models\\\no a\n{QUAD}f 1 2 3 4\no b\nf 1 2 3\n"
