@@ -857,7 +857,7 @@ fn renders_of_its_panorama(name: &str, out: &std::path::Path) -> relume::bench::
     let tmp = tempfile::tempdir().unwrap();
     let mut outcomes = relume::bench::edits::run(&relume::bench::edits::EditsArgs {
         edits: vec![bench.join("scene-small.toml")],
-        recovered: out.join("materials.toml"),
+        recovered: vec![out.join("materials.toml")],
         truth: bench.join("truth.toml"),
         out: tmp.path().join("original"),
         spp: 256,

@@ -127,7 +127,7 @@ fn living_room_edits_rendered_with_the_truth_agree_with_radiance() {
     let tmp = tempfile::tempdir().unwrap();
     let outcomes = relume::bench::edits::run(&relume::bench::edits::EditsArgs {
         edits,
-        recovered: truth.clone(),
+        recovered: vec![truth.clone()],
         truth,
         out: tmp.path().join("edits"),
         spp: 64,

@@ -249,9 +249,10 @@ enum BenchCommand {
         /// The edits' scene.toml files; their view images are the references.
         #[arg(required = true, num_args = 1..)]
         edits: Vec<PathBuf>,
-        /// The recovered materials.toml.
-        #[arg(long)]
-        recovered: PathBuf,
+        /// The recovered materials.toml, and with it any more files the recovered model
+        /// is rendered with (its unseen.toml: the stand-ins of groups not recovered).
+        #[arg(long, required = true, num_args = 1..)]
+        recovered: Vec<PathBuf>,
         /// The true materials (truth.toml).
         #[arg(long)]
         truth: PathBuf,

@@ -34,8 +34,9 @@ pub const ADDED_MATERIALS: &str = "materials.toml";
 pub struct EditsArgs {
     /// The edits' scene.toml files.
     pub edits: Vec<PathBuf>,
-    /// The recovered materials.toml.
-    pub recovered: PathBuf,
+    /// The recovered materials.toml, and any more files the recovered model is rendered
+    /// with (its unseen.toml: the stand-ins of groups the recovery could not recover).
+    pub recovered: Vec<PathBuf>,
     /// The true materials (truth.toml).
     pub truth: PathBuf,
     pub out: PathBuf,
@@ -135,14 +136,12 @@ pub fn run(args: &EditsArgs) -> Result<Vec<EditOutcome>, Error> {
     for scene in &args.edits {
         let name = edit_name(scene);
         let added = added_materials(scene);
-        let arm = |materials: &Path, label: &str| -> Result<ArmError, Error> {
+        let arm = |materials: &[PathBuf], label: &str| -> Result<ArmError, Error> {
             let out = args.out.join(&name).join(label);
             eprintln!("{name}: rendering with the {label} materials");
             render_cmd::run(&RenderArgs {
                 scene: scene.clone(),
-                materials: std::iter::once(materials.to_path_buf())
-                    .chain(added.clone())
-                    .collect(),
+                materials: materials.iter().cloned().chain(added.clone()).collect(),
                 out: out.clone(),
                 spp: args.spp,
                 seed: args.seed,
@@ -159,7 +158,7 @@ pub fn run(args: &EditsArgs) -> Result<Vec<EditOutcome>, Error> {
             Ok(ArmError::of(views))
         };
         let recovered = arm(&args.recovered, "recovered")?;
-        let truth = arm(&args.truth, "truth")?;
+        let truth = arm(std::slice::from_ref(&args.truth), "truth")?;
         let rms_ratio = ratio(recovered.rel_rms, truth.rel_rms);
         let group_mean_ratio = ratio(recovered.group_mean_err, truth.group_mean_err);
         outcomes.push(EditOutcome {
@@ -177,6 +176,13 @@ pub fn run(args: &EditsArgs) -> Result<Vec<EditOutcome>, Error> {
     Ok(outcomes)
 }
 
+/// The files' paths as one, for a message about their groups together: `a.toml` or
+/// `a.toml + b.toml`.
+fn files_label(files: &[MaterialsDesc]) -> PathBuf {
+    let names: Vec<String> = files.iter().map(|f| f.path.display().to_string()).collect();
+    PathBuf::from(names.join(" + "))
+}
+
 /// The materials file beside an edit's scene.toml, for the objects it adds, if any.
 fn added_materials(scene: &Path) -> Option<PathBuf> {
     scene
@@ -192,20 +198,43 @@ fn added_materials(scene: &Path) -> Option<PathBuf> {
 /// both (every other error of a material); its views name reference images that exist;
 /// and no output replaces an input. Returns the set for the CSV and the JSON.
 fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
-    let recovered = materials_file::load_materials(&args.recovered)?;
+    if let Some((m, first)) = fsutil::given_twice(&args.recovered) {
+        return Err(Error::Usage(format!(
+            "{} is given twice to --recovered (also as {}): each of its groups would have two materials",
+            m.display(),
+            first.display()
+        )));
+    }
+    let recovered = args
+        .recovered
+        .iter()
+        .map(|path| materials_file::load_materials(path))
+        .collect::<Result<Vec<_>, Error>>()?;
     let truth = materials_file::load_materials(&args.truth)?;
-    let mut inputs = [recovered.input_files(), truth.input_files()].concat();
+    let mut inputs = truth.input_files();
+    inputs.extend(recovered.iter().flat_map(|r| r.input_files()));
     let mut outputs = Vec::new();
     let hint = format!(
         "a file of another scene? A group only the edit has takes its material from {ADDED_MATERIALS} beside its scene.toml"
     );
+    // A recovery writes the stand-ins of the groups it could not recover apart.
+    let unseen_hint = |first: &Path| {
+        let unseen = first.with_file_name(crate::recover::UNSEEN_TOML);
+        let given = args.recovered.iter().any(|r| fsutil::same_file(r, &unseen));
+        if unseen.is_file() && !given {
+            format!("{hint}; a group the recovery could not recover has its stand-in in {}: give it to --recovered too", unseen.display())
+        } else {
+            hint.clone()
+        }
+    };
     for scene in &args.edits {
         let desc = scene_file::load_scene(scene)?;
         let added = match added_materials(scene) {
             Some(path) => {
                 // Given as well as --recovered or --truth, its groups would have two
                 // materials, or the whole file would look like one of another scene.
-                for (flag, given) in [("--recovered", &args.recovered), ("--truth", &args.truth)] {
+                let given = args.recovered.iter().map(|r| ("--recovered", r));
+                for (flag, given) in given.chain([("--truth", &args.truth)]) {
                     if fsutil::same_file(&path, given) {
                         return Err(Error::Usage(format!(
                             "{flag} {} is also {}, which gives the materials of the objects edit {} adds (read from beside its scene.toml): give {flag} a file of its own",
@@ -229,10 +258,16 @@ fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
             .map(|g| g.name.as_str())
             .filter(|g| !added_groups.contains(g))
             .collect();
-        for file in [&truth, &recovered] {
-            let groups: Vec<&str> = file.materials.iter().map(|m| m.group.as_str()).collect();
+        for (files, hint) in [
+            (std::slice::from_ref(&truth), hint.clone()),
+            (&recovered[..], unseen_hint(&recovered[0].path)),
+        ] {
+            let groups: Vec<&str> = files
+                .iter()
+                .flat_map(|f| f.materials.iter().map(|m| m.group.as_str()))
+                .collect();
             compare::check_groups(
-                &file.path,
+                &files_label(files),
                 &groups,
                 "the edit",
                 scene,
@@ -240,8 +275,7 @@ fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
                 Groups::Same,
                 &hint,
             )?;
-            let files: Vec<MaterialsDesc> =
-                std::iter::once(file.clone()).chain(added.clone()).collect();
+            let files: Vec<MaterialsDesc> = files.iter().cloned().chain(added.clone()).collect();
             assemble::load_and_assemble(scene, MaterialSource::Files(&files))?;
         }
         for (vi, v) in desc.views.iter().enumerate() {
@@ -402,7 +436,7 @@ mod tests {
         std::fs::write(&other, text.replace("\"sphere\"", "\"statue\"")).unwrap();
         let args = |truth: &Path| EditsArgs {
             edits: vec![edit.clone()],
-            recovered: cornell.join("materials.toml"),
+            recovered: vec![cornell.join("materials.toml")],
             truth: truth.to_path_buf(),
             out: dir.path().join("out"),
             spp: 1,

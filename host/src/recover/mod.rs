@@ -63,7 +63,7 @@ use crate::images::{self, Image};
 use crate::parallel;
 use crate::scene_file::{self, GroupKind};
 pub use model::GroupModel;
-pub use output::output_files;
+pub use output::{output_files, UNSEEN_TOML};
 use pixels::PurePixel;
 use report::keep_rule;
 pub use report::{ComparisonReport, GroupReport, RecoverReport, StageReport};

@@ -106,7 +106,7 @@ const MATERIALS_RAD: &str = "materials.rad";
 const REPORT_JSON: &str = "report.json";
 /// The stand-ins of the unseen groups, apart from materials.toml, which holds only what
 /// was recovered.
-const UNSEEN_TOML: &str = "unseen.toml";
+pub const UNSEEN_TOML: &str = "unseen.toml";
 const VIEWS_DIR: &str = "views";
 const ERRORS_DIR: &str = "errors";
 const TEXTURES_DIR: &str = "textures";
