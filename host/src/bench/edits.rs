@@ -198,6 +198,11 @@ fn added_materials(scene: &Path) -> Option<PathBuf> {
 /// both (every other error of a material); its views name reference images that exist;
 /// and no output replaces an input. Returns the set for the CSV and the JSON.
 fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
+    if args.recovered.is_empty() {
+        return Err(Error::Usage(
+            "give --recovered the recovered materials.toml".into(),
+        ));
+    }
     if let Some((m, first)) = fsutil::given_twice(&args.recovered) {
         return Err(Error::Usage(format!(
             "{} is given twice to --recovered (also as {}): each of its groups would have two materials",
