@@ -182,6 +182,12 @@ pub const VIEW_SIGMAS: f64 = 3.0;
 /// Fewer pure pixels and a view's mean is not compared: a few pixels are one group's.
 pub const MIN_VIEW_PIXELS: u32 = 256;
 
+/// But a view of fewer is still warned of when the panorama over the render is off the
+/// others' by more than this factor either way: after the fit no group's misfit moves a
+/// view's mean so far, and an exposure off by orders of magnitude in one 8-px view left
+/// its recovery wrong without a word.
+pub const VIEW_GROSS_FACTOR: f64 = 2.0;
+
 /// The final render against the panorama over one view's pure pixels.
 #[derive(Serialize, Clone, Debug, PartialEq)]
 pub struct ViewReading {
@@ -293,6 +299,48 @@ pub fn view_warnings(readings: &[ViewReading]) -> Vec<String> {
             100.0 * diff,
             100.0 * sigma,
             100.0 * typical
+        ));
+    }
+    warnings.extend(gross_view_warnings(readings));
+    warnings
+}
+
+/// A warning for each view of fewer than [`MIN_VIEW_PIXELS`] pure pixels whose panorama
+/// over the render lies more than [`VIEW_GROSS_FACTOR`] from the median of every other
+/// view's (at least two others).
+fn gross_view_warnings(readings: &[ViewReading]) -> Vec<String> {
+    let compared: Vec<(&ViewReading, f64)> = readings
+        .iter()
+        .filter(|r| r.pure_pixels > 0)
+        .filter_map(|r| Some((r, r.rel_mean_diff?)))
+        .collect();
+    let mut warnings = Vec::new();
+    for (i, (r, diff)) in compared.iter().enumerate() {
+        if r.pure_pixels >= MIN_VIEW_PIXELS {
+            continue;
+        }
+        let others: Vec<f64> = compared
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != i)
+            .map(|(_, o)| o.1)
+            .collect();
+        if others.len() < 2 {
+            continue;
+        }
+        let Some(typical) = median(others) else {
+            continue;
+        };
+        let factor = (1.0 + typical) / (1.0 + diff);
+        if factor <= VIEW_GROSS_FACTOR && factor >= 1.0 / VIEW_GROSS_FACTOR {
+            continue;
+        }
+        warnings.push(format!(
+            "view '{}': the recovered model renders its {} pure pixels {:.3e}x the panorama, where the other views' median is {:.3}x: its exposure or image may be off by about {factor:.3e}x (more than VIEW_GROSS_FACTOR {VIEW_GROSS_FACTOR} either way; with fewer than MIN_VIEW_PIXELS {MIN_VIEW_PIXELS} pure pixels only so gross a difference is told)",
+            r.view,
+            r.pure_pixels,
+            1.0 + diff,
+            1.0 + typical
         ));
     }
     warnings
@@ -445,6 +493,20 @@ mod tests {
             "{}",
             warnings[0]
         );
+        // A view of few pixels is warned of when it is off by more than a factor of 2:
+        // here its panorama is a 1000th of what the others' calibration gives.
+        readings.push(reading("tiny", 40, 999.0));
+        let warnings = view_warnings(&readings);
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(
+            warnings[1].starts_with("view 'tiny'")
+                && warnings[1].contains("1.000e3x the panorama")
+                && warnings[1].contains("median is 1.003x")
+                && warnings[1].contains("about 1.003e-3x"),
+            "{}",
+            warnings[1]
+        );
+        readings.pop();
         // With one other view there is no median to trust.
         assert!(view_warnings(&readings[2..4]).is_empty());
         // Nor is a difference within three of the view's standard errors a finding.
