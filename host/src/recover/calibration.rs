@@ -332,7 +332,7 @@ fn gross_view_warnings(readings: &[ViewReading]) -> Vec<String> {
             continue;
         };
         let factor = (1.0 + typical) / (1.0 + diff);
-        if factor <= VIEW_GROSS_FACTOR && factor >= 1.0 / VIEW_GROSS_FACTOR {
+        if (1.0 / VIEW_GROSS_FACTOR..=VIEW_GROSS_FACTOR).contains(&factor) {
             continue;
         }
         warnings.push(format!(
