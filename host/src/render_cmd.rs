@@ -132,7 +132,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         seconds += start.elapsed().as_secs_f64();
         samples += views[i].n_pixels() as u64 * settings.spp as u64;
         if pixels.iter().all(|p| *p == Vec3::ZERO) {
-            black_views.push(view_descs[i].name.as_str());
+            black_views.push(i);
         }
         let image = Image {
             width: views[i].width,
@@ -157,24 +157,26 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
                 )
             }),
     );
-    let sees_geometry = |name: &str| {
-        let i = view_descs.iter().position(|d| d.name == name);
-        i.is_some_and(|i| sees_geometry(&scene, &views[i]))
-    };
-    if black_views.len() == selected.len() && !black_views.iter().any(|v| sees_geometry(v)) {
+    let all_black = black_views.len() == selected.len();
+    if all_black
+        && !black_views
+            .iter()
+            .any(|&i| sees_geometry(&scene, &views[i]))
+    {
         // A scene in other units than its views, or cameras outside it: not the lights.
         warnings.push(format!(
             "every pixel is black: the views of {} see no geometry (a ray through each pixel's centre escapes the scene): are the cameras inside the scene and facing it, and the OBJ in the units of the views' positions?",
             args.scene.display()
         ));
-    } else if black_views.len() == selected.len() {
+    } else if all_black {
         warnings.push(format!(
             "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away?)",
             args.scene.display()
         ));
     } else {
         // One view black among lit ones is a camera outside the scene or facing nothing.
-        warnings.extend(black_views.iter().map(|name| {
+        warnings.extend(black_views.iter().map(|&i| {
+            let name = &view_descs[i].name;
             format!("view '{name}': every pixel is black while other views are not: is its camera outside the scene or looking at nothing?")
         }));
     }
