@@ -266,25 +266,8 @@ fn median(mut values: Vec<f64>) -> Option<f64> {
 /// more than [`VIEW_SIGMAS`] of its standard errors, from the median of the other views'
 /// (views of at least [`MIN_VIEW_PIXELS`]; at least two others to take a median of).
 pub fn view_warnings(readings: &[ViewReading]) -> Vec<String> {
-    let compared: Vec<(&ViewReading, f64)> = readings
-        .iter()
-        .filter(|r| r.pure_pixels >= MIN_VIEW_PIXELS)
-        .filter_map(|r| Some((r, r.rel_mean_diff?)))
-        .collect();
     let mut warnings = Vec::new();
-    for (i, (r, diff)) in compared.iter().enumerate() {
-        let others: Vec<f64> = compared
-            .iter()
-            .enumerate()
-            .filter(|&(j, _)| j != i)
-            .map(|(_, o)| o.1)
-            .collect();
-        if others.len() < 2 {
-            continue;
-        }
-        let Some(typical) = median(others) else {
-            continue;
-        };
+    for (r, diff, typical) in against_the_others(readings, MIN_VIEW_PIXELS) {
         let sigma = r.rel_mean_diff_sigma.unwrap_or(f64::INFINITY);
         if (diff - typical).abs() <= VIEW_AGREEMENT.max(VIEW_SIGMAS * sigma) {
             continue;
@@ -305,32 +288,38 @@ pub fn view_warnings(readings: &[ViewReading]) -> Vec<String> {
     warnings
 }
 
+/// Each view of at least `min_pixels` pure pixels with its mean residual and the median
+/// of the other such views' (where there are at least two others).
+fn against_the_others(readings: &[ViewReading], min_pixels: u32) -> Vec<(&ViewReading, f64, f64)> {
+    let compared: Vec<(&ViewReading, f64)> = readings
+        .iter()
+        .filter(|r| r.pure_pixels >= min_pixels)
+        .filter_map(|r| Some((r, r.rel_mean_diff?)))
+        .collect();
+    let others_of = |i: usize| -> Vec<f64> {
+        let others = compared.iter().enumerate().filter(|&(j, _)| j != i);
+        others.map(|(_, o)| o.1).collect()
+    };
+    (0..compared.len())
+        .filter_map(|i| {
+            let others = others_of(i);
+            if others.len() < 2 {
+                return None;
+            }
+            Some((compared[i].0, compared[i].1, median(others)?))
+        })
+        .collect()
+}
+
 /// A warning for each view of fewer than [`MIN_VIEW_PIXELS`] pure pixels whose panorama
 /// over the render lies more than [`VIEW_GROSS_FACTOR`] from the median of every other
 /// view's (at least two others).
 fn gross_view_warnings(readings: &[ViewReading]) -> Vec<String> {
-    let compared: Vec<(&ViewReading, f64)> = readings
-        .iter()
-        .filter(|r| r.pure_pixels > 0)
-        .filter_map(|r| Some((r, r.rel_mean_diff?)))
-        .collect();
     let mut warnings = Vec::new();
-    for (i, (r, diff)) in compared.iter().enumerate() {
+    for (r, diff, typical) in against_the_others(readings, 1) {
         if r.pure_pixels >= MIN_VIEW_PIXELS {
             continue;
         }
-        let others: Vec<f64> = compared
-            .iter()
-            .enumerate()
-            .filter(|&(j, _)| j != i)
-            .map(|(_, o)| o.1)
-            .collect();
-        if others.len() < 2 {
-            continue;
-        }
-        let Some(typical) = median(others) else {
-            continue;
-        };
         let factor = (1.0 + typical) / (1.0 + diff);
         if (1.0 / VIEW_GROSS_FACTOR..=VIEW_GROSS_FACTOR).contains(&factor) {
             continue;
