@@ -18,6 +18,7 @@ use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialDesc, MaterialsDesc, Model};
 use crate::parallel;
 use crate::scene_file::{self, SceneDesc, ViewDesc};
+use crate::text::counted;
 
 /// Sub-rays per pixel side used to decide that a pixel's whole footprint sees one group.
 pub const LABEL_RAYS_PER_SIDE: u32 = 4;
@@ -63,8 +64,8 @@ impl Sums {
             None
         } else {
             Some(format!(
-                "{what}: the reference (A) is 0 over its {} pure pixels: no difference relative to it",
-                self.pixels
+                "{what}: the reference (A) is 0 over its {}: no difference relative to it",
+                counted(self.pixels, "pure pixel")
             ))
         };
         let relative = |v: f64| if undefined.is_none() { v } else { f64::NAN };

@@ -9,6 +9,7 @@
 //! - [`assemble`]: descriptions to the core's buffers (an owned scene the core borrows).
 //! - [`parallel`]: fixed tiles, results combined in a fixed order.
 //! - [`render_cmd`], [`compare`], [`bench`](mod@bench): the subcommands; [`cli`] parses arguments.
+//! - [`text`]: wording shared by the messages a user reads.
 
 pub mod assemble;
 pub mod bench;
@@ -25,5 +26,6 @@ pub mod parallel;
 pub mod recover;
 pub mod render_cmd;
 pub mod scene_file;
+pub mod text;
 
 pub use error::Error;

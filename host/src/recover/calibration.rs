@@ -14,6 +14,7 @@ use serde::Serialize;
 
 use super::pixels::{LightPixel, PurePixel};
 use crate::images::Image;
+use crate::text::counted;
 
 /// The largest relative difference, in any channel, between a light's pixels and its
 /// declared radiance before recovery warns. The references' light pixels equal the
@@ -325,9 +326,9 @@ fn gross_view_warnings(readings: &[ViewReading]) -> Vec<String> {
             continue;
         }
         warnings.push(format!(
-            "view '{}': the recovered model renders its {} pure pixels {:.3e}x the panorama, where the other views' median is {:.3}x: its exposure or image may be off by about {factor:.3e}x (more than VIEW_GROSS_FACTOR {VIEW_GROSS_FACTOR} either way; with fewer than MIN_VIEW_PIXELS {MIN_VIEW_PIXELS} pure pixels only so gross a difference is told)",
+            "view '{}': the recovered model renders its {} {:.3e}x the panorama, where the other views' median is {:.3}x: its exposure or image may be off by about {factor:.3e}x (more than VIEW_GROSS_FACTOR {VIEW_GROSS_FACTOR} either way; with fewer than MIN_VIEW_PIXELS {MIN_VIEW_PIXELS} pure pixels only so gross a difference is told)",
             r.view,
-            r.pure_pixels,
+            counted(r.pure_pixels, "pure pixel"),
             1.0 + diff,
             1.0 + typical
         ));

@@ -13,6 +13,7 @@ use super::{
     POLISH_MIN_SAMPLES, POLISH_NEWTON_MAX_GROUPS, POLISH_RESPONSE_STEP, POLISH_SPP_FACTOR,
 };
 use crate::error::Error;
+use crate::text::counted;
 
 /// Runs stage 1 at `spp` samples per pixel, recording each group's error and verdict in
 /// `reports` (and a warning in `warnings` for a group unseen or barely seen). Returns the
@@ -117,18 +118,19 @@ pub(super) fn run(
                 // What the iteration comes to from any start: every step scales by 0.
                 rec.models[g] = GroupModel::Diffuse { color: [0.0; 3] };
                 r.decisions.push(format!(
-                    "diffuse, black: its {} pure pixels are 0 in the panorama though light reaches them (no relative error: nothing to compare with)",
-                    pure_pixels[g]
+                    "diffuse, black: its {} are 0 in the panorama though light reaches them (no relative error: nothing to compare with)",
+                    counted(pure_pixels[g], "pure pixel")
                 ));
                 warnings.push(format!(
-                    "group '{}': its {} pure pixels are 0 in the panorama, though light reaches them: recovered as black diffuse (is the panorama right there?)",
-                    names[g], pure_pixels[g]
+                    "group '{}': its {} are 0 in the panorama, though light reaches them: recovered as black diffuse (is the panorama right there?)",
+                    names[g],
+                    counted(pure_pixels[g], "pure pixel")
                 ));
             }
             DiffuseVerdict::BarelySeen => {
                 r.decisions.push(format!(
-                    "diffuse, barely seen: {} pure pixels < MIN_PIXELS_FOR_MODEL_CHOICE {}; no more complex model is tried",
-                    pure_pixels[g],
+                    "diffuse, barely seen: {} < MIN_PIXELS_FOR_MODEL_CHOICE {}; no more complex model is tried",
+                    counted(pure_pixels[g], "pure pixel"),
                     fit::MIN_PIXELS_FOR_MODEL_CHOICE
                 ));
                 // Its colour is fitted to the mean of what the pixels show, highlights
@@ -143,8 +145,9 @@ pub(super) fn run(
                     _ => String::new(),
                 };
                 warnings.push(format!(
-                    "group '{}': only {} pure pixels; kept diffuse{unexplained}",
-                    names[g], pure_pixels[g]
+                    "group '{}': only {}; kept diffuse{unexplained}",
+                    names[g],
+                    counted(pure_pixels[g], "pure pixel")
                 ));
             }
             DiffuseVerdict::Diffuse => {

@@ -22,6 +22,7 @@ use super::model::GroupModel;
 use super::report::Laps;
 use super::{texture, uncertainty, Budget, GroupReport, Recovery, StageReport};
 use crate::error::Error;
+use crate::text::counted;
 
 /// The stage's name in report.json.
 const STAGE: &str = "5 diffuse maps";
@@ -145,15 +146,15 @@ fn solve_map(
         None => format!("the {} stand-in's lobe", standin.name()),
     };
     report.decisions.push(format!(
-        "stage 5: {} map {}x{} from {} pure pixels and {} on its border (T = (I_real - I_specular) / E under {lobe}); {} shadow pixels left out, {} highlight pixels kept, {} texels unseen and filled from neighbours",
+        "stage 5: {} map {}x{} from {} and {} on its border (T = (I_real - I_specular) / E under {lobe}); {} left out, {} kept, {} unseen and filled from neighbours",
         rec.models[g].name(),
         summary.side,
         summary.side,
-        summary.pixels,
+        counted(summary.pixels as u64, "pure pixel"),
         summary.border_pixels,
-        summary.shadows,
-        summary.highlights,
-        summary.unseen_texels
+        counted(summary.shadows as u64, "shadow pixel"),
+        counted(summary.highlights as u64, "highlight pixel"),
+        counted(summary.unseen_texels as u64, "texel")
     ));
     // Two renders of the group (under the constant map and under a black one), and two
     // more under a refitted lobe.

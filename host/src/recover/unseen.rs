@@ -18,6 +18,7 @@ use relume_core::stages::diffuse;
 use super::model::GroupModel;
 use super::{min_samples_spp, pixels, GroupReport, Recovery, StageReport};
 use crate::error::Error;
+use crate::text::counted;
 
 /// The smallest share of a pixel's label rays on the unseen group for the pixel to
 /// measure it: the rest of the pixel is rendered under the known groups' materials, whose
@@ -81,8 +82,9 @@ pub(super) fn measure_stand_ins(
         let share: f64 = mixed[g].iter().map(|&(_, s)| s).sum();
         if shared.len() < MIN_PIXELS {
             reports[g].decisions.push(format!(
-                "stand-in: {} pixels see it over at least MIN_SHARE {MIN_SHARE} of their footprint beside known groups (< MIN_PIXELS {MIN_PIXELS}): rendered as [{:.3}, {:.3}, {:.3}]",
-                shared.len(),
+                "stand-in: {} {} it over at least MIN_SHARE {MIN_SHARE} of their footprint beside known groups (< MIN_PIXELS {MIN_PIXELS}): rendered as [{:.3}, {:.3}, {:.3}]",
+                counted(shared.len() as u64, "pixel"),
+                if shared.len() == 1 { "sees" } else { "see" },
                 stand_in[0],
                 stand_in[1],
                 stand_in[2]
