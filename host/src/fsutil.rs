@@ -135,7 +135,10 @@ impl OutputSet {
             stale: Vec::new(),
             inputs: inputs
                 .into_iter()
-                .filter_map(|(path, what)| Some((resolved(&path)?, what)))
+                .flat_map(|(path, what)| {
+                    let entries = entries_on_the_way(&path);
+                    entries.into_iter().map(move |entry| (entry, what.clone()))
+                })
                 .collect(),
         }
     }
@@ -291,6 +294,29 @@ fn resolved(path: &Path) -> Option<PathBuf> {
     std::fs::canonicalize(folder_of(path))
         .ok()
         .map(|d| d.join(name))
+}
+
+/// Every folder entry a read of `path` goes through, resolved as [`resolved`] does: the
+/// entry `path` names and, where that is a symbolic link, the entries it leads to, down to
+/// the file itself. A rename onto any of them would change what `path` reads; onto the
+/// last it removes the input's content (an image given by a link into the output folder
+/// was replaced by its re-render).
+fn entries_on_the_way(path: &Path) -> Vec<PathBuf> {
+    /// As the kernel's own limit on links followed in one lookup.
+    const MAX_LINKS: usize = 40;
+    let mut entries = Vec::new();
+    let mut next = resolved(path);
+    while let Some(entry) = next.take() {
+        let link = std::fs::symlink_metadata(&entry).is_ok_and(|m| m.file_type().is_symlink());
+        if link && entries.len() < MAX_LINKS {
+            // A relative target is relative to the link's folder.
+            next = std::fs::read_link(&entry)
+                .ok()
+                .and_then(|target| resolved(&folder_of(&entry).join(target)));
+        }
+        entries.push(entry);
+    }
+    entries
 }
 
 /// Whether `a` and `b` name the same file by any spelling (links, `..`): the file itself
@@ -501,6 +527,35 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(leftovers.len(), 2, "{leftovers:?}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_set_refuses_to_replace_an_input_it_reaches_through_links() {
+        use std::os::unix::fs::symlink;
+        let dir = tempfile::tempdir().unwrap();
+        let (views, out) = (dir.path().join("views"), dir.path().join("out"));
+        std::fs::create_dir(&views).unwrap();
+        std::fs::create_dir(&out).unwrap();
+        // views/px.exr -> ../out/link.exr -> px.exr (out/px.exr, the file itself).
+        let file = out.join("px.exr");
+        std::fs::write(&file, b"panorama").unwrap();
+        symlink("px.exr", out.join("link.exr")).unwrap();
+        symlink("../out/link.exr", views.join("px.exr")).unwrap();
+        let input = views.join("px.exr");
+        let set = OutputSet::keeping(vec![(input.clone(), "view 'px''s image".into())]);
+        for target in [&file, &out.join("link.exr"), &input] {
+            let e = set.check_target(target).unwrap_err().to_string();
+            assert!(e.contains("would replace view 'px''s image"), "{e}");
+        }
+        set.check_target(&out.join("nx.exr")).unwrap();
+        // A link to the file as an output replaces the link, not the file: allowed, and
+        // the input keeps its content.
+        let mut beside = OutputSet::keeping(vec![(input.clone(), "view 'px''s image".into())]);
+        symlink("px.exr", out.join("other.exr")).unwrap();
+        beside.add(&out.join("other.exr"), b"render").unwrap();
+        beside.commit().unwrap();
+        assert_eq!(std::fs::read(&input).unwrap(), b"panorama");
     }
 
     #[test]
