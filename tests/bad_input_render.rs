@@ -265,16 +265,34 @@ fn a_folder_given_as_a_text_input_is_named_as_a_folder() {
 }
 
 /// A view's image that is a folder was the system's "Is a directory (os error 21)" with
-/// exit 4 in `recover` and `bench downsample`: now bad input naming it as a folder.
+/// exit 4 in `recover` and `bench downsample`, and a missing one "No such file or
+/// directory" with exit 4 and no line: now both are bad input at the view's `image` line,
+/// as a missing OBJ is at its `geometry` line.
 #[test]
-fn a_view_image_that_is_a_folder_is_named_as_a_folder() {
+fn a_view_image_that_is_missing_or_a_folder_is_named_at_its_line() {
     let case = Case::new();
-    std::fs::remove_file(case.path("views/px.exr")).unwrap();
-    std::fs::create_dir(case.path("views/px.exr")).unwrap();
     let recover = ["recover", "scene.toml", "--out", "out"];
+    std::fs::remove_file(case.path("views/px.exr")).unwrap();
     for args in [&recover[..], &DOWNSAMPLE[..]] {
-        case.fails(args, INPUT, &["views/px.exr: is a folder, not an image"]);
+        case.fails(
+            args,
+            INPUT,
+            &[
+                "scene.toml:8:",
+                "view 'px': image ",
+                "px.exr does not exist",
+            ],
+        );
     }
+    std::fs::create_dir(case.path("views/px.exr")).unwrap();
+    for args in [&recover[..], &DOWNSAMPLE[..]] {
+        case.fails(
+            args,
+            INPUT,
+            &["scene.toml:8:", "px.exr is a folder, not an image"],
+        );
+    }
+    assert!(!case.path("out").exists());
 }
 
 /// Errors about a view found after the scene is read (a size the downsampling factor does

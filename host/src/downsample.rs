@@ -164,15 +164,11 @@ pub fn write_derived_scene(
     // The views' paths as the derived scene gives them: absolute, in a folder that exists.
     let views_dir_absolute =
         std::fs::canonicalize(&views_dir).map_err(|e| Error::io(&views_dir, e))?;
-    for (vi, v) in desc.views.iter_mut().enumerate() {
-        let Some(path) = v.image.clone() else {
-            return Err(scene_file::view_error(
-                scene,
-                vi,
-                ViewKey::Image,
-                format!("view '{}' has no image to {doing}", v.name),
-            ));
-        };
+    for vi in 0..desc.views.len() {
+        let path = desc
+            .view_image(vi, &format!("nothing to {doing}"))?
+            .to_path_buf();
+        let v = &mut desc.views[vi];
         if !(v.size[0].is_multiple_of(factor) && v.size[1].is_multiple_of(factor)) {
             return Err(scene_file::view_error(
                 scene,

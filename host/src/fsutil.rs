@@ -360,15 +360,33 @@ impl Drop for OutputSet {
     }
 }
 
+/// Reads an input file whole. A folder in its place is bad input (a path that names the
+/// wrong thing): the system's "Is a directory (os error 21)" reads as a fault of the
+/// machine. A missing file stays an I/O error naming it.
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>, Error> {
+    if path.is_dir() {
+        return Err(Error::input(path, "is a folder, not a file"));
+    }
+    std::fs::read(path).map_err(|e| Error::io(path, e))
+}
+
+/// Why `path`, which an input file names as `a_what` ("an image"), is no file to read, or
+/// `None` when it is one. Said at the line that names it.
+pub fn not_a_file(path: &Path, a_what: &str) -> Option<String> {
+    let why = match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => return None,
+        Ok(m) if m.is_dir() => format!("is a folder, not {a_what}"),
+        Ok(_) => format!("is not a regular file (a device, pipe or socket), not {a_what}"),
+        Err(_) => "does not exist".to_string(),
+    };
+    Some(format!("{} {why}", path.display()))
+}
+
 /// Reads a text input (OBJ, TOML, JSON): UTF-8, with a leading byte order mark dropped (an
 /// editor's, invisible in an error message). Bytes that are not UTF-8 are an error at
 /// their line and byte.
 pub fn read_text(path: &Path) -> Result<String, Error> {
-    if path.is_dir() {
-        // The system's "Is a directory (os error 21)" reads as a fault of the machine.
-        return Err(Error::input(path, "is a folder, not a file"));
-    }
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = read_bytes(path)?;
     match String::from_utf8(bytes) {
         Ok(text) => Ok(match text.strip_prefix('\u{feff}') {
             Some(rest) => rest.to_string(),

@@ -34,6 +34,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::error::Error;
+use crate::fsutil;
 use crate::scene_file::TomlFile;
 
 /// The reflectance model of a group.
@@ -456,15 +457,10 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
             return Err(file.at(m.span(k).unwrap_or(header), msg));
         }
         if let (Some(p), Some(s)) = (&desc.diffuse_map, &m.diffuse_map) {
-            if !p.is_file() {
-                let what = if p.is_dir() {
-                    "is a folder, not an image"
-                } else {
-                    "does not exist"
-                };
+            if let Some(why) = fsutil::not_a_file(p, "an image") {
                 return Err(file.at(
                     s.span(),
-                    format!("group '{}': diffuse_map {} {what}", desc.group, p.display()),
+                    format!("group '{}': diffuse_map {why}", desc.group),
                 ));
             }
         }
@@ -967,6 +963,22 @@ mod tests {
             &text,
             line_of(&text, "diffuse_map"),
             &["group 'g'", "diffuse_map", "none.exr does not exist"],
+        );
+    }
+
+    /// A device exists but is no image: said so, not "does not exist".
+    #[cfg(unix)]
+    #[test]
+    fn a_diffuse_map_that_is_a_device_is_named_as_such() {
+        let text = file_text(
+            Model::TexturedIsotropic,
+            &body(Model::TexturedIsotropic, None, None),
+        )
+        .replace("tex.exr", "/dev/null");
+        bad(
+            &text,
+            line_of(&text, "diffuse_map"),
+            &["diffuse_map /dev/null is not a regular file"],
         );
     }
 

@@ -24,6 +24,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::error::Error;
+use crate::fsutil;
 use crate::obj::ObjObject;
 
 pub use toml_src::TomlFile;
@@ -114,6 +115,30 @@ impl SceneDesc {
         );
         files
     }
+
+    /// View `v`'s image, for a command that reads it (`needed`: why it needs one, said
+    /// when the view has none). An image that is missing or no file is bad input at its
+    /// `image` line, as a missing OBJ is at its `geometry` line.
+    pub fn view_image(&self, v: usize, needed: &str) -> Result<&Path, Error> {
+        let view = &self.views[v];
+        let Some(image) = &view.image else {
+            return Err(view_error(
+                &self.path,
+                v,
+                ViewKey::Image,
+                format!("view '{}' has no image: {needed}", view.name),
+            ));
+        };
+        match fsutil::not_a_file(image, "an image") {
+            Some(why) => Err(view_error(
+                &self.path,
+                v,
+                ViewKey::Image,
+                format!("view '{}': image {why}", view.name),
+            )),
+            None => Ok(image),
+        }
+    }
 }
 
 #[derive(Deserialize)]
@@ -177,13 +202,8 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
     let mut canonical: Vec<PathBuf> = Vec::new();
     for g in raw.geometry.get_ref() {
         let p = file.resolve(&file.name(g, "geometry file")?);
-        if !p.is_file() {
-            let what = if p.is_dir() {
-                "is a folder, not an OBJ file"
-            } else {
-                "does not exist"
-            };
-            return Err(file.at(g.span(), format!("geometry file {} {what}", p.display())));
+        if let Some(why) = fsutil::not_a_file(&p, "an OBJ file") {
+            return Err(file.at(g.span(), format!("geometry file {why}")));
         }
         let c = std::fs::canonicalize(&p).unwrap_or_else(|_| p.clone());
         if canonical.contains(&c) {

@@ -283,19 +283,8 @@ fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
             let files: Vec<MaterialsDesc> = files.iter().cloned().chain(added.clone()).collect();
             assemble::load_and_assemble(scene, MaterialSource::Files(&files))?;
         }
-        for (vi, v) in desc.views.iter().enumerate() {
-            let Some(image) = &v.image else {
-                return Err(scene_file::view_error(
-                    scene,
-                    vi,
-                    scene_file::ViewKey::Image,
-                    format!(
-                        "view '{}' names no image: an edit's views are its reference",
-                        v.name
-                    ),
-                ));
-            };
-            std::fs::metadata(image).map_err(|e| Error::io(image, e))?;
+        for vi in 0..desc.views.len() {
+            desc.view_image(vi, "an edit's views are its reference")?;
         }
         let name = edit_name(scene);
         for arm in ["recovered", "truth"] {

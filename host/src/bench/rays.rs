@@ -2,7 +2,6 @@
 //! with its hits checked against a reference tracer's. Figures are Mrays/s of closest-hit
 //! queries, best of several runs after a warm-up, on one thread and on all threads.
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -71,14 +70,6 @@ pub struct BenchRaysResult {
     pub agreement: Option<(usize, usize)>,
 }
 
-fn read_all(path: &Path) -> Result<Vec<u8>, Error> {
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_to_end(&mut bytes))
-        .map_err(|e| Error::io(path, e))?;
-    Ok(bytes)
-}
-
 /// The `u64` count at the start of a file and the records after it, checking the size.
 fn records<'a>(path: &Path, bytes: &'a [u8], record: usize) -> Result<(usize, &'a [u8]), Error> {
     let Some((head, body)) = bytes.split_first_chunk::<8>() else {
@@ -107,7 +98,7 @@ fn f32_at(b: &[u8], i: usize) -> f32 {
 
 /// Reads a ray file: `u64 count`, then `count x (ox oy oz dx dy dz)` as f32.
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>, Error> {
-    let bytes = read_all(path)?;
+    let bytes = fsutil::read_bytes(path)?;
     let (count, body) = records(path, &bytes, 24)?;
     let mut rays = Vec::with_capacity(count);
     for (i, r) in body.chunks_exact(24).enumerate() {
@@ -144,7 +135,7 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>, Error> {
 /// that is neither is an error naming it: compared as it stands it would only count as a
 /// disagreement, and a corrupted reference would pass for a tracer's mistake.
 pub fn read_hits(path: &Path) -> Result<Vec<FileHit>, Error> {
-    let bytes = read_all(path)?;
+    let bytes = fsutil::read_bytes(path)?;
     let (_, body) = records(path, &bytes, 8)?;
     body.chunks_exact(8)
         .enumerate()
@@ -411,6 +402,10 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("missing.rays"), "{e}");
+        // A folder where the file goes is bad input (exit 3), as for every input.
+        let e = read_rays(dir.path()).unwrap_err();
+        assert_eq!(e.exit_code(), 3, "{e}");
+        assert!(e.to_string().contains("is a folder, not a file"), "{e}");
     }
 
     #[test]

@@ -61,7 +61,7 @@ use crate::assemble::{self, MaterialSource, OwnedScene};
 use crate::error::Error;
 use crate::images::{self, Image};
 use crate::parallel;
-use crate::scene_file::{self, GroupKind};
+use crate::scene_file::GroupKind;
 pub use model::GroupModel;
 pub use output::{output_files, UNSEEN_TOML};
 use pixels::PurePixel;
@@ -695,14 +695,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let (desc, objects) = assemble::load_scene(&args.scene)?;
     let mut real = Vec::with_capacity(desc.views.len());
     for (vi, v) in desc.views.iter().enumerate() {
-        let Some(path) = &v.image else {
-            return Err(scene_file::view_error(
-                &desc.path,
-                vi,
-                scene_file::ViewKey::Image,
-                format!("view '{}' has no image: recover needs the panorama", v.name),
-            ));
-        };
+        let path = desc.view_image(vi, "recover needs the panorama")?;
         real.push(images::read_view_image(path, v.exposure, v.size)?);
     }
     let inputs = desc.input_files();
