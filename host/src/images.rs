@@ -14,7 +14,7 @@ use std::io::{BufRead, BufReader, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use image::error::{DecodingError, ImageFormatHint};
-use image::{DynamicImage, ImageError, ImageFormat, ImageReader};
+use image::{DynamicImage, ImageDecoder, ImageError, ImageFormat, ImageReader};
 use relume_core::math;
 
 use crate::error::Error;
@@ -38,6 +38,17 @@ const CHANNELS: [&str; 3] = ["R", "G", "B"];
 
 /// Reads an image as linear radiance times `exposure`.
 pub fn read_image(path: &Path, exposure: f32) -> Result<Image, Error> {
+    read_image_sized(path, exposure, |_, _| Ok(()))
+}
+
+/// [`read_image`], with `size_fits(width, height)` asked from the file's header before its
+/// pixels are decoded: a 16384x16384 map given where a small one fits took 6 GB and 24 s
+/// to decode before its size was refused.
+pub fn read_image_sized(
+    path: &Path,
+    exposure: f32,
+    size_fits: impl FnOnce(u32, u32) -> Result<(), Error>,
+) -> Result<Image, Error> {
     if !(exposure.is_finite() && exposure > 0.0) {
         return Err(Error::input(
             path,
@@ -93,18 +104,20 @@ pub fn read_image(path: &Path, exposure: f32) -> Result<Image, Error> {
     reader
         .seek(SeekFrom::Start(0))
         .map_err(|e| Error::io(path, e))?;
-    let mut decoder = ImageReader::with_format(reader, format);
+    let mut reader = ImageReader::with_format(reader, format);
     // The image crate's default 512 MiB cap refused a float view past about 6500x6500,
     // which `render` writes; the size a view may have is the scene's to bound.
-    decoder.no_limits();
-    let decoded = decoder.decode().map_err(unreadable)?;
-    let (width, height) = (decoded.width(), decoded.height());
+    reader.no_limits();
+    let decoder = reader.into_decoder().map_err(unreadable)?;
+    let (width, height) = decoder.dimensions();
     if width == 0 || height == 0 {
         return Err(Error::input(
             path,
             format!("image is empty ({width}x{height})"),
         ));
     }
+    size_fits(width, height)?;
+    let decoded = DynamicImage::from_decoder(decoder).map_err(unreadable)?;
     reject_transparent(path, &decoded)?;
     let pixels = match format {
         ImageFormat::Png => png_to_linear(decoded),
@@ -362,16 +375,18 @@ fn reject_transparent(path: &Path, decoded: &DynamicImage) -> Result<(), Error> 
 
 /// [`read_image`], and the size must be the view's `[width, height]`.
 pub fn read_view_image(path: &Path, exposure: f32, expected: [u32; 2]) -> Result<Image, Error> {
-    let image = read_image(path, exposure)?;
-    if [image.width, image.height] != expected {
-        return Err(Error::input(
+    let image = read_image_sized(path, exposure, |width, height| {
+        if [width, height] == expected {
+            return Ok(());
+        }
+        Err(Error::input(
             path,
             format!(
-                "image is {}x{} but the view says {}x{}",
-                image.width, image.height, expected[0], expected[1]
+                "image is {width}x{height} but the view says {}x{}",
+                expected[0], expected[1]
             ),
-        ));
-    }
+        ))
+    })?;
     reject_value(
         path,
         &image,
@@ -915,6 +930,16 @@ mod tests {
             e.contains("v.exr") && e.contains("is 4x2 but the view says 256x256"),
             "{e}"
         );
+        // The size is refused from the header, before the pixels are decoded: a file
+        // whose pixels are cut short is refused for its size, not as truncated.
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() - 16]).unwrap();
+        let e = read_view_image(&p, 1.0, [4, 2]).unwrap_err().to_string();
+        assert!(e.contains("truncated"), "{e}");
+        let e = read_view_image(&p, 1.0, [256, 256])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("is 4x2 but the view says 256x256"), "{e}");
     }
 
     #[test]
