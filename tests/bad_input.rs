@@ -1096,8 +1096,9 @@ fn uncertainty_of_a_file_that_is_not_a_report() {
     );
 }
 
-/// A report whose groups, parameters or sigmas a recovery never writes would be judged
-/// wrongly (a sigma of -1 gave a z of its own sign; an unknown group was dropped).
+/// A report whose groups, models, parameters, values or sigmas a recovery never writes
+/// would be judged wrongly (a sigma of -1 gave a z of its own sign; an unknown group or
+/// model was dropped; a parameter given twice counted twice, as did a copy of the report).
 #[test]
 fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
     let case = Case::new();
@@ -1126,6 +1127,34 @@ fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
             ),
             "group 'floor' appears twice",
         ),
+        // Values no recovery writes, each accepted in silence before.
+        (
+            group("floor", "color_r", "0.01").replace("diffuse", "glass"),
+            "unknown model 'glass'",
+        ),
+        (
+            r#"{"group": "floor", "model": "diffuse"}"#.to_string(),
+            "missing field `uncertainty`",
+        ),
+        (
+            group("floor", "roughness", "0.01"),
+            "model 'diffuse' has no parameter 'roughness'",
+        ),
+        (
+            group("floor", "color_r", "0.01").replace(
+                "}]",
+                r#"}, {"parameter": "color_r", "value": 0.9, "sigma": 0.01}]"#,
+            ),
+            "parameter 'color_r' is given twice",
+        ),
+        (
+            group("floor", "color_r", "0.01").replace("0.5", "-0.5"),
+            "value -0.5 and sigma 0.01: a value in [0, 1]",
+        ),
+        (
+            group("floor", "color_r", "0.01").replace("0.5", "1e300"),
+            "a value in [0, 1]",
+        ),
     ] {
         std::fs::write(&report, format!("{{\"groups\": [{groups}]}}")).unwrap();
         let (code, stderr) = compare_uncertainty(&case, &report);
@@ -1143,6 +1172,25 @@ fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
     .unwrap();
     let (code, stderr) = compare_uncertainty(&case, &report);
     assert_eq!(code, Some(0), "{stderr}");
+    // A copy of it under another name would be pooled as a second run.
+    let copy = case.path("copy.json");
+    std::fs::copy(&report, &copy).unwrap();
+    let out = relume(
+        case.dir.path(),
+        &[
+            "compare",
+            "uncertainty",
+            "m.toml",
+            "report.json",
+            "copy.json",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("copy.json: holds the same bytes as report.json"),
+        "{stderr}"
+    );
 }
 
 /// Runs a render of `case` at a million samples per pixel, sends it SIGINT once relume

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::Error;
 use crate::fsutil;
-use crate::materials_file::{self, MaterialDesc};
+use crate::materials_file::{self, MaterialDesc, Model};
 
 /// The part of report.json this reads.
 #[derive(Deserialize)]
@@ -20,7 +20,6 @@ struct Report {
 struct ReportGroup {
     group: String,
     model: String,
-    #[serde(default)]
     uncertainty: Vec<Parameter>,
 }
 
@@ -45,16 +44,55 @@ pub struct CoverageRow {
     pub z: f64,
 }
 
-/// The parameters report.json gives uncertainties for.
-const PARAMETERS: [&str; 7] = [
-    "color_r",
-    "color_g",
-    "color_b",
-    "specularity",
-    "roughness",
-    "roughness_u",
-    "roughness_v",
+/// The parameters report.json gives uncertainties for, each with the materials.toml key
+/// it is part of.
+const PARAMETERS: [(&str, &str); 7] = [
+    ("color_r", "color"),
+    ("color_g", "color"),
+    ("color_b", "color"),
+    ("specularity", "specularity"),
+    ("roughness", "roughness"),
+    ("roughness_u", "roughness_u"),
+    ("roughness_v", "roughness_v"),
 ];
+
+/// What report.json calls a group whose material was not recovered (no parameters).
+const UNSEEN: &str = "unseen";
+
+/// Why a reported parameter cannot be a recovery's (a report edited by hand, or another
+/// tool's), or `None`: a parameter of the group's model, given once, with a finite value
+/// in the range materials.toml allows (roughnesses in (0, 1], the rest in [0, 1]) and a
+/// finite sigma >= 0.
+fn implausible(model: Option<Model>, p: &Parameter, earlier: &[Parameter]) -> Option<String> {
+    let Some(&(_, key)) = PARAMETERS.iter().find(|(name, _)| *name == p.parameter) else {
+        let names: Vec<&str> = PARAMETERS.iter().map(|(name, _)| *name).collect();
+        return Some(format!(
+            "unknown parameter '{}' (expected one of {})",
+            p.parameter,
+            names.join(", ")
+        ));
+    };
+    let model_name = model.map_or(UNSEEN, Model::name);
+    if !model.is_some_and(|m| m.requires(key)) {
+        return Some(format!(
+            "model '{model_name}' has no parameter '{}'",
+            p.parameter
+        ));
+    }
+    if earlier.iter().any(|e| e.parameter == p.parameter) {
+        return Some(format!("parameter '{}' is given twice", p.parameter));
+    }
+    let lowest_open = key.starts_with("roughness");
+    let in_range = (0.0..=1.0).contains(&p.value) && !(lowest_open && p.value == 0.0);
+    if !in_range || !p.sigma.is_finite() || p.sigma < 0.0 {
+        let range = if lowest_open { "(0, 1]" } else { "[0, 1]" };
+        return Some(format!(
+            "parameter '{}' has value {} and sigma {}: a value in {range} and a finite sigma >= 0 are expected",
+            p.parameter, p.value, p.sigma
+        ));
+    }
+    None
+}
 
 /// The truth's value of a parameter named as in report.json.
 fn true_value(m: &MaterialDesc, parameter: &str) -> Option<f64> {
@@ -104,26 +142,22 @@ pub fn coverage_rows(truth: &Path, report: &Path) -> Result<Vec<CoverageRow>, Er
         let Some(tm) = by_group.get(g.group.as_str()) else {
             continue; // not reached: every group is in the truth (checked above)
         };
-        for p in &g.uncertainty {
-            if !p.sigma.is_finite() || p.sigma < 0.0 || !p.value.is_finite() {
-                return Err(Error::input(
-                    report,
-                    format!(
-                        "group '{}': parameter '{}' has value {} and sigma {}: a value and a sigma >= 0, both finite, are expected",
-                        g.group, p.parameter, p.value, p.sigma
-                    ),
-                ));
-            }
-            if !PARAMETERS.contains(&p.parameter.as_str()) {
-                return Err(Error::input(
-                    report,
-                    format!(
-                        "group '{}': unknown parameter '{}' (expected one of {})",
-                        g.group,
-                        p.parameter,
-                        PARAMETERS.join(", ")
-                    ),
-                ));
+        let model = Model::from_name(&g.model);
+        if model.is_none() && g.model != UNSEEN {
+            let names: Vec<&str> = Model::ALL.iter().map(|m| m.name()).collect();
+            return Err(Error::input(
+                report,
+                format!(
+                    "group '{}': unknown model '{}' (expected {} or {UNSEEN})",
+                    g.group,
+                    g.model,
+                    names.join(", ")
+                ),
+            ));
+        }
+        for (i, p) in g.uncertainty.iter().enumerate() {
+            if let Some(why) = implausible(model, p, &g.uncertainty[..i]) {
+                return Err(Error::input(report, format!("group '{}': {why}", g.group)));
             }
         }
         if tm.model.name() != g.model {
@@ -194,6 +228,22 @@ pub fn compare_uncertainty(
     reports: &[PathBuf],
     json: Option<&Path>,
 ) -> Result<(), Error> {
+    // A copy under another name would count each parameter twice in the pooled
+    // fractions (no two runs write the same bytes: the report holds their times).
+    let mut texts: Vec<(&PathBuf, Vec<u8>)> = Vec::new();
+    for report in reports {
+        let bytes = fsutil::read_bytes(report)?;
+        if let Some((first, _)) = texts.iter().find(|(_, b)| *b == bytes) {
+            return Err(Error::input(
+                report,
+                format!(
+                    "holds the same bytes as {}: a copy of one report would count each parameter twice",
+                    first.display()
+                ),
+            ));
+        }
+        texts.push((report, bytes));
+    }
     let mut rows = Vec::new();
     for report in reports {
         rows.extend(coverage_rows(truth, report)?);

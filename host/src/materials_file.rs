@@ -77,6 +77,14 @@ impl Model {
         Model::ALL.into_iter().find(|m| m.name() == s)
     }
 
+    /// Whether a material of this model must give `key` (a materials.toml key, "color",
+    /// "roughness_u", ...): the parameters it has.
+    pub fn requires(self, key: &str) -> bool {
+        KEYS.iter()
+            .position(|k| *k == key)
+            .is_some_and(|i| self.rules()[i] == Rule::Required)
+    }
+
     /// Whether the model has a specular lobe, whose colour the kind decides.
     pub fn has_lobe(self) -> bool {
         matches!(
