@@ -616,6 +616,17 @@ pub mod toml_src {
         format: Option<Spanned<toml::Value>>,
     }
 
+    /// The name of a table header line, `[name]` (not a list's `[[name]]`).
+    fn table_header(line: &str) -> Option<&str> {
+        let inner = line.strip_prefix('[').filter(|t| !t.starts_with('['))?;
+        Some(inner.split(']').next()?.trim())
+    }
+
+    /// The name of a list entry's header line, `[[name]]`.
+    fn list_header(line: &str) -> Option<&str> {
+        Some(line.strip_prefix("[[")?.split("]]").next()?.trim())
+    }
+
     impl TomlFile {
         /// Reads the file (an I/O error names it).
         pub fn read(path: &Path) -> Result<TomlFile, Error> {
@@ -666,34 +677,50 @@ pub mod toml_src {
                 .replace("expected f64", "expected a number")
                 .replace("expected i64", "expected an integer");
             match e.span() {
-                Some(span) => {
-                    let hint = self.duplicate_hint(&message, span.clone());
-                    self.at(span, message + &hint)
-                }
+                Some(span) => self.with_hint(message, span),
                 None => Error::input(&self.path, message),
             }
         }
 
-        /// What the toml crate's bare "duplicate key" means at `span`: a table header
-        /// `[view]` written twice where a list `[[view]]` was meant, or a key given twice.
-        fn duplicate_hint(&self, message: &str, span: Range<usize>) -> String {
-            if !message.contains("duplicate key") {
-                return String::new();
-            }
+        /// The toml crate's error at `span`, with what it means where a table header
+        /// `[view]` was written for a list's `[[view]]`: a "duplicate key" at the second
+        /// `[view]` or at a `[[view]]` after it (then said at the `[view]`), an "invalid
+        /// type: map" at a lone one. A bare "duplicate key" is a key given twice.
+        fn with_hint(&self, message: String, span: Range<usize>) -> Error {
             let line = self.line_of(span.start);
-            let text = self.text.lines().nth(line - 1).unwrap_or("").trim();
-            if let Some(name) = text
-                .strip_prefix('[')
-                .filter(|t| !t.starts_with('['))
-                .and_then(|t| t.split(']').next())
-            {
-                let name = name.trim();
-                return format!(": a table [{name}] may appear once; each entry of a list is written [[{name}]]");
+            let text = |line: usize| self.text.lines().nth(line - 1).unwrap_or("").trim();
+            let list_entry = |name: &str| format!("each entry of a list is written [[{name}]]");
+            let duplicate = message.contains("duplicate key");
+            if let Some(name) = table_header(text(line)) {
+                let hint = if duplicate {
+                    format!(": a table [{name}] may appear once; {}", list_entry(name))
+                } else if message.contains("invalid type: map, expected a sequence") {
+                    format!(
+                        ": [{name}] is a table, where a list is expected; {}",
+                        list_entry(name)
+                    )
+                } else {
+                    String::new()
+                };
+                return self.at(span, message + &hint);
             }
-            match text.split('=').next().map(str::trim) {
-                Some(key) if !key.is_empty() => format!(": `{key}` is given twice"),
+            if let Some(name) = list_header(text(line)).filter(|_| duplicate) {
+                if let Some(table) = (1..line).find(|&l| table_header(text(l)) == Some(name)) {
+                    return Error::at_line(
+                        &self.path,
+                        table,
+                        format!(
+                            "[{name}] is a table, but [[{name}]] at line {line} makes a list; {}",
+                            list_entry(name)
+                        ),
+                    );
+                }
+            }
+            let hint = match text(line).split('=').next().map(str::trim) {
+                Some(key) if duplicate && !key.is_empty() => format!(": `{key}` is given twice"),
                 _ => String::new(),
-            }
+            };
+            self.at(span, message + &hint)
         }
 
         /// `format` must be present and be the integer 1; checked before anything else so a
@@ -965,6 +992,20 @@ objects = ["quad"]
                 "duplicate key",
                 "a table [view] may appear once; each entry of a list is written [[view]]",
             ],
+        );
+        // A lone [view], and a [light] before a [[light]]: the toml crate's errors were
+        // "invalid type: map, expected a sequence", and "duplicate key" at the [[light]].
+        bad(
+            "[[view]]",
+            "[view]",
+            6,
+            &["[view] is a table, where a list is expected; each entry of a list is written [[view]]"],
+        );
+        bad(
+            "[[light]]",
+            "[light]\nobject = \"lamp\"\nradiance = [5.0, 5.0, 5.0]\n\n[[light]]",
+            16,
+            &["[light] is a table, but [[light]] at line 20 makes a list; each entry of a list is written [[light]]"],
         );
     }
 
