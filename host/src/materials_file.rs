@@ -21,7 +21,8 @@
 //!
 //! Ranges: colour components and specularity in [0, 1]; roughness, roughness_u and roughness_v
 //! in (0, 1] (reflectance.md keeps Ward's model to (0, 0.3]; larger values are accepted so
-//! that a recovery can report them, the core checks what it renders); direction_u is
+//! that a recovery can report them, the core checks what it renders, and `render` warns of
+//! them); direction_u is
 //! finite and not zero. A diffuse map must exist (relative to the file's folder) and be a
 //! file, not a folder. Each group has at most one material per file.
 
@@ -165,7 +166,35 @@ pub struct MaterialsDesc {
     pub materials: Vec<MaterialDesc>,
 }
 
+/// The largest roughness for which reflectance.md keeps Ward's model: past it the
+/// model's normalisation no longer holds (its lobe can reflect more than it receives).
+/// Larger values are read, with a warning from `render`.
+pub const WARD_MAX_ROUGHNESS: f32 = 0.3;
+
 impl MaterialsDesc {
+    /// A warning for each roughness past [`WARD_MAX_ROUGHNESS`], naming its line.
+    pub fn roughness_warnings(&self) -> Vec<String> {
+        let mut warnings = Vec::new();
+        for m in &self.materials {
+            let given = [
+                ("roughness", m.roughness),
+                ("roughness_u", m.roughness_u),
+                ("roughness_v", m.roughness_v),
+            ];
+            for (key, value) in given {
+                if let Some(r) = value.filter(|&r| r > WARD_MAX_ROUGHNESS) {
+                    warnings.push(format!(
+                        "{}:{}: group '{}': {key} {r} is above {WARD_MAX_ROUGHNESS}, where reflectance.md keeps Ward's model (past it the lobe's normalisation no longer holds); rendered as given",
+                        self.path.display(),
+                        m.line,
+                        m.group
+                    ));
+                }
+            }
+        }
+        warnings
+    }
+
     /// The files these materials read (path, and what it is): the materials file and its
     /// diffuse maps. No output of a run may replace them (`OutputSet::keeping`).
     pub fn input_files(&self) -> Vec<(PathBuf, String)> {
@@ -1002,6 +1031,27 @@ mod tests {
 
     fn desc(group: &str, model: Model) -> MaterialDesc {
         MaterialDesc::new(group, model)
+    }
+
+    #[test]
+    fn a_roughness_past_wards_range_is_read_with_a_warning_naming_its_line() {
+        let lobe = |roughness_v: &str| {
+            let body = body(Model::Anisotropic, None, None)
+                .replace("roughness_v = 0.2", &format!("roughness_v = {roughness_v}"));
+            file_text(Model::Anisotropic, &body)
+        };
+        let (_dir, path) = write(&lobe("0.3"));
+        assert!(load_materials(&path)
+            .unwrap()
+            .roughness_warnings()
+            .is_empty());
+        let (_dir, path) = write(&lobe("0.5"));
+        let warnings = load_materials(&path).unwrap().roughness_warnings();
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].contains("m.toml:3: group 'g': roughness_v 0.5 is above 0.3"),
+            "{warnings:?}"
+        );
     }
 
     #[test]

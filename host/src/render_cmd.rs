@@ -144,6 +144,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     }
     progress.finish_and_clear();
     let mut warnings = fallbacks;
+    warnings.extend(files.iter().flat_map(|f| f.roughness_warnings()));
     // A file that gives no material changes nothing: most likely the wrong file was given.
     warnings.extend(
         args.materials
