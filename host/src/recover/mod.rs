@@ -27,6 +27,7 @@ mod calibration;
 mod kind;
 mod ladder;
 mod model;
+mod orientation;
 mod output;
 mod pattern;
 mod pixels;
@@ -744,6 +745,8 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &light_readings,
         &owned.light_radiance,
     ));
+    let orientation_readings = orientation::read_orientations(&pure, &real, &view_names);
+    warnings.extend(orientation::orientation_warnings(&orientation_readings));
     let pure = match &args.limit_group_pixels {
         Some((name, limit)) => {
             let Some(g) = names.iter().position(|n| n == name) else {
@@ -986,10 +989,15 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "VIEW_AGREEMENT": calibration::VIEW_AGREEMENT,
             "VIEW_SIGMAS": calibration::VIEW_SIGMAS,
             "MIN_VIEW_PIXELS": calibration::MIN_VIEW_PIXELS,
+            "ORIENTATION_MARGIN": orientation::ORIENTATION_MARGIN,
+            "PAIR_STEP": orientation::PAIR_STEP,
+            "EDGE_QUANTILE": orientation::EDGE_QUANTILE,
+            "MIN_BOUNDARY_PAIRS": orientation::MIN_BOUNDARY_PAIRS,
         }),
         panorama_noise_bound: noise_bound,
         light_readings,
         view_readings,
+        orientation_readings,
         stages,
         groups: reports,
         warnings,

@@ -307,6 +307,9 @@ pub struct RecoverReport {
     /// The final render against the panorama over each view's pure pixels: a view whose
     /// residual lies apart from the others' may have its exposure off.
     pub view_readings: Vec<super::calibration::ViewReading>,
+    /// Each view's image against the geometry's groups, as it is and in the other
+    /// orientation that fits best: a view in another cube-face convention.
+    pub orientation_readings: Vec<super::orientation::OrientationReading>,
     pub stages: Vec<StageReport>,
     pub groups: Vec<GroupReport>,
     pub warnings: Vec<String>,
