@@ -596,6 +596,13 @@ fn a_view_too_bright_is_found_from_the_light_it_sees() {
     };
     let calibration = warnings_where(|w| w.contains("declared radiance"));
     assert_eq!(calibration.len(), 1, "{calibration:?}");
+    // A warning about the input is printed once, before the work, not again at the end.
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(
+        stderr.matches("light 'light' reads 1.100x").count(),
+        1,
+        "{stderr}"
+    );
     assert!(
         calibration[0].contains("light 'light' reads 1.100x")
             && calibration[0].contains("in view 'pz'"),

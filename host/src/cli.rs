@@ -336,6 +336,7 @@ fn run(command: Command) -> Result<(), Error> {
                 threads,
                 budget: knobs.apply(effort),
                 limit_group_pixels: knobs.limit_group_pixels.clone(),
+                tell_input_warnings: true,
             };
             let report = recover_cmd::run(&args)?;
             for g in &report.groups {
@@ -358,7 +359,7 @@ fn run(command: Command) -> Result<(), Error> {
                     }
                 }
             }
-            for w in &report.warnings {
+            for w in &report.warnings[report.warnings_told..] {
                 eprintln!("relume: warning: {w}");
             }
             println!(

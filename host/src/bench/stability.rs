@@ -183,6 +183,7 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
                 threads: args.threads,
                 budget,
                 limit_group_pixels: limit,
+                tell_input_warnings: false,
             },
             &args.truth,
         )?;

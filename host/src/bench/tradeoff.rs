@@ -188,6 +188,7 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
                         threads: args.threads,
                         budget: point.budget,
                         limit_group_pixels: None,
+                        tell_input_warnings: false,
                     },
                     &args.truth,
                 )?;

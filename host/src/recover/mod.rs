@@ -131,6 +131,11 @@ pub struct RecoverArgs {
     /// Keep at most this many pure pixels of the named group (an even subset): for
     /// studying how recovery degrades as a group is seen in fewer pixels.
     pub limit_group_pixels: Option<(String, u32)>,
+    /// Print the warnings about the input (calibration, a view's orientation, views that
+    /// see no group) as soon as they are known, before the long work, so that a user can
+    /// stop a run on a bad panorama: the command line does; the benches, which perturb the
+    /// input on purpose, do not. [`RecoverReport::warnings_told`] counts them.
+    pub tell_input_warnings: bool,
 }
 
 /// The state of a recovery between stages.
@@ -770,6 +775,14 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             owned.desc.views[vi].name
         ));
     }
+    let warnings_told = if args.tell_input_warnings {
+        for w in &warnings {
+            eprintln!("relume: warning: {w}");
+        }
+        warnings.len()
+    } else {
+        0
+    };
     let mut rec = Recovery {
         owned,
         views,
@@ -1001,6 +1014,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         stages,
         groups: reports,
         warnings,
+        warnings_told,
         seconds: start.elapsed().as_secs_f64(),
     };
     output::write_all(output, &args.out, &rec, &renders, &report)?;

@@ -313,6 +313,9 @@ pub struct RecoverReport {
     pub stages: Vec<StageReport>,
     pub groups: Vec<GroupReport>,
     pub warnings: Vec<String>,
+    /// The first of `warnings` already printed, before the work (`tell_input_warnings`).
+    #[serde(skip)]
+    pub warnings_told: usize,
     pub seconds: f64,
 }
 
