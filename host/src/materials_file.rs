@@ -989,16 +989,21 @@ mod tests {
         assert!(load_materials(&path).unwrap().materials.is_empty());
     }
 
-    #[test]
-    fn a_missing_diffuse_map_is_an_error() {
+    /// A textured material whose `diffuse_map` is `map` is refused at that line, saying
+    /// `what`.
+    fn map_refused(map: &str, what: &[&str]) {
         let text = file_text(
             Model::TexturedIsotropic,
             &body(Model::TexturedIsotropic, None, None),
         )
-        .replace("tex.exr", "textures/none.exr");
-        bad(
-            &text,
-            line_of(&text, "diffuse_map"),
+        .replace("tex.exr", map);
+        bad(&text, line_of(&text, "diffuse_map"), what);
+    }
+
+    #[test]
+    fn a_missing_diffuse_map_is_an_error() {
+        map_refused(
+            "textures/none.exr",
             &["group 'g'", "diffuse_map", "none.exr does not exist"],
         );
     }
@@ -1007,14 +1012,8 @@ mod tests {
     #[cfg(unix)]
     #[test]
     fn a_diffuse_map_that_is_a_device_is_named_as_such() {
-        let text = file_text(
-            Model::TexturedIsotropic,
-            &body(Model::TexturedIsotropic, None, None),
-        )
-        .replace("tex.exr", "/dev/null");
-        bad(
-            &text,
-            line_of(&text, "diffuse_map"),
+        map_refused(
+            "/dev/null",
             &["diffuse_map /dev/null is not a regular file"],
         );
     }
