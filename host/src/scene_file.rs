@@ -705,7 +705,12 @@ pub mod toml_src {
                 return self.at(span, message + &hint);
             }
             if let Some(name) = list_header(text(line)).filter(|_| duplicate) {
-                if let Some(table) = (1..line).find(|&l| table_header(text(l)) == Some(name)) {
+                let earlier = self.text.lines().take(line - 1);
+                if let Some(table) = earlier
+                    .map(str::trim)
+                    .position(|t| table_header(t) == Some(name))
+                    .map(|i| i + 1)
+                {
                     return Error::at_line(
                         &self.path,
                         table,
