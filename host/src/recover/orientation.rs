@@ -15,6 +15,8 @@
 
 use serde::Serialize;
 
+use relume_core::math::{luminance, Vec3};
+
 use super::pixels::PurePixel;
 use crate::images::Image;
 
@@ -130,10 +132,11 @@ pub fn read_orientations(
             continue;
         }
         let square = image.width == image.height;
+        let logs = log_luminance(image);
         let shares: Vec<(Orientation, f64)> = Orientation::ALL
             .into_iter()
             .filter(|o| square || !o.needs_square())
-            .map(|o| (o, edge_share(image, o, &boundary, &within)))
+            .map(|o| (o, edge_share(&logs, image, o, &boundary, &within)))
             .collect();
         let as_is = shares[0].1;
         let best = shares[1..]
@@ -185,18 +188,35 @@ fn pairs(pure: &[PurePixel], v: usize, image: &Image) -> (Vec<Pair>, Vec<Pair>) 
     (boundary, within)
 }
 
-/// The share of `boundary` pairs whose log-luminance difference, `image` read in
-/// `orientation`, exceeds the [`EDGE_QUANTILE`] of the `within` pairs'.
-fn edge_share(image: &Image, orientation: Orientation, boundary: &[Pair], within: &[Pair]) -> f64 {
-    let (w, h) = (image.width, image.height);
-    // A black pixel counts as a thousandth of the image's mean (the same in any
-    // orientation), so that a log is taken.
-    let luminance = |[r, g, b]: [f32; 3]| 0.2126 * r as f64 + 0.7152 * g as f64 + 0.0722 * b as f64;
-    let mean = image.pixels.iter().map(|&p| luminance(p)).sum::<f64>() / image.pixels.len() as f64;
+/// The log of each pixel's luminance, a black pixel counted as a thousandth of the
+/// image's mean (the same in any orientation) so that a log is taken.
+fn log_luminance(image: &Image) -> Vec<f64> {
+    let luminances: Vec<f64> = image
+        .pixels
+        .iter()
+        .map(|&p| luminance(Vec3::from(p)) as f64)
+        .collect();
+    let mean = luminances.iter().sum::<f64>() / luminances.len() as f64;
     let floor = (1e-3 * mean).max(f64::MIN_POSITIVE);
+    luminances
+        .iter()
+        .map(|&l| libm::log(l.max(floor)))
+        .collect()
+}
+
+/// The share of `boundary` pairs whose difference in `logs` (of `image`'s pixels), read
+/// in `orientation`, exceeds the [`EDGE_QUANTILE`] of the `within` pairs'.
+fn edge_share(
+    logs: &[f64],
+    image: &Image,
+    orientation: Orientation,
+    boundary: &[Pair],
+    within: &[Pair],
+) -> f64 {
+    let (w, h) = (image.width, image.height);
     let log_at = |(x, y): (u32, u32)| {
         let (sx, sy) = orientation.source(x, y, w, h);
-        libm::log(luminance(image.pixels[(sy * w + sx) as usize]).max(floor))
+        logs[(sy * w + sx) as usize]
     };
     let difference = |[a, b]: &Pair| (log_at(*a) - log_at(*b)).abs();
     let mut within_differences: Vec<f64> = within.iter().map(difference).collect();
