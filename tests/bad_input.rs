@@ -277,6 +277,23 @@ fn scene_names_that_are_not_identifiers() {
     Case::new()
         .scene("name = \"floor\"", "name = \"my floor\"")
         .fails(INPUT, &["scene.toml:20", "group name \"my floor\""]);
+    // A name too long for the files it names (a recovery failed writing its map at the
+    // end), and a materials file's group that no scene could have, told briefly.
+    let long = "f".repeat(201);
+    Case::new()
+        .scene("name = \"floor\"", &format!("name = \"{long}\""))
+        .fails(
+            INPUT,
+            &[
+                "scene.toml:20",
+                "group name is 201 bytes long, more than MAX_NAME_LEN 200",
+            ],
+        );
+    let huge = format!("{}\\u0000", "x".repeat(100_000));
+    let stderr = Case::new()
+        .materials("group = \"floor\"", &format!("group = \"{huge}\""))
+        .fails(INPUT, &["m.toml", "group is 100001 bytes long"]);
+    assert!(stderr.len() < 1000, "{} bytes of stderr", stderr.len());
 }
 
 #[test]

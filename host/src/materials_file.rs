@@ -431,7 +431,8 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
         let header = m.span();
         let line = file.line_of(header.start);
         let m = m.get_ref();
-        let group = file.name(&m.group, "group")?;
+        // A group's name in the scene is an identifier, so one that is not names no group.
+        let group = file.identifier(&m.group, "group")?;
         if let Some(first) = lines.get(&group) {
             return Err(file.at(
                 m.group.span(),
@@ -1070,7 +1071,8 @@ mod tests {
         };
         let mut materials = Vec::new();
         for i in 0..200 {
-            let mut d = desc(&format!("g{i} \"quoted\""), Model::Isotropic);
+            // Every character a group's name may hold (an identifier, as in the scene).
+            let mut d = desc(&format!("g{i}.a-b_C"), Model::Isotropic);
             d.color = Some([next(), next(), next()]);
             d.specularity = Some(next());
             d.roughness = Some(next());

@@ -616,6 +616,11 @@ pub mod toml_src {
         format: Option<Spanned<toml::Value>>,
     }
 
+    /// The longest name of a group or a view: it names output files (`<view>.exr`,
+    /// `textures/<group>.exr`, and their temp files `.<name>.tmp-<pid>`), and a file name
+    /// may be 255 bytes long.
+    pub const MAX_NAME_LEN: usize = 200;
+
     /// The name of a table header line, `[name]` (not a list's `[[name]]`).
     fn table_header(line: &str) -> Option<&str> {
         let inner = line.strip_prefix('[').filter(|t| !t.starts_with('['))?;
@@ -756,9 +761,20 @@ pub mod toml_src {
         }
 
         /// A name that is also a file name and a RADIANCE identifier: ASCII letters,
-        /// digits, `_`, `-` and `.`, not starting with `.` or `-`.
+        /// digits, `_`, `-` and `.`, not starting with `.` or `-`, and at most
+        /// [`MAX_NAME_LEN`] long.
         pub fn identifier(&self, s: &Spanned<String>, what: &str) -> Result<String, Error> {
             let name = self.name(s, what)?;
+            if name.len() > MAX_NAME_LEN {
+                return Err(self.at(
+                    s.span(),
+                    format!(
+                        "{what} is {} bytes long, more than MAX_NAME_LEN {MAX_NAME_LEN}: it names output files ('{}...')",
+                        name.len(),
+                        name.chars().take(40).collect::<String>().escape_debug()
+                    ),
+                ));
+            }
             let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
             if !name.chars().all(allowed) || name.starts_with(['.', '-']) {
                 return Err(self.at(
