@@ -608,6 +608,14 @@ fn a_view_too_bright_is_found_from_the_light_it_sees() {
             && calibration[0].contains("in view 'pz'"),
         "{calibration:?}"
     );
+    // Every view with enough boundaries between groups is read for its orientation, each
+    // the right way round (no "view '...'" warning but pz's, below).
+    let orientations = report["orientation_readings"].as_array().unwrap();
+    let judged: Vec<&str> = orientations
+        .iter()
+        .map(|r| r["view"].as_str().unwrap())
+        .collect();
+    assert_eq!(judged, ["px", "nx", "py", "nz"], "{orientations:?}");
     // The view check, which needs no light, finds the same view apart from the others
     // (its residual -5.7% +- 1.0% against a median of +0.1% at seed 3), and no other.
     let views = warnings_where(|w| w.starts_with("view '"));
