@@ -1170,7 +1170,7 @@ fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
         ),
         (
             group("floor", "color_r", "0.01").replace("0.5", "1e300"),
-            "a value in [0, 1]",
+            "has value 1e300 and sigma 0.01: a value in [0, 1]",
         ),
     ] {
         std::fs::write(&report, format!("{{\"groups\": [{groups}]}}")).unwrap();

@@ -87,7 +87,7 @@ fn implausible(model: Option<Model>, p: &Parameter, earlier: &[Parameter]) -> Op
     if !in_range || !p.sigma.is_finite() || p.sigma < 0.0 {
         let range = if lowest_open { "(0, 1]" } else { "[0, 1]" };
         return Some(format!(
-            "parameter '{}' has value {} and sigma {}: a value in {range} and a finite sigma >= 0 are expected",
+            "parameter '{}' has value {:?} and sigma {:?}: a value in {range} and a finite sigma >= 0 are expected",
             p.parameter, p.value, p.sigma
         ));
     }
