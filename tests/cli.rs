@@ -190,3 +190,91 @@ fn a_closed_stdout_ends_relume_quietly() {
         output.status
     );
 }
+
+/// `relume check` on the bundled scene, as it is and with its `px` face mirrored left to
+/// right (a cube face in another convention): the pure pixels it counts are those recover
+/// works on, the mirrored face is told, and nothing is written but the JSON asked for.
+#[test]
+fn check_counts_each_groups_pixels_and_tells_a_mirrored_view() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("cornell");
+    common::copy_cornell(&scene);
+    let scene_toml = scene.join("scene.toml");
+    let before = common::files_and_bytes(&scene);
+
+    let out = relume_ok(tmp.path(), &["check", path_str(&scene_toml)]);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(!stderr.contains("warning"), "{stderr}");
+    assert!(stdout.contains("0 warnings"), "{stdout}");
+    // The plate is seen by px alone, the mirror by py alone; ny and pz see too few
+    // boundaries to be read.
+    let row = |group: &str| -> Vec<u32> {
+        let line = stdout
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(group))
+            .unwrap_or_else(|| panic!("no row for {group}: {stdout}"));
+        line.split_whitespace()
+            .skip(2)
+            .map(|n| n.parse().unwrap())
+            .collect()
+    };
+    let plate = row("plate");
+    assert!(plate[0] > 0 && plate[0] == plate[1], "{plate:?}");
+    assert!(plate[2..].iter().all(|&n| n == 0), "{plate:?}");
+    for group in ["floor", "walls_white", "box", "mirror"] {
+        let counts = row(group);
+        assert_eq!(
+            counts[0],
+            counts[1..].iter().sum::<u32>(),
+            "{group}: {counts:?}"
+        );
+    }
+    assert!(stdout.contains("calibration: light 'light' in view 'pz' reads 1.000 1.000 1.000"));
+    assert!(
+        stdout.contains("orientation: view 'ny' not read"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("orientation: view 'px' shows"), "{stdout}");
+
+    // px mirrored left to right: told, naming the reading that undoes it.
+    let px = scene.join("views/px.exr");
+    let image = relume::images::read_image(&px, 1.0).unwrap();
+    let w = image.width as usize;
+    let mirrored = relume::images::Image {
+        pixels: (0..image.pixels.len())
+            .map(|i| image.pixels[i - i % w + (w - 1 - i % w)])
+            .collect(),
+        ..image
+    };
+    relume::images::write_exr(&px, &mirrored).unwrap();
+    let json = tmp.path().join("check.json");
+    let out = relume_ok(
+        tmp.path(),
+        &["check", path_str(&scene_toml), "--json", path_str(&json)],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let told: Vec<&str> = stderr.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(told.len(), 1, "{stderr}");
+    assert!(
+        told[0].contains("view 'px'") && told[0].contains("far better mirrored left to right"),
+        "{stderr}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["warnings"].as_array().unwrap().len(), 1);
+    assert_eq!(report["groups"].as_array().unwrap().len(), 9);
+    // Nothing but the JSON was written, and no input changed but the one the test wrote.
+    let after = common::files_and_bytes(&scene);
+    assert_eq!(before.len(), after.len());
+    for ((path, a), (_, b)) in before.iter().zip(&after) {
+        assert!(
+            a == b || path.ends_with("views/px.exr"),
+            "{}",
+            path.display()
+        );
+    }
+    assert_eq!(common::files_in(tmp.path()).len(), before.len() + 1);
+}

@@ -64,6 +64,19 @@ enum Command {
         #[command(flatten)]
         knobs: BudgetOverrides,
     },
+    /// Check a scene and its panorama as `recover` does before its work, and stop there:
+    /// each group's pure pixels per view, the lights the views see against their declared
+    /// radiance, each view's orientation; no render, nothing written but --json.
+    Check {
+        /// The scene.toml, whose views carry the panorama's images.
+        scene: PathBuf,
+        /// Worker threads (default: all cores); the result does not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Also write the findings as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Compare two sets of views, or two materials files.
     #[command(subcommand)]
     Compare(CompareCommand),
@@ -270,6 +283,46 @@ enum BenchCommand {
     },
 }
 
+/// `relume check`'s findings: a table of each group's pure pixels per view, the lights'
+/// readings, each view's orientation, then the warnings.
+fn print_check(report: &recover_cmd::CheckReport) {
+    let widths: Vec<usize> = report.views.iter().map(|v| v.len().max(6)).collect();
+    let mut header = format!("{:<16} {:<8} {:>11}", "group", "kind", "pure pixels");
+    for (v, w) in report.views.iter().zip(&widths) {
+        header.push_str(&format!(" {v:>w$}"));
+    }
+    println!("{header}");
+    for g in &report.groups {
+        let mut row = format!("{:<16} {:<8} {:>11}", g.group, g.kind, g.total());
+        for (n, w) in g.pure_pixels.iter().zip(&widths) {
+            row.push_str(&format!(" {n:>w$}"));
+        }
+        println!("{row}");
+    }
+    if report.light_readings.is_empty() {
+        println!("calibration: not checked (no view sees a light's emitting side in whole pixels)");
+    }
+    for r in &report.light_readings {
+        println!("calibration: {}", r.describe());
+    }
+    for view in &report.views {
+        match report.orientation_readings.iter().find(|r| &r.view == view) {
+            Some(r) => println!("orientation: {}", r.describe()),
+            None => println!(
+                "orientation: view '{view}' not read (too few boundaries between groups in its pure pixels)"
+            ),
+        }
+    }
+    for w in &report.warnings {
+        eprintln!("relume: warning: {w}");
+    }
+    println!(
+        "checked in {:.1} s: {}",
+        report.seconds,
+        crate::text::counted(report.warnings.len() as u64, "warning")
+    );
+}
+
 /// Runs the command line and returns the process exit code.
 pub fn main() -> i32 {
     let cli = match Cli::try_parse() {
@@ -367,6 +420,15 @@ fn run(command: Command) -> Result<(), Error> {
                 report.seconds,
                 args.out.display()
             );
+            Ok(())
+        }
+        Command::Check {
+            scene,
+            threads,
+            json,
+        } => {
+            let report = recover_cmd::check(&scene, threads, json.as_deref())?;
+            print_check(&report);
             Ok(())
         }
         Command::Compare(CompareCommand::Views {

@@ -24,6 +24,7 @@
 mod anisotropic;
 mod cache;
 mod calibration;
+mod inspect;
 mod kind;
 mod ladder;
 mod model;
@@ -58,11 +59,12 @@ use relume_core::stages::isotropic::{self, WardFit};
 use relume_core::stages::texture as texture_stage;
 use serde::Serialize;
 
-use crate::assemble::{self, MaterialSource, OwnedScene};
+use crate::assemble::OwnedScene;
 use crate::error::Error;
-use crate::images::{self, Image};
+use crate::images::Image;
 use crate::parallel;
 use crate::scene_file::GroupKind;
+pub use inspect::{check, CheckReport, GroupSight};
 pub use model::GroupModel;
 pub use output::{output_files, UNSEEN_TOML};
 use pixels::PurePixel;
@@ -641,34 +643,6 @@ pub(super) fn min_samples_spp(spp: u32, pixels: u32, min_samples: u64) -> u32 {
         .min(u32::MAX as u64) as u32
 }
 
-/// The refusal of a panorama none of whose pixels falls wholly on a group: every group
-/// would be unseen, so there is nothing to recover, and a run that wrote an empty
-/// materials.toml and exited 0 would hide a scene that does not match its views. Says what
-/// each view's pixels see, from which the likely cause can be told.
-fn no_pure_pixel(
-    scene_file: &std::path::Path,
-    pool: &rayon::ThreadPool,
-    scene: &Scene,
-    views: &[View],
-    names: &[String],
-) -> Error {
-    let seen: Vec<String> = views
-        .iter()
-        .zip(names)
-        .map(|(view, name)| {
-            let sight = pixels::sight(pool, scene, view);
-            format!("view '{name}', {}", sight.describe(view))
-        })
-        .collect();
-    Error::input(
-        scene_file,
-        format!(
-            "no view sees any group in whole pixels, so no material can be recovered ({}); are the views inside the geometry and facing it, the OBJ in the units of the views' positions, the groups' objects not hidden, and the views fine enough for a pixel to fall wholly on one group?",
-            seen.join("; ")
-        ),
-    )
-}
-
 /// The paper's mirror test on an isotropic model: specular part above
 /// `MIRROR_SPECULAR_FRACTION` of the reflectance, a sharp lobe, and a reflected colour close
 /// to the incident one (an untinted specular reflectance).
@@ -698,60 +672,31 @@ fn mirror_test(model: &GroupModel) -> Option<String> {
 
 pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let start = Instant::now();
-    let (desc, objects) = assemble::load_scene(&args.scene)?;
-    let mut real = Vec::with_capacity(desc.views.len());
-    for (vi, v) in desc.views.iter().enumerate() {
-        let path = desc.view_image(vi, "recover needs the panorama")?;
-        real.push(images::read_view_image(path, v.exposure, v.size)?);
-    }
-    let inputs = desc.input_files();
-    let view_names: Vec<String> = desc.views.iter().map(|v| v.name.clone()).collect();
-    let kinds: Vec<GroupKind> = desc.groups.iter().map(|g| g.kind).collect();
-    // Whether every object of a group has texture coordinates, as a diffuse map needs.
-    let mapped: Vec<bool> = desc
-        .groups
-        .iter()
-        .map(|g| assemble::unmapped_object(&desc, &objects, g).is_none())
-        .collect();
-    let mut owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
+    let mut input = inspect::read(&args.scene)?;
     let pool = parallel::thread_pool(args.threads)?;
-    let output = output::prepare(&args.out, inputs, &view_names, &owned.group_names)?;
+    let output = output::prepare(
+        &args.out,
+        std::mem::take(&mut input.inputs),
+        &input.view_names,
+        &input.owned.group_names,
+    )?;
+    let inspect::Inspection {
+        pure,
+        light_readings,
+        orientation_readings,
+        mut warnings,
+    } = inspect::inspect(&args.scene, &pool, &mut input)?;
+    let inspect::Input {
+        owned,
+        real,
+        view_names,
+        kinds,
+        mapped,
+        ..
+    } = input;
     let views = owned.views.clone();
     let n_groups = owned.group_names.len();
     let names = owned.group_names.clone();
-    let mut warnings = Vec::new();
-
-    let pixels::Labels {
-        pure,
-        lights: light_pixels,
-        empty_views,
-    } = {
-        let scene = owned.build()?;
-        let labels = pixels::label_views(&pool, &scene, &views);
-        if labels.pure.is_empty() {
-            return Err(no_pure_pixel(
-                &args.scene,
-                &pool,
-                &scene,
-                &views,
-                &view_names,
-            ));
-        }
-        labels
-    };
-    let light_readings = calibration::read_lights(
-        &light_pixels,
-        &real,
-        &owned.light_names,
-        &owned.light_radiance,
-        &view_names,
-    );
-    warnings.extend(calibration::calibration_warnings(
-        &light_readings,
-        &owned.light_radiance,
-    ));
-    let orientation_readings = orientation::read_orientations(&pure, &real, &view_names);
-    warnings.extend(orientation::orientation_warnings(&orientation_readings));
     let pure = match &args.limit_group_pixels {
         Some((name, limit)) => {
             let Some(g) = names.iter().position(|n| n == name) else {
@@ -769,12 +714,6 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         }
         None => pure,
     };
-    for vi in empty_views {
-        warnings.push(format!(
-            "view '{}' sees no group in whole pixels (only lights, silhouettes or nothing): it adds nothing to the fit",
-            owned.desc.views[vi].name
-        ));
-    }
     let warnings_told = if args.tell_input_warnings {
         for w in &warnings {
             eprintln!("relume: warning: {w}");

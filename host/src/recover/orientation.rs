@@ -118,6 +118,21 @@ pub struct OrientationReading {
     pub edges_best_other: f64,
 }
 
+impl OrientationReading {
+    /// One line for a reader: how much of the view's boundaries its image shows as it is,
+    /// and read the best other way.
+    pub fn describe(&self) -> String {
+        format!(
+            "view '{}' shows {:.0}% of {} boundaries between groups as edges as it is, {:.0}% read {}",
+            self.view,
+            100.0 * self.edges_as_is,
+            self.boundary_pairs,
+            100.0 * self.edges_best_other,
+            self.best_other.correction()
+        )
+    }
+}
+
 /// A reading per view with at least [`MIN_BOUNDARY_PAIRS`] boundary pairs (`pure` as
 /// labelled).
 pub fn read_orientations(

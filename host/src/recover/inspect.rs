@@ -1,0 +1,237 @@
+//! What recovery reads of its input before any render: the scene assembled with its
+//! geometry only, the panorama, each view's pure pixels and light pixels, the panorama's
+//! calibration against the lights it sees, each view's orientation, and the views that
+//! see no group. `relume recover` warns of these before its long work; `relume check`
+//! stops there, so that a panorama can be judged in a second before a run of minutes.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use relume_core::geometry::View;
+use serde::Serialize;
+
+use super::calibration::{self, LightReading};
+use super::orientation::{self, OrientationReading};
+use super::pixels::{self, PurePixel};
+use crate::assemble::{self, MaterialSource, OwnedScene};
+use crate::error::Error;
+use crate::fsutil::OutputSet;
+use crate::images::{self, Image};
+use crate::parallel;
+use crate::scene_file::GroupKind;
+
+/// A scene read for recovery: its geometry assembled (no materials yet) and its panorama.
+pub(super) struct Input {
+    pub owned: OwnedScene,
+    pub real: Vec<Image>,
+    /// Every file the run was given (the scene, its geometry, its views' images), which no
+    /// output may replace.
+    pub inputs: Vec<(PathBuf, String)>,
+    pub view_names: Vec<String>,
+    pub kinds: Vec<GroupKind>,
+    /// Whether every object of a group has texture coordinates, as a diffuse map needs.
+    pub mapped: Vec<bool>,
+}
+
+/// Reads the scene, its geometry and its panorama's images (each view's exposure applied).
+pub(super) fn read(scene: &Path) -> Result<Input, Error> {
+    let (desc, objects) = assemble::load_scene(scene)?;
+    let mut real = Vec::with_capacity(desc.views.len());
+    for (vi, v) in desc.views.iter().enumerate() {
+        let path = desc.view_image(vi, "recover needs the panorama")?;
+        real.push(images::read_view_image(path, v.exposure, v.size)?);
+    }
+    let inputs = desc.input_files();
+    let view_names: Vec<String> = desc.views.iter().map(|v| v.name.clone()).collect();
+    let kinds: Vec<GroupKind> = desc.groups.iter().map(|g| g.kind).collect();
+    let mapped: Vec<bool> = desc
+        .groups
+        .iter()
+        .map(|g| assemble::unmapped_object(&desc, &objects, g).is_none())
+        .collect();
+    let owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
+    Ok(Input {
+        owned,
+        real,
+        inputs,
+        view_names,
+        kinds,
+        mapped,
+    })
+}
+
+/// What the input shows before any render.
+pub(super) struct Inspection {
+    /// Every pure pixel of every view, in view and row order.
+    pub pure: Vec<PurePixel>,
+    pub light_readings: Vec<LightReading>,
+    pub orientation_readings: Vec<OrientationReading>,
+    /// The warnings about the input, in the order they are told.
+    pub warnings: Vec<String>,
+}
+
+/// Labels every view's pixels and reads the panorama against the scene. A panorama none
+/// of whose pixels falls wholly on a group is refused: there is nothing to recover.
+pub(super) fn inspect(
+    scene_file: &Path,
+    pool: &rayon::ThreadPool,
+    input: &mut Input,
+) -> Result<Inspection, Error> {
+    let views = input.owned.views.clone();
+    let pixels::Labels {
+        pure,
+        lights: light_pixels,
+        empty_views,
+    } = {
+        let scene = input.owned.build()?;
+        let labels = pixels::label_views(pool, &scene, &views);
+        if labels.pure.is_empty() {
+            return Err(no_pure_pixel(
+                scene_file,
+                pool,
+                &scene,
+                &views,
+                &input.view_names,
+            ));
+        }
+        labels
+    };
+    let owned = &input.owned;
+    let light_readings = calibration::read_lights(
+        &light_pixels,
+        &input.real,
+        &owned.light_names,
+        &owned.light_radiance,
+        &input.view_names,
+    );
+    let mut warnings = calibration::calibration_warnings(&light_readings, &owned.light_radiance);
+    let orientation_readings =
+        orientation::read_orientations(&pure, &input.real, &input.view_names);
+    warnings.extend(orientation::orientation_warnings(&orientation_readings));
+    for vi in empty_views {
+        warnings.push(format!(
+            "view '{}' sees no group in whole pixels (only lights, silhouettes or nothing): it adds nothing to the fit",
+            input.view_names[vi]
+        ));
+    }
+    Ok(Inspection {
+        pure,
+        light_readings,
+        orientation_readings,
+        warnings,
+    })
+}
+
+/// The refusal of a panorama none of whose pixels falls wholly on a group: every group
+/// would be unseen, so there is nothing to recover, and a run that wrote an empty
+/// materials.toml and exited 0 would hide a scene that does not match its views. Says what
+/// each view's pixels see, from which the likely cause can be told.
+fn no_pure_pixel(
+    scene_file: &Path,
+    pool: &rayon::ThreadPool,
+    scene: &relume_core::scene::Scene,
+    views: &[View],
+    names: &[String],
+) -> Error {
+    let seen: Vec<String> = views
+        .iter()
+        .zip(names)
+        .map(|(view, name)| {
+            let sight = pixels::sight(pool, scene, view);
+            format!("view '{name}', {}", sight.describe(view))
+        })
+        .collect();
+    Error::input(
+        scene_file,
+        format!(
+            "no view sees any group in whole pixels, so no material can be recovered ({}); are the views inside the geometry and facing it, the OBJ in the units of the views' positions, the groups' objects not hidden, and the views fine enough for a pixel to fall wholly on one group?",
+            seen.join("; ")
+        ),
+    )
+}
+
+/// One group as the panorama sees it.
+#[derive(Serialize, Clone, Debug, PartialEq)]
+pub struct GroupSight {
+    pub group: String,
+    pub kind: String,
+    /// Its pure pixels in each view, in the scene's order of views.
+    pub pure_pixels: Vec<u32>,
+}
+
+impl GroupSight {
+    pub fn total(&self) -> u32 {
+        self.pure_pixels.iter().sum()
+    }
+}
+
+/// What `relume check` found.
+#[derive(Serialize, Clone, Debug)]
+pub struct CheckReport {
+    pub views: Vec<String>,
+    pub groups: Vec<GroupSight>,
+    pub light_readings: Vec<LightReading>,
+    pub orientation_readings: Vec<OrientationReading>,
+    /// The warnings `relume recover` would print before its work, and one per group that
+    /// no view sees whole (recover says so after its first stage).
+    pub warnings: Vec<String>,
+    pub seconds: f64,
+}
+
+/// The input checks of `relume recover`, and nothing more: no render, and no output but
+/// `json` if given (the report as JSON, which may replace none of the run's inputs).
+pub fn check(
+    scene: &Path,
+    threads: Option<usize>,
+    json: Option<&Path>,
+) -> Result<CheckReport, Error> {
+    let start = Instant::now();
+    let mut input = read(scene)?;
+    let mut set = OutputSet::keeping(std::mem::take(&mut input.inputs));
+    if let Some(path) = json {
+        set.check_target(path)?;
+    }
+    let pool = parallel::thread_pool(threads)?;
+    let Inspection {
+        pure,
+        light_readings,
+        orientation_readings,
+        mut warnings,
+    } = inspect(scene, &pool, &mut input)?;
+    let n_views = input.view_names.len();
+    let mut groups: Vec<GroupSight> = input
+        .owned
+        .group_names
+        .iter()
+        .zip(&input.kinds)
+        .map(|(name, kind)| GroupSight {
+            group: name.clone(),
+            kind: format!("{kind:?}").to_lowercase(),
+            pure_pixels: vec![0; n_views],
+        })
+        .collect();
+    for p in &pure {
+        groups[p.group as usize].pure_pixels[p.view as usize] += 1;
+    }
+    for g in groups.iter().filter(|g| g.total() == 0) {
+        warnings.push(format!(
+            "group '{}': no pure pixel in any view; recover will not recover its material",
+            g.group
+        ));
+    }
+    let report = CheckReport {
+        views: input.view_names,
+        groups,
+        light_readings,
+        orientation_readings,
+        warnings,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    if let Some(path) = json {
+        let text =
+            serde_json::to_string_pretty(&report).map_err(|e| Error::Usage(e.to_string()))?;
+        set.add(path, text.as_bytes())?;
+    }
+    set.commit()?;
+    Ok(report)
+}
