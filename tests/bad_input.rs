@@ -1037,17 +1037,22 @@ fn materials_file(path: &Path) -> std::collections::HashMap<String, (String, [f6
 /// void below the cellar): there is nothing to recover. Recovery ran on and wrote an
 /// empty materials.toml with exit 0; it now refuses the scene, says what each view's
 /// pixels see, and writes nothing.
-#[test]
-fn a_panorama_that_sees_no_group_whole_is_refused() {
-    let away = LIT_AND_UNLIT
+/// LIT_AND_UNLIT with one view looking up at the lamp and one into the void below the
+/// cellar: no pixel of either falls wholly on a group.
+fn looking_away() -> String {
+    LIT_AND_UNLIT
         .replacen(
             "direction = [0.0, 0.0, -1.0]",
             "direction = [0.0, 0.0, 1.0]",
             1,
         )
         .replace("position = [0.5, 0.5, 0.9]", "position = [0.5, 0.5, 0.5]")
-        .replace("position = [0.5, 0.5, -0.1]", "position = [0.5, 0.5, -1.5]");
-    let dir = lit_and_unlit(&away);
+        .replace("position = [0.5, 0.5, -0.1]", "position = [0.5, 0.5, -1.5]")
+}
+
+#[test]
+fn a_panorama_that_sees_no_group_whole_is_refused() {
+    let dir = lit_and_unlit(&looking_away());
     let run = relume(
         dir.path(),
         &["recover", "scene.toml", "--out", "rec", "--effort", "fast"],
@@ -1078,6 +1083,48 @@ fn a_panorama_that_sees_no_group_whole_is_refused() {
     );
     assert_eq!(counts.iter().sum::<u32>(), 64, "{floor}");
     assert!(!dir.path().join("rec").exists());
+}
+
+/// A bench's derived scene (views box-averaged, say) that recovery refuses is judged as a
+/// recovery of nothing, every group of the truth wrong, the refusal its warning: the point
+/// goes into the chart instead of stopping the bench. The scene a bench was given is not
+/// excused.
+#[test]
+fn a_derived_scene_that_recovery_refuses_is_judged_as_nothing_recovered() {
+    let dir = lit_and_unlit(&looking_away());
+    let args = |out: &str| relume::recover::RecoverArgs {
+        scene: dir.path().join("scene.toml"),
+        out: dir.path().join(out),
+        seed: 1,
+        threads: Some(1),
+        budget: relume::recover::Effort::Fast.budget(),
+        limit_group_pixels: None,
+        tell_input_warnings: false,
+    };
+    let truth = dir.path().join("m.toml");
+    let judged = relume::bench::recover_derived_and_judge(&args("derived"), &truth).unwrap();
+    let groups: Vec<(&str, bool, Option<&String>)> = judged
+        .groups
+        .iter()
+        .map(|g| (g.group.as_str(), g.class_ok, g.model.as_ref()))
+        .collect();
+    assert_eq!(groups, [("floor", false, None), ("cellar", false, None)]);
+    let summary = judged.summary();
+    assert_eq!((summary.groups, summary.classes_right), (2, 0));
+    assert_eq!(summary.param_err, None);
+    assert_eq!(judged.warnings.len(), 1);
+    assert!(
+        judged.warnings[0].starts_with("recovery refused: no view sees any group in whole pixels"),
+        "{:?}",
+        judged.warnings
+    );
+    assert!(!dir.path().join("derived").exists());
+    let given = relume::bench::recover_and_judge(&args("given"), &truth);
+    assert!(
+        matches!(&given, Err(relume::error::Error::Input { message, .. }) if message.starts_with("no view sees any group")),
+        "{:?}",
+        given.err()
+    );
 }
 
 /// `relume compare uncertainty m.toml <report>` in the case's folder: exit code, stderr.

@@ -133,6 +133,46 @@ pub fn process_cpu_seconds() -> Option<f64> {
     Some(ticks as f64 / 100.0)
 }
 
+/// [`recover_and_judge`] on a scene the bench derived from the one it was given (views
+/// box-averaged, noise added, a light's radiance changed): there a refusal of the derived
+/// scene's input is a finding of the bench, not its failure (views box-averaged until no
+/// pixel falls wholly on a group leave nothing to recover). It is judged as a recovery of
+/// nothing, every group of the truth unrecovered, the refusal its one warning.
+pub fn recover_derived_and_judge(args: &RecoverArgs, truth: &Path) -> Result<Judged, Error> {
+    let start = Instant::now();
+    match recover_and_judge(args, truth) {
+        Err(Error::Input { file, message, .. }) if file == args.scene => {
+            eprintln!(
+                "relume: {}: recovery refused, judged as a recovery of nothing: {message}",
+                file.display()
+            );
+            let truth = materials_file::load_materials(truth)?;
+            Ok(Judged {
+                seconds: start.elapsed().as_secs_f64(),
+                cpu_seconds: None,
+                groups: truth
+                    .materials
+                    .iter()
+                    .map(|m| GroupOutcome {
+                        group: m.group.clone(),
+                        true_model: m.model.name().into(),
+                        model: None,
+                        class_ok: false,
+                        diffuse_err: None,
+                        specularity_err: None,
+                        roughness_err: None,
+                        error_final: None,
+                        pure_pixels: 0,
+                        recovered: None,
+                    })
+                    .collect(),
+                warnings: vec![format!("recovery refused: {message}")],
+            })
+        }
+        judged => judged,
+    }
+}
+
 /// Runs one recovery and judges its materials.toml against `truth`.
 pub fn recover_and_judge(args: &RecoverArgs, truth: &Path) -> Result<Judged, Error> {
     let start = Instant::now();

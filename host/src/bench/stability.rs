@@ -13,7 +13,7 @@ use super::chart::{Axis, Chart, ChartPoint, Panel, Series};
 use super::perturb::{self, Perturbation};
 use super::{
     check_truth_of, derived_scene_outputs, field, pct, prepare_outputs, recover_and_judge,
-    recovery_outputs, Csv, GroupOutcome, Judged,
+    recover_derived_and_judge, recovery_outputs, Csv, GroupOutcome, Judged,
 };
 use crate::error::Error;
 use crate::fsutil;
@@ -175,7 +175,11 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
             None => args.scene.clone(),
         };
         let run = format!("runs/{id}");
-        let judged = recover_and_judge(
+        let recover = match perturbation {
+            Some(_) => recover_derived_and_judge,
+            None => recover_and_judge,
+        };
+        let judged = recover(
             &RecoverArgs {
                 scene,
                 out: args.out.join(&run),

@@ -14,7 +14,7 @@ use super::chart::{Axis, Chart, ChartPoint, Panel, Series};
 use super::perturb::{self, Perturbation};
 use super::{
     check_truth_of, derived_scene_outputs, field, pct, prepare_outputs, recover_and_judge,
-    recovery_outputs, Csv, Summary,
+    recover_derived_and_judge, recovery_outputs, Csv, Summary,
 };
 use crate::error::Error;
 use crate::fsutil;
@@ -180,7 +180,12 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
                 );
                 let scene = scene_for(args, point.factor)?;
                 let run = run_dir(point);
-                let judged = recover_and_judge(
+                let recover = if point.factor == 1 {
+                    recover_and_judge
+                } else {
+                    recover_derived_and_judge
+                };
+                let judged = recover(
                     &RecoverArgs {
                         scene,
                         out: args.out.join(&run),
