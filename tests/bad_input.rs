@@ -1364,3 +1364,113 @@ exposure = 1.0
     let stderr = interrupt_render(&case, front_staged);
     assert!(stderr.contains("2 unfinished output file(s)"), "{stderr}");
 }
+
+/// `relume panorama`'s bad input: an image not twice as wide as high is bad input naming
+/// it and its size; a zero or oversized face, an up along the forward direction or a
+/// position that is not three numbers is a usage error; an output over the image is
+/// refused. None writes anything.
+#[test]
+fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = |name: &str, w: u32, h: u32| {
+        let path = dir.path().join(name);
+        relume::images::write_exr(
+            &path,
+            &relume::images::Image {
+                width: w,
+                height: h,
+                pixels: vec![[0.5; 3]; (w * h) as usize],
+            },
+        )
+        .unwrap();
+        path
+    };
+    let square = image("square.exr", 16, 16);
+    let good = image("good.exr", 32, 16);
+    let split = |image: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "panorama",
+            path_str(image),
+            "--position",
+            "0,0,1",
+            "--out",
+            "out",
+        ];
+        args.extend_from_slice(extra);
+        let run = relume(dir.path(), &args);
+        (
+            run.status.code(),
+            String::from_utf8_lossy(&run.stderr).to_string(),
+        )
+    };
+    let (code, stderr) = split(&square, &[]);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(
+        stderr
+            .contains("square.exr: is 16x16: an equirectangular panorama is twice as wide as high"),
+        "{stderr}"
+    );
+    for extra in [
+        &["--size", "0"][..],
+        &["--size", "100000"],
+        &["--up", "1,0,0"],
+        &["--forward", "0,0,0"],
+        &["--position", "1,2"],
+        &["--position", "nan,0,0"],
+    ] {
+        let (code, stderr) = split(&good, extra);
+        assert_eq!(code, Some(2), "{extra:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+    let run = relume(
+        dir.path(),
+        &[
+            "panorama",
+            "views/front.exr",
+            "--position",
+            "0,0,1",
+            "--out",
+            ".",
+        ],
+    );
+    assert_eq!(run.status.code(), Some(IO), "a missing image is named");
+    std::fs::create_dir(dir.path().join("views")).unwrap();
+    std::fs::copy(&good, dir.path().join("views/front.exr")).unwrap();
+    let run = relume(
+        dir.path(),
+        &[
+            "panorama",
+            "views/front.exr",
+            "--position",
+            "0,0,1",
+            "--out",
+            ".",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    assert!(stderr.contains("would replace the panorama"), "{stderr}");
+    assert!(!dir.path().join("out").exists() && !dir.path().join("views.toml").exists());
+    // The good image at last, split into faces of 8x8: written, and warned of as finer
+    // than the capture (32 / (4 x 8) = 1 texel across a face pixel, under the floor of 2).
+    let run = relume(
+        dir.path(),
+        &[
+            "panorama",
+            path_str(&good),
+            "--position",
+            "0,0,1",
+            "--out",
+            "out",
+            "--size",
+            "8",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("holds 1.00 texels across a face pixel"),
+        "{stderr}"
+    );
+    assert_eq!(common::files_in(&dir.path().join("out")).len(), 7);
+}

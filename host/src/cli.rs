@@ -77,6 +77,33 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Split an equirectangular panorama (a 360-degree capture) into the six cube faces a
+    /// scene's views are: <out>/views/<face>.exr, and <out>/views.toml with their [[view]]
+    /// tables. The image's centre column looks along --forward, its columns turn to the
+    /// right, its top row looks along --up.
+    Panorama {
+        /// The equirectangular image (.exr, .hdr or .png), twice as wide as high.
+        image: PathBuf,
+        /// Where the panorama was taken, in the scene's coordinates: X,Y,Z.
+        #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+        position: [f32; 3],
+        /// The scene direction at the image's centre column: X,Y,Z (Blender's world
+        /// images: -1,0,0).
+        #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "1,0,0")]
+        forward: [f32; 3],
+        /// The scene's up, towards the image's top edge: X,Y,Z.
+        #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "0,0,1")]
+        up: [f32; 3],
+        /// Pixels per face side (default: the image's width / 16, four texels a pixel).
+        #[arg(long)]
+        size: Option<u32>,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Worker threads (default: all cores); the result does not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+    },
     /// Compare two sets of views, or two materials files.
     #[command(subcommand)]
     Compare(CompareCommand),
@@ -117,6 +144,19 @@ impl BudgetOverrides {
         b.final_spp = self.final_spp.unwrap_or(b.final_spp);
         b.optimiser = self.optimiser.unwrap_or(b.optimiser);
         b
+    }
+}
+
+/// "X,Y,Z" as three finite numbers.
+fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let numbers: Vec<f32> = parts
+        .iter()
+        .filter_map(|p| p.parse::<f32>().ok().filter(|v| v.is_finite()))
+        .collect();
+    match numbers[..] {
+        [x, y, z] if parts.len() == 3 => Ok([x, y, z]),
+        _ => Err(format!("expected three finite numbers X,Y,Z, got '{s}'")),
     }
 }
 
@@ -418,6 +458,37 @@ fn run(command: Command) -> Result<(), Error> {
             println!(
                 "recovered in {:.1} s; wrote {}",
                 report.seconds,
+                args.out.display()
+            );
+            Ok(())
+        }
+        Command::Panorama {
+            image,
+            position,
+            forward,
+            up,
+            size,
+            out,
+            threads,
+        } => {
+            let args = crate::panorama::PanoramaArgs {
+                image,
+                position,
+                forward,
+                up,
+                size,
+                out,
+                threads,
+            };
+            let summary = crate::panorama::split(&args)?;
+            for w in &summary.warnings {
+                eprintln!("relume: warning: {w}");
+            }
+            println!(
+                "wrote six {0}x{0} faces ({1}x{1} samples per pixel) and {2} under {3}",
+                summary.size,
+                summary.samples_per_side,
+                crate::panorama::VIEWS_TOML,
                 args.out.display()
             );
             Ok(())

@@ -22,6 +22,7 @@ pub mod fsutil;
 pub mod images;
 pub mod materials_file;
 pub mod obj;
+pub mod panorama;
 pub mod parallel;
 pub mod recover;
 pub mod render_cmd;

@@ -1,0 +1,347 @@
+//! `relume panorama`: an equirectangular panorama (a 360° capture, an HDRI) split into the
+//! six cube faces that a scene's views are, each face pixel the mean radiance over its
+//! square footprint as scene-format.md defines a pixel, with the `[[view]]` tables that
+//! place them in the scene.
+//!
+//! The equirectangular convention, seen from inside as a 360° photo is: the image's centre
+//! column looks along `forward`, columns run left to right as a viewer turning to the
+//! right (towards `forward x up`), across the whole turn; rows run from straight up (the
+//! top edge) to straight down. The faces are views of 90 x 90 degrees as `rpict -vtv`
+//! renders them, so what this writes, recovery reads the right way round.
+
+use std::path::PathBuf;
+
+use relume_core::geometry::View;
+use relume_core::math::{self, Vec3};
+
+use crate::error::Error;
+use crate::fsutil::OutputSet;
+use crate::images::{self, Image};
+use crate::parallel;
+
+/// Where the faces go under `--out`, and the views' file beside it.
+pub const FACES_DIR: &str = "views";
+pub const VIEWS_TOML: &str = "views.toml";
+
+/// An equirectangular image's texels per face pixel, across, below which a face pixel's
+/// mean is mostly interpolation: the faces are then finer than what the capture holds.
+pub const MIN_TEXELS_PER_PIXEL: f64 = 2.0;
+
+/// At most this many footprint samples per face pixel side.
+const MAX_SAMPLES_PER_SIDE: u32 = 32;
+
+pub struct PanoramaArgs {
+    /// The equirectangular image (.exr, .hdr or .png), twice as wide as high.
+    pub image: PathBuf,
+    /// Where the panorama was taken, in the scene's coordinates.
+    pub position: [f32; 3],
+    /// The scene direction at the image's centre column, on the horizon.
+    pub forward: [f32; 3],
+    /// The scene's up: the image's top edge.
+    pub up: [f32; 3],
+    /// Pixels per face side; `None`: a quarter of the texels per quarter turn.
+    pub size: Option<u32>,
+    pub out: PathBuf,
+    pub threads: Option<usize>,
+}
+
+/// What was written.
+pub struct PanoramaSummary {
+    pub size: u32,
+    /// Footprint samples per face pixel side.
+    pub samples_per_side: u32,
+    pub warnings: Vec<String>,
+}
+
+/// The scene frame of the panorama: `forward` on the horizon, `right = forward x up`.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub forward: Vec3,
+    pub right: Vec3,
+    pub up: Vec3,
+}
+
+impl Frame {
+    /// `up` as given (normalised) and `forward` made perpendicular to it; a zero, non-finite
+    /// or parallel pair is a usage error.
+    pub fn new(forward: [f32; 3], up: [f32; 3]) -> Result<Frame, Error> {
+        let (f, u) = (Vec3::from(forward), Vec3::from(up));
+        if !(math::is_finite(f) && math::is_finite(u)) {
+            return Err(Error::Usage(
+                "--forward and --up must be finite vectors".into(),
+            ));
+        }
+        let u = u.normalize_or_zero();
+        let f = (f - u * f.dot(u)).normalize_or_zero();
+        if u == Vec3::ZERO || f == Vec3::ZERO {
+            return Err(Error::Usage(format!(
+                "--forward {forward:?} and --up {up:?} must be non-zero and not parallel"
+            )));
+        }
+        Ok(Frame {
+            forward: f,
+            right: f.cross(u),
+            up: u,
+        })
+    }
+
+    /// The six faces: name, view direction, view up (the top of the face's image).
+    pub fn faces(&self) -> [(&'static str, Vec3, Vec3); 6] {
+        let (f, r, u) = (self.forward, self.right, self.up);
+        [
+            ("front", f, u),
+            ("right", r, u),
+            ("back", -f, u),
+            ("left", -r, u),
+            ("up", u, -f),
+            ("down", -u, f),
+        ]
+    }
+
+    /// A unit direction's position in the equirectangular image, both in [0, 1]: `u` from
+    /// the left edge, `v` from the top.
+    pub fn image_position(&self, d: Vec3) -> (f32, f32) {
+        let (x, y, z) = (d.dot(self.forward), d.dot(self.right), d.dot(self.up));
+        let azimuth = math::atan2(y, x);
+        let elevation = math::atan2(z, math::sqrt(x * x + y * y));
+        (0.5 + azimuth / (2.0 * math::PI), 0.5 - elevation / math::PI)
+    }
+}
+
+/// The image's radiance at `(u, v)`, bilinear between texel centres, wrapping around the
+/// turn and clamped at the poles.
+fn lookup(image: &Image, u: f32, v: f32) -> Vec3 {
+    let (w, h) = (image.width as i64, image.height as i64);
+    let x = u * w as f32 - 0.5;
+    let y = (v * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
+    let (x0, y0) = (math::floor(x), math::floor(y));
+    let (tx, ty) = (x - x0, y - y0);
+    let texel = |i: i64, j: i64| {
+        let i = i.rem_euclid(w);
+        let j = j.clamp(0, h - 1);
+        Vec3::from(image.pixels[(j * w + i) as usize])
+    };
+    let (i, j) = (x0 as i64, y0 as i64);
+    let top = texel(i, j) * (1.0 - tx) + texel(i + 1, j) * tx;
+    let bottom = texel(i, j + 1) * (1.0 - tx) + texel(i + 1, j + 1) * tx;
+    top * (1.0 - ty) + bottom * ty
+}
+
+/// Footprint samples per face pixel side: two per equirectangular texel the pixel spans
+/// at its face's centre (where a face pixel is widest), at least 2.
+fn samples_per_side(width: u32, size: u32) -> u32 {
+    let texels = width as f64 / (4.0 * size as f64);
+    ((2.0 * texels).ceil() as u32).clamp(2, MAX_SAMPLES_PER_SIDE)
+}
+
+/// One face: each pixel the mean of `k x k` lookups on a grid over its footprint.
+fn face(pool: &rayon::ThreadPool, image: &Image, frame: &Frame, view: &View, k: u32) -> Image {
+    let pixels = parallel::map_pixels(pool, view, |x, y| {
+        let mut sum = Vec3::ZERO;
+        for b in 0..k {
+            for a in 0..k {
+                let sx = x as f32 + (a as f32 + 0.5) / k as f32;
+                let sy = y as f32 + (b as f32 + 0.5) / k as f32;
+                let (u, v) = frame.image_position(view.ray(sx, sy).direction);
+                sum += lookup(image, u, v);
+            }
+        }
+        (sum / (k * k) as f32).to_array()
+    });
+    Image {
+        width: view.width,
+        height: view.height,
+        pixels,
+    }
+}
+
+/// The `[[view]]` tables of the six faces, their images under [`FACES_DIR`].
+fn views_toml(args: &PanoramaArgs, frame: &Frame, size: u32) -> String {
+    let v = |d: Vec3| format!("[{:?}, {:?}, {:?}]", d.x, d.y, d.z);
+    let mut text = format!(
+        "# The six cube faces of {}, written by `relume panorama`: paste these tables into\n# the scene.toml beside this file (image paths are relative to it).\n",
+        args.image.display()
+    );
+    for (name, direction, up) in frame.faces() {
+        text.push_str(&format!(
+            "\n[[view]]\nname = \"{name}\"\nimage = \"{FACES_DIR}/{name}.exr\"\nposition = {}\ndirection = {}\nup = {}\nfov_deg = [90.0, 90.0]\nsize = [{size}, {size}]\nexposure = 1.0\n",
+            v(Vec3::from(args.position)),
+            v(direction),
+            v(up)
+        ));
+    }
+    text
+}
+
+/// Splits the panorama into `out/views/<face>.exr` and writes `out/views.toml`, all or
+/// nothing.
+pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
+    let frame = Frame::new(args.forward, args.up)?;
+    if !math::is_finite(Vec3::from(args.position)) {
+        return Err(Error::Usage("--position must be finite".into()));
+    }
+    let image = images::read_image_sized(&args.image, 1.0, |w, h| {
+        if w == 2 * h {
+            Ok(())
+        } else {
+            Err(Error::input(
+                &args.image,
+                format!(
+                    "is {w}x{h}: an equirectangular panorama is twice as wide as high (360 x 180 degrees)"
+                ),
+            ))
+        }
+    })?;
+    let size = args.size.unwrap_or((image.width / 16).max(1));
+    let max = relume_core::config::MAX_VIEW_SIDE;
+    if size == 0 || size > max {
+        return Err(Error::Usage(format!(
+            "--size {size}: a face's side must be 1 to {max} pixels (config::MAX_VIEW_SIDE)"
+        )));
+    }
+    let mut warnings = Vec::new();
+    let texels = image.width as f64 / (4.0 * size as f64);
+    if texels < MIN_TEXELS_PER_PIXEL {
+        warnings.push(format!(
+            "{} holds {texels:.2} texels across a face pixel (fewer than MIN_TEXELS_PER_PIXEL {MIN_TEXELS_PER_PIXEL}): the faces are finer than the capture, and their pixels at a group's edge mix in more than their footprint; a --size of {} or less keeps within it",
+            args.image.display(),
+            (image.width as f64 / (4.0 * MIN_TEXELS_PER_PIXEL)).floor()
+        ));
+    }
+    let k = samples_per_side(image.width, size);
+    let pool = parallel::thread_pool(args.threads)?;
+    let mut set = OutputSet::keeping(vec![(args.image.clone(), "the panorama".into())]);
+    let faces_dir = args.out.join(FACES_DIR);
+    let toml = args.out.join(VIEWS_TOML);
+    set.check_targets(
+        frame
+            .faces()
+            .iter()
+            .map(|(name, _, _)| faces_dir.join(format!("{name}.exr")))
+            .chain([toml.clone()]),
+    )?;
+    set.create_dir(&faces_dir)?;
+    for (name, direction, up) in frame.faces() {
+        let view = View::new(
+            Vec3::from(args.position),
+            direction,
+            up,
+            [90.0, 90.0],
+            [size, size],
+        )
+        .map_err(|e| Error::core(format!("face '{name}'"), e))?;
+        let pixels = face(&pool, &image, &frame, &view, k);
+        images::add_exr(&mut set, &faces_dir.join(format!("{name}.exr")), &pixels)?;
+    }
+    set.add(&toml, views_toml(args, &frame, size).as_bytes())?;
+    set.commit()?;
+    Ok(PanoramaSummary {
+        size,
+        samples_per_side: k,
+        warnings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn z_up() -> Frame {
+        Frame::new([1.0, 0.0, 0.0], [0.0, 0.0, 1.0]).unwrap()
+    }
+
+    #[test]
+    fn the_centre_column_looks_forward_and_the_image_turns_to_the_right() {
+        let f = z_up();
+        let at = |d: [f32; 3]| f.image_position(Vec3::from(d).normalize());
+        let close = |(u, v): (f32, f32), (eu, ev): (f32, f32)| {
+            assert!((u - eu).abs() < 1e-6 && (v - ev).abs() < 1e-6, "{u} {v}");
+        };
+        close(at([1.0, 0.0, 0.0]), (0.5, 0.5));
+        // Z up, forward +X: the right is -Y, a quarter turn to the right of the centre.
+        assert_eq!(f.right, Vec3::new(0.0, -1.0, 0.0));
+        close(at([0.0, -1.0, 0.0]), (0.75, 0.5));
+        close(at([0.0, 1.0, 0.0]), (0.25, 0.5));
+        close(at([0.0, 0.0, 1.0]), (0.5, 0.0));
+        close(at([0.0, 0.0, -1.0]), (0.5, 1.0));
+        close(at([1.0, 0.0, 1.0]), (0.5, 0.25));
+        // Behind: either edge of the turn.
+        let (u, v) = at([-1.0, 1e-7, 0.0]);
+        assert!((u.min(1.0 - u)) < 1e-6 && (v - 0.5).abs() < 1e-6, "{u}");
+    }
+
+    #[test]
+    fn a_forward_off_the_horizon_is_levelled_and_a_parallel_pair_refused() {
+        let f = Frame::new([1.0, 0.0, 0.5], [0.0, 0.0, 2.0]).unwrap();
+        assert!((f.forward - Vec3::X).length() < 1e-6 && (f.up - Vec3::Z).length() < 1e-6);
+        for (forward, up) in [
+            ([0.0, 0.0, 1.0], [0.0, 0.0, 1.0]),
+            ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
+            ([f32::NAN, 0.0, 0.0], [0.0, 0.0, 1.0]),
+        ] {
+            assert!(matches!(Frame::new(forward, up), Err(Error::Usage(_))));
+        }
+    }
+
+    /// A panorama whose radiance is linear in the direction is split into faces whose
+    /// pixels are that function's mean over their footprints (the bilinear lookups are
+    /// exact there but near the poles and the seam, which a smooth function hides).
+    #[test]
+    fn each_face_pixel_is_the_mean_over_its_footprint() {
+        let (w, h) = (256u32, 128u32);
+        let frame = z_up();
+        let radiance = |d: Vec3| Vec3::new(1.0 + 0.5 * d.x, 1.0 + 0.5 * d.y, 1.0 + 0.5 * d.z);
+        let pixels = (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let azimuth = ((i as f32 + 0.5) / w as f32 - 0.5) * 2.0 * math::PI;
+                let elevation = (0.5 - (j as f32 + 0.5) / h as f32) * math::PI;
+                let d = (frame.forward * math::cos(azimuth) + frame.right * math::sin(azimuth))
+                    * math::cos(elevation)
+                    + frame.up * math::sin(elevation);
+                radiance(d).to_array()
+            })
+            .collect();
+        let image = Image {
+            width: w,
+            height: h,
+            pixels,
+        };
+        let pool = parallel::thread_pool(Some(1)).unwrap();
+        for (name, direction, up) in frame.faces() {
+            let view = View::new(Vec3::ZERO, direction, up, [90.0, 90.0], [8, 8]).unwrap();
+            let k = samples_per_side(w, 8);
+            let got = face(&pool, &image, &frame, &view, k);
+            for y in 0..8 {
+                for x in 0..8 {
+                    // The footprint's mean, from a finer grid over the pixel.
+                    let mut want = Vec3::ZERO;
+                    for b in 0..16 {
+                        for a in 0..16 {
+                            let d = view
+                                .ray(
+                                    x as f32 + (a as f32 + 0.5) / 16.0,
+                                    y as f32 + (b as f32 + 0.5) / 16.0,
+                                )
+                                .direction;
+                            want += radiance(d) / 256.0;
+                        }
+                    }
+                    let got = Vec3::from(got.pixels[(y * 8 + x) as usize]);
+                    assert!(
+                        (got - want).abs().max_element() < 1e-3,
+                        "face {name} pixel ({x}, {y}): {got} against {want}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_footprint_takes_two_samples_per_texel_it_spans() {
+        assert_eq!(samples_per_side(4096, 256), 8);
+        assert_eq!(samples_per_side(1024, 256), 2);
+        assert_eq!(samples_per_side(512, 256), 2);
+        assert_eq!(samples_per_side(65536, 64), MAX_SAMPLES_PER_SIDE);
+    }
+}
