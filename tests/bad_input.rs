@@ -1390,6 +1390,7 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
     let split = |image: &Path, extra: &[&str]| {
         let mut args = vec![
             "panorama",
+            "split",
             path_str(image),
             "--position",
             "0,0,1",
@@ -1426,6 +1427,7 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
         dir.path(),
         &[
             "panorama",
+            "split",
             "views/front.exr",
             "--position",
             "0,0,1",
@@ -1440,6 +1442,7 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
         dir.path(),
         &[
             "panorama",
+            "split",
             "views/front.exr",
             "--position",
             "0,0,1",
@@ -1457,6 +1460,7 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
         dir.path(),
         &[
             "panorama",
+            "split",
             path_str(&good),
             "--position",
             "0,0,1",
@@ -1473,4 +1477,93 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
         "{stderr}"
     );
     assert_eq!(common::files_in(&dir.path().join("out")).len(), 7);
+}
+
+/// `relume panorama join`'s bad input: views at two positions (the insertion example's
+/// new viewpoint beside the cube) and a view image missing are refused naming them; views
+/// that leave a direction unseen (the cube without its floor face) name the direction.
+#[test]
+fn a_join_of_views_that_are_no_panorama_is_refused() {
+    let root = common::workspace();
+    let dir = tempfile::tempdir().unwrap();
+    let join = |scene: &Path, images: &Path| {
+        let run = relume(
+            dir.path(),
+            &[
+                "panorama",
+                "join",
+                path_str(scene),
+                path_str(images),
+                "--out",
+                "pano.exr",
+            ],
+        );
+        (
+            run.status.code(),
+            String::from_utf8_lossy(&run.stderr).to_string(),
+        )
+    };
+    let (code, stderr) = join(
+        &root.join("scenes/cornell-insert/insert.toml"),
+        &root.join("scenes/cornell/views"),
+    );
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("view 'front' at [1.6, 0.25, 0.85]") && stderr.contains("one position"),
+        "{stderr}"
+    );
+    let cornell = root.join("scenes/cornell/scene.toml");
+    let (code, stderr) = join(&cornell, dir.path());
+    assert_eq!(code, Some(IO), "{stderr}");
+    assert!(stderr.contains("px.exr"), "{stderr}");
+    // Without its nz face the cube does not see straight down.
+    let text = std::fs::read_to_string(&cornell).unwrap();
+    let nz = text.find("[[view]]\nname = \"nz\"").unwrap();
+    let end = nz + text[nz..].find("[[light]]").unwrap();
+    let scene = dir.path().join("five.toml");
+    std::fs::write(
+        &scene,
+        format!("{}{}", &text[..nz], &text[end..]).replace(
+            "geometry = [\"geometry.obj\"]",
+            &format!(
+                "geometry = [\"{}\"]",
+                root.join("scenes/cornell/geometry.obj").display()
+            ),
+        ),
+    )
+    .unwrap();
+    let (code, stderr) = join(&scene, &root.join("scenes/cornell/views"));
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    let seen: Vec<f32> = stderr
+        .split("no view sees the direction [")
+        .nth(1)
+        .and_then(|rest| rest.split(']').next())
+        .unwrap_or_else(|| panic!("{stderr}"))
+        .split(", ")
+        .map(|n| n.parse().unwrap())
+        .collect();
+    assert!(
+        seen.len() == 3 && seen[2] < -0.5,
+        "below the cube's sides: {stderr}"
+    );
+    assert!(!dir.path().join("pano.exr").exists());
+    // The whole cube joins.
+    let run = relume(
+        dir.path(),
+        &[
+            "panorama",
+            "join",
+            path_str(&cornell),
+            path_str(&root.join("scenes/cornell/views")),
+            "--out",
+            "pano.exr",
+        ],
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let pano = relume::images::read_image(&dir.path().join("pano.exr"), 1.0).unwrap();
+    assert_eq!((pano.width, pano.height), (128, 64));
 }

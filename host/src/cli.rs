@@ -77,23 +77,32 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
-    /// Split an equirectangular panorama (a 360-degree capture) into the six cube faces a
-    /// scene's views are: <out>/views/<face>.exr, and <out>/views.toml with their [[view]]
-    /// tables. The image's centre column looks along --forward, its columns turn to the
-    /// right, its top row looks along --up.
-    Panorama {
+    /// Equirectangular panoramas: a 360-degree capture split into a scene's views, or a
+    /// scene's rendered views joined into one.
+    #[command(subcommand)]
+    Panorama(PanoramaCommand),
+    /// Compare two sets of views, or two materials files.
+    #[command(subcommand)]
+    Compare(CompareCommand),
+    /// Benchmarks that print figures.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Subcommand)]
+enum PanoramaCommand {
+    /// Split an equirectangular image into the six cube faces a scene's views are:
+    /// <out>/views/<face>.exr, and <out>/views.toml with their [[view]] tables. The image's
+    /// centre column looks along --forward, its columns turn to the right, its top row
+    /// looks along --up.
+    Split {
         /// The equirectangular image (.exr, .hdr or .png), twice as wide as high.
         image: PathBuf,
         /// Where the panorama was taken, in the scene's coordinates: X,Y,Z.
         #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
         position: [f32; 3],
-        /// The scene direction at the image's centre column: X,Y,Z (Blender's world
-        /// images: -1,0,0).
-        #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "1,0,0")]
-        forward: [f32; 3],
-        /// The scene's up, towards the image's top edge: X,Y,Z.
-        #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "0,0,1")]
-        up: [f32; 3],
+        #[command(flatten)]
+        frame: PanoramaFrame,
         /// Pixels per face side (default: the image's width / 16, four texels a pixel).
         #[arg(long)]
         size: Option<u32>,
@@ -104,12 +113,38 @@ enum Command {
         #[arg(long)]
         threads: Option<usize>,
     },
-    /// Compare two sets of views, or two materials files.
-    #[command(subcommand)]
-    Compare(CompareCommand),
-    /// Benchmarks that print figures.
-    #[command(subcommand)]
-    Bench(BenchCommand),
+    /// Join a scene's views, rendered from one position (`relume render`'s <view>.exr in
+    /// a folder), into one equirectangular EXR: an environment map of a relit or edited
+    /// scene for other tools.
+    Join {
+        /// The scene.toml whose views the images are.
+        scene: PathBuf,
+        /// The folder of <view>.exr.
+        dir: PathBuf,
+        /// The equirectangular EXR to write.
+        #[arg(long)]
+        out: PathBuf,
+        /// Its width in texels, twice its height (default: four per widest view's side).
+        #[arg(long)]
+        width: Option<u32>,
+        #[command(flatten)]
+        frame: PanoramaFrame,
+        /// Worker threads (default: all cores); the result does not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+    },
+}
+
+/// How an equirectangular image lies in the scene.
+#[derive(clap::Args)]
+struct PanoramaFrame {
+    /// The scene direction at the image's centre column: X,Y,Z (Blender's world images:
+    /// -1,0,0).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "1,0,0")]
+    forward: [f32; 3],
+    /// The scene's up, towards the image's top edge: X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "0,0,1")]
+    up: [f32; 3],
 }
 
 /// Overrides of single knobs of the `--effort` level (for studying the time/accuracy trade).
@@ -462,20 +497,19 @@ fn run(command: Command) -> Result<(), Error> {
             );
             Ok(())
         }
-        Command::Panorama {
+        Command::Panorama(PanoramaCommand::Split {
             image,
             position,
-            forward,
-            up,
+            frame,
             size,
             out,
             threads,
-        } => {
+        }) => {
             let args = crate::panorama::PanoramaArgs {
                 image,
                 position,
-                forward,
-                up,
+                forward: frame.forward,
+                up: frame.up,
                 size,
                 out,
                 threads,
@@ -490,6 +524,31 @@ fn run(command: Command) -> Result<(), Error> {
                 summary.samples_per_side,
                 crate::panorama::VIEWS_TOML,
                 args.out.display()
+            );
+            Ok(())
+        }
+        Command::Panorama(PanoramaCommand::Join {
+            scene,
+            dir,
+            out,
+            width,
+            frame,
+            threads,
+        }) => {
+            let args = crate::panorama::JoinArgs {
+                scene,
+                dir,
+                out,
+                width,
+                forward: frame.forward,
+                up: frame.up,
+                threads,
+            };
+            let (width, k) = crate::panorama::join(&args)?;
+            println!(
+                "wrote {} ({width}x{}, {k}x{k} samples per texel)",
+                args.out.display(),
+                width / 2
             );
             Ok(())
         }

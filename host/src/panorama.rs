@@ -1,7 +1,9 @@
-//! `relume panorama`: an equirectangular panorama (a 360° capture, an HDRI) split into the
+//! `relume panorama split` and `join`: an equirectangular panorama (a 360° capture, an HDRI) split into the
 //! six cube faces that a scene's views are, each face pixel the mean radiance over its
 //! square footprint as scene-format.md defines a pixel, with the `[[view]]` tables that
-//! place them in the scene.
+//! place them in the scene ([`split`]); and the way back, a scene's views rendered from
+//! one position (a relit room, say) joined into one equirectangular image, an environment
+//! map for other tools ([`join`]).
 //!
 //! The equirectangular convention, seen from inside as a 360° photo is: the image's centre
 //! column looks along `forward`, columns run left to right as a viewer turning to the
@@ -18,6 +20,7 @@ use crate::error::Error;
 use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::parallel;
+use crate::scene_file;
 
 /// Where the faces go under `--out`, and the views' file beside it.
 pub const FACES_DIR: &str = "views";
@@ -98,6 +101,15 @@ impl Frame {
         ]
     }
 
+    /// The unit direction at `(u, v)` of the equirectangular image (the inverse of
+    /// [`Frame::image_position`]).
+    pub fn direction(&self, u: f32, v: f32) -> Vec3 {
+        let azimuth = (u - 0.5) * 2.0 * math::PI;
+        let elevation = (0.5 - v) * math::PI;
+        (self.forward * math::cos(azimuth) + self.right * math::sin(azimuth)) * math::cos(elevation)
+            + self.up * math::sin(elevation)
+    }
+
     /// A unit direction's position in the equirectangular image, both in [0, 1]: `u` from
     /// the left edge, `v` from the top.
     pub fn image_position(&self, d: Vec3) -> (f32, f32) {
@@ -171,6 +183,171 @@ fn views_toml(args: &PanoramaArgs, frame: &Frame, size: u32) -> String {
         ));
     }
     text
+}
+
+/// Where direction `d` falls in `view`'s image, in pixel units (as [`View::ray`] takes
+/// them), and how central it is there (its cosine to the view's direction); `None` outside
+/// the view.
+fn in_view(view: &View, d: Vec3) -> Option<(f32, f32, f32)> {
+    let along = d.dot(view.forward);
+    // (NaN falls out here too.)
+    if along.is_nan() || along <= 0.0 {
+        return None;
+    }
+    let sx = d.dot(view.right_span) / (along * view.right_span.length_squared());
+    let sy = d.dot(view.up_span) / (along * view.up_span.length_squared());
+    let inside = |s: f32| (-0.5..=0.5).contains(&s);
+    (inside(sx) && inside(sy)).then_some((
+        (sx + 0.5) * view.width as f32,
+        (0.5 - sy) * view.height as f32,
+        along,
+    ))
+}
+
+/// `image`'s radiance at pixel position `(x, y)`, bilinear between pixel centres and
+/// clamped at the edges.
+fn lookup_view(image: &Image, x: f32, y: f32) -> Vec3 {
+    let (w, h) = (image.width as i64, image.height as i64);
+    let x = (x - 0.5).clamp(0.0, (w - 1) as f32);
+    let y = (y - 0.5).clamp(0.0, (h - 1) as f32);
+    let (x0, y0) = (math::floor(x), math::floor(y));
+    let (tx, ty) = (x - x0, y - y0);
+    let texel = |i: i64, j: i64| {
+        let (i, j) = (i.min(w - 1), j.min(h - 1));
+        Vec3::from(image.pixels[(j * w + i) as usize])
+    };
+    let (i, j) = (x0 as i64, y0 as i64);
+    let top = texel(i, j) * (1.0 - tx) + texel(i + 1, j) * tx;
+    let bottom = texel(i, j + 1) * (1.0 - tx) + texel(i + 1, j + 1) * tx;
+    top * (1.0 - ty) + bottom * ty
+}
+
+pub struct JoinArgs {
+    /// The scene whose views the images are.
+    pub scene: PathBuf,
+    /// The folder of `<view>.exr`, as `relume render` writes them.
+    pub dir: PathBuf,
+    /// The equirectangular image to write (.exr).
+    pub out: PathBuf,
+    /// Its width (twice its height); `None`: four texels per widest view's side.
+    pub width: Option<u32>,
+    pub forward: [f32; 3],
+    pub up: [f32; 3],
+    pub threads: Option<usize>,
+}
+
+/// Joins the scene's views, all at one position, into one equirectangular image: each
+/// texel the mean of lookups on a grid over its footprint, each lookup in the view that
+/// sees its direction most centrally. Every direction must be seen by some view.
+pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
+    let frame = Frame::new(args.forward, args.up)?;
+    let desc = scene_file::load_scene(&args.scene)?;
+    let Some(first) = desc.views.first() else {
+        return Err(Error::input(&args.scene, "has no view to join"));
+    };
+    if let Some(v) = desc.views.iter().find(|v| {
+        let apart = (Vec3::from(v.position) - Vec3::from(first.position)).length();
+        apart > 1e-5 * Vec3::from(first.position).length().max(1.0)
+    }) {
+        return Err(Error::input(
+            &args.scene,
+            format!(
+                "view '{}' is at {:?} and view '{}' at {:?}: a panorama is seen from one position",
+                v.name, v.position, first.name, first.position
+            ),
+        ));
+    }
+    let mut views = Vec::new();
+    let mut inputs = desc.input_files();
+    for v in &desc.views {
+        let view = View::new(
+            Vec3::from(v.position),
+            Vec3::from(v.direction),
+            Vec3::from(v.up),
+            v.fov_deg,
+            v.size,
+        )
+        .map_err(|e| Error::core(format!("{}: view '{}'", args.scene.display(), v.name), e))?;
+        let path = args.dir.join(format!("{}.exr", v.name));
+        let image = images::read_view_image(&path, 1.0, v.size)?;
+        inputs.push((path, format!("the image of view '{}'", v.name)));
+        views.push((view, image));
+    }
+    let widest = desc
+        .views
+        .iter()
+        .map(|v| v.size[0].max(v.size[1]))
+        .max()
+        .unwrap_or(1);
+    let width = args.width.unwrap_or(4 * widest);
+    let max = relume_core::config::MAX_VIEW_SIDE;
+    if width < 2 || !width.is_multiple_of(2) || width > max {
+        return Err(Error::Usage(format!(
+            "--width {width}: an equirectangular image's width must be even, 2 to {max} (config::MAX_VIEW_SIDE)"
+        )));
+    }
+    let mut set = OutputSet::keeping(inputs);
+    set.check_target(&args.out)?;
+    let pool = parallel::thread_pool(args.threads)?;
+    let (image, k) = equirect_from_views(&pool, &frame, &views, width).map_err(|d| {
+        Error::input(
+            &args.scene,
+            format!(
+                "no view sees the direction [{:.3}, {:.3}, {:.3}]: join needs views that see every direction from their position, as the six faces of `relume panorama split` do",
+                d.x, d.y, d.z
+            ),
+        )
+    })?;
+    images::add_exr(&mut set, &args.out, &image)?;
+    set.commit()?;
+    Ok((width, k))
+}
+
+/// The equirectangular image `width` texels wide of what `views` see: each texel the mean
+/// of lookups on a grid over its footprint (two per view pixel it spans at a view's centre,
+/// where pixels are widest), each in the view that sees the direction most centrally.
+/// Returns the grid's side too, or a direction no view sees.
+fn equirect_from_views(
+    pool: &rayon::ThreadPool,
+    frame: &Frame,
+    views: &[(View, Image)],
+    width: u32,
+) -> Result<(Image, u32), Vec3> {
+    let height = width / 2;
+    let widest = views
+        .iter()
+        .map(|(v, _)| v.width.max(v.height))
+        .max()
+        .unwrap_or(1);
+    let k = ((8.0 * widest as f64 / width as f64).ceil() as u32).clamp(2, MAX_SAMPLES_PER_SIDE);
+    let texels = parallel::map_grid(pool, width, height, |i, j| {
+        let mut sum = Vec3::ZERO;
+        for b in 0..k {
+            for a in 0..k {
+                let u = (i as f32 + (a as f32 + 0.5) / k as f32) / width as f32;
+                let v = (j as f32 + (b as f32 + 0.5) / k as f32) / height as f32;
+                let d = frame.direction(u, v);
+                let seen = views
+                    .iter()
+                    .filter_map(|(view, image)| in_view(view, d).map(|p| (p, image)))
+                    .max_by(|a, b| a.0 .2.total_cmp(&b.0 .2));
+                match seen {
+                    Some(((x, y, _), image)) => sum += lookup_view(image, x, y),
+                    None => return Err(d),
+                }
+            }
+        }
+        Ok((sum / (k * k) as f32).to_array())
+    });
+    let pixels = texels.into_iter().collect::<Result<Vec<_>, _>>()?;
+    Ok((
+        Image {
+            width,
+            height,
+            pixels,
+        },
+        k,
+    ))
 }
 
 /// Splits the panorama into `out/views/<face>.exr` and writes `out/views.toml`, all or
@@ -294,11 +471,7 @@ mod tests {
         let pixels = (0..h)
             .flat_map(|j| (0..w).map(move |i| (i, j)))
             .map(|(i, j)| {
-                let azimuth = ((i as f32 + 0.5) / w as f32 - 0.5) * 2.0 * math::PI;
-                let elevation = (0.5 - (j as f32 + 0.5) / h as f32) * math::PI;
-                let d = (frame.forward * math::cos(azimuth) + frame.right * math::sin(azimuth))
-                    * math::cos(elevation)
-                    + frame.up * math::sin(elevation);
+                let d = frame.direction((i as f32 + 0.5) / w as f32, (j as f32 + 0.5) / h as f32);
                 radiance(d).to_array()
             })
             .collect();
@@ -335,6 +508,67 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Six faces of a radiance linear in the direction (each pixel its footprint's mean),
+    /// joined: each texel is the function's mean over the texel's footprint, within what
+    /// the bilinear lookups between the faces' pixel centres leave.
+    #[test]
+    fn joined_faces_give_each_texel_the_mean_over_its_footprint() {
+        let frame = z_up();
+        let radiance = |d: Vec3| Vec3::new(1.0 + 0.5 * d.x, 1.0 + 0.5 * d.y, 1.0 + 0.5 * d.z);
+        let n = 16u32;
+        let views: Vec<(View, Image)> = frame
+            .faces()
+            .iter()
+            .map(|&(_, direction, up)| {
+                let view = View::new(Vec3::ZERO, direction, up, [90.0, 90.0], [n, n]).unwrap();
+                let pixels = (0..n * n)
+                    .map(|p| {
+                        let (x, y) = ((p % n) as f32, (p / n) as f32);
+                        let mut sum = Vec3::ZERO;
+                        for b in 0..8 {
+                            for a in 0..8 {
+                                let d = view
+                                    .ray(x + (a as f32 + 0.5) / 8.0, y + (b as f32 + 0.5) / 8.0)
+                                    .direction;
+                                sum += radiance(d) / 64.0;
+                            }
+                        }
+                        sum.to_array()
+                    })
+                    .collect();
+                let image = Image {
+                    width: n,
+                    height: n,
+                    pixels,
+                };
+                (view, image)
+            })
+            .collect();
+        let pool = parallel::thread_pool(Some(2)).unwrap();
+        let width = 64;
+        let (image, k) = equirect_from_views(&pool, &frame, &views, width).unwrap();
+        assert_eq!((image.width, image.height, k), (64, 32, 2));
+        let mut worst = 0.0f32;
+        for j in 0..32u32 {
+            for i in 0..64u32 {
+                let mut want = Vec3::ZERO;
+                for b in 0..16 {
+                    for a in 0..16 {
+                        let u = (i as f32 + (a as f32 + 0.5) / 16.0) / 64.0;
+                        let v = (j as f32 + (b as f32 + 0.5) / 16.0) / 32.0;
+                        want += radiance(frame.direction(u, v)) / 256.0;
+                    }
+                }
+                let got = Vec3::from(image.pixels[(j * 64 + i) as usize]);
+                worst = worst.max((got - want).abs().max_element());
+            }
+        }
+        assert!(worst < 0.01, "worst texel off by {worst}");
+        // Five faces leave a hole: the direction is named.
+        let hole = equirect_from_views(&pool, &frame, &views[..5], width).unwrap_err();
+        assert!(hole.dot(-frame.up) > 0.5, "{hole}");
     }
 
     #[test]

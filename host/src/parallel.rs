@@ -69,9 +69,17 @@ where
     T: Send,
     F: Fn(u32, u32) -> T + Sync,
 {
-    let width = view.width;
+    map_grid(pool, view.width, view.height, f)
+}
+
+/// [`map_pixels`] over a `width x height` grid that is no view (an equirectangular image).
+pub fn map_grid<T, F>(pool: &rayon::ThreadPool, width: u32, height: u32, f: F) -> Vec<T>
+where
+    T: Send,
+    F: Fn(u32, u32) -> T + Sync,
+{
     pool.install(|| {
-        (0..view.n_pixels())
+        (0..width as usize * height as usize)
             .into_par_iter()
             .with_min_len(width as usize * ROWS_PER_BAND)
             .map(|i| f(i as u32 % width, i as u32 / width))
