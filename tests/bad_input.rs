@@ -1566,4 +1566,20 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
     );
     let pano = relume::images::read_image(&dir.path().join("pano.exr"), 1.0).unwrap();
     assert_eq!((pano.width, pano.height), (128, 64));
+    let preview = image::open(dir.path().join("pano.png")).unwrap();
+    assert_eq!((preview.width(), preview.height()), (128, 64));
+    // Only as EXR.
+    let run = relume(
+        dir.path(),
+        &[
+            "panorama",
+            "join",
+            path_str(&cornell),
+            path_str(&root.join("scenes/cornell/views")),
+            "--out",
+            "pano.hdr",
+        ],
+    );
+    assert_eq!(run.status.code(), Some(2));
+    assert!(!dir.path().join("pano.hdr").exists());
 }

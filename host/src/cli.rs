@@ -121,7 +121,7 @@ enum PanoramaCommand {
         scene: PathBuf,
         /// The folder of <view>.exr.
         dir: PathBuf,
-        /// The equirectangular EXR to write.
+        /// The equirectangular EXR to write (<name>.exr; a tone-mapped <name>.png beside it).
         #[arg(long)]
         out: PathBuf,
         /// Its width in texels, twice its height (default: four per widest view's side).
@@ -546,8 +546,9 @@ fn run(command: Command) -> Result<(), Error> {
             };
             let (width, k) = crate::panorama::join(&args)?;
             println!(
-                "wrote {} ({width}x{}, {k}x{k} samples per texel)",
+                "wrote {} and its preview {} ({width}x{}, {k}x{k} samples per texel)",
                 args.out.display(),
+                args.out.with_extension("png").display(),
                 width / 2
             );
             Ok(())

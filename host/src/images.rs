@@ -644,7 +644,7 @@ pub fn write_png_preview(
 
 /// The scale that maps the [`PREVIEW_PERCENTILE`] of luminance to [`PREVIEW_TARGET`] (the
 /// maximum when the percentile is black; 1 for a black image).
-fn auto_exposure(image: &Image) -> f32 {
+pub fn auto_exposure(image: &Image) -> f32 {
     // The positive luminances by their bits, whose order is the values' order: a
     // histogram of the high 16 bits finds the percentile's bin, one of the low 16 bits
     // within it the value, exactly, in two passes over the image and no copy of it.

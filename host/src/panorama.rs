@@ -227,7 +227,7 @@ pub struct JoinArgs {
     pub scene: PathBuf,
     /// The folder of `<view>.exr`, as `relume render` writes them.
     pub dir: PathBuf,
-    /// The equirectangular image to write (.exr).
+    /// The equirectangular image to write (.exr; its PNG preview goes beside it).
     pub out: PathBuf,
     /// Its width (twice its height); `None`: four texels per widest view's side.
     pub width: Option<u32>,
@@ -286,8 +286,15 @@ pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
             "--width {width}: an equirectangular image's width must be even, 2 to {max} (config::MAX_VIEW_SIDE)"
         )));
     }
+    if args.out.extension().and_then(|e| e.to_str()) != Some("exr") {
+        return Err(Error::Usage(format!(
+            "--out {}: the joined panorama is written as EXR (and a PNG preview beside it): name it <name>.exr",
+            args.out.display()
+        )));
+    }
+    let preview = args.out.with_extension("png");
     let mut set = OutputSet::keeping(inputs);
-    set.check_target(&args.out)?;
+    set.check_targets([args.out.clone(), preview.clone()])?;
     let pool = parallel::thread_pool(args.threads)?;
     let (image, k) = equirect_from_views(&pool, &frame, &views, width).map_err(|d| {
         Error::input(
@@ -299,6 +306,21 @@ pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
         )
     })?;
     images::add_exr(&mut set, &args.out, &image)?;
+    // Exposed as the views' own previews would be, pooled: the equirectangular image
+    // stretches what is near the poles (a ceiling lamp across its top rows), and its own
+    // percentile would then be the lamp's.
+    let pooled: Vec<[f32; 3]> = views
+        .iter()
+        .flat_map(|(_, v)| v.pixels.iter().copied())
+        .collect();
+    let exposure = images::auto_exposure(&Image {
+        width: pooled.len() as u32,
+        height: 1,
+        pixels: pooled,
+    });
+    set.add_written(&preview, |file| {
+        images::write_png_preview(&preview, &image, Some(exposure), file)
+    })?;
     set.commit()?;
     Ok((width, k))
 }
