@@ -1495,7 +1495,7 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
                 path_str(scene),
                 path_str(images),
                 "--out",
-                "pano.exr",
+                "made/pano.exr",
             ],
         );
         (
@@ -1546,8 +1546,11 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
         seen.len() == 3 && seen[2] < -0.5,
         "below the cube's sides: {stderr}"
     );
-    assert!(!dir.path().join("pano.exr").exists());
-    // The whole cube joins.
+    assert!(
+        !dir.path().join("made").exists(),
+        "a refused join leaves no folder"
+    );
+    // The whole cube joins, into a folder it makes.
     let run = relume(
         dir.path(),
         &[
@@ -1556,7 +1559,7 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
             path_str(&cornell),
             path_str(&root.join("scenes/cornell/views")),
             "--out",
-            "pano.exr",
+            "made/pano.exr",
         ],
     );
     assert!(
@@ -1564,9 +1567,9 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
-    let pano = relume::images::read_image(&dir.path().join("pano.exr"), 1.0).unwrap();
+    let pano = relume::images::read_image(&dir.path().join("made/pano.exr"), 1.0).unwrap();
     assert_eq!((pano.width, pano.height), (128, 64));
-    let preview = image::open(dir.path().join("pano.png")).unwrap();
+    let preview = image::open(dir.path().join("made/pano.png")).unwrap();
     assert_eq!((preview.width(), preview.height()), (128, 64));
     // Only as EXR.
     let run = relume(

@@ -171,7 +171,7 @@ fn face(pool: &rayon::ThreadPool, image: &Image, frame: &Frame, view: &View, k: 
 fn views_toml(args: &PanoramaArgs, frame: &Frame, size: u32) -> String {
     let v = |d: Vec3| format!("[{:?}, {:?}, {:?}]", d.x, d.y, d.z);
     let mut text = format!(
-        "# The six cube faces of {}, written by `relume panorama`: paste these tables into\n# the scene.toml beside this file (image paths are relative to it).\n",
+        "# The six cube faces of {}, written by `relume panorama split`: paste these tables\n# into the scene.toml beside this file (image paths are relative to it).\n",
         args.image.display()
     );
     for (name, direction, up) in frame.faces() {
@@ -295,6 +295,9 @@ pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
     let preview = args.out.with_extension("png");
     let mut set = OutputSet::keeping(inputs);
     set.check_targets([args.out.clone(), preview.clone()])?;
+    if let Some(folder) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        set.create_dir(folder)?;
+    }
     let pool = parallel::thread_pool(args.threads)?;
     let (image, k) = equirect_from_views(&pool, &frame, &views, width).map_err(|d| {
         Error::input(
