@@ -1423,9 +1423,9 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
         assert_eq!(code, Some(2), "{extra:?}: {stderr}");
         assert!(!stderr.contains("panicked"), "{stderr}");
     }
-    let run = relume(
-        dir.path(),
-        &[
+    // Split into the folder where its front face would go.
+    let split_into_itself = || {
+        let args = [
             "panorama",
             "split",
             "views/front.exr",
@@ -1433,23 +1433,17 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
             "0,0,1",
             "--out",
             ".",
-        ],
+        ];
+        relume(dir.path(), &args)
+    };
+    assert_eq!(
+        split_into_itself().status.code(),
+        Some(IO),
+        "a missing image is named"
     );
-    assert_eq!(run.status.code(), Some(IO), "a missing image is named");
     std::fs::create_dir(dir.path().join("views")).unwrap();
     std::fs::copy(&good, dir.path().join("views/front.exr")).unwrap();
-    let run = relume(
-        dir.path(),
-        &[
-            "panorama",
-            "split",
-            "views/front.exr",
-            "--position",
-            "0,0,1",
-            "--out",
-            ".",
-        ],
-    );
+    let run = split_into_itself();
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
     assert!(stderr.contains("would replace the panorama"), "{stderr}");
@@ -1486,7 +1480,7 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
 fn a_join_of_views_that_are_no_panorama_is_refused() {
     let root = common::workspace();
     let dir = tempfile::tempdir().unwrap();
-    let join = |scene: &Path, images: &Path| {
+    let join = |scene: &Path, images: &Path, out: &str| {
         let run = relume(
             dir.path(),
             &[
@@ -1495,7 +1489,7 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
                 path_str(scene),
                 path_str(images),
                 "--out",
-                "made/pano.exr",
+                out,
             ],
         );
         (
@@ -1503,9 +1497,11 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
             String::from_utf8_lossy(&run.stderr).to_string(),
         )
     };
+    let views = root.join("scenes/cornell/views");
     let (code, stderr) = join(
         &root.join("scenes/cornell-insert/insert.toml"),
-        &root.join("scenes/cornell/views"),
+        &views,
+        "made/pano.exr",
     );
     assert_eq!(code, Some(INPUT), "{stderr}");
     assert!(
@@ -1513,7 +1509,7 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
         "{stderr}"
     );
     let cornell = root.join("scenes/cornell/scene.toml");
-    let (code, stderr) = join(&cornell, dir.path());
+    let (code, stderr) = join(&cornell, dir.path(), "made/pano.exr");
     assert_eq!(code, Some(IO), "{stderr}");
     assert!(stderr.contains("px.exr"), "{stderr}");
     // Without its nz face the cube does not see straight down.
@@ -1532,7 +1528,7 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
         ),
     )
     .unwrap();
-    let (code, stderr) = join(&scene, &root.join("scenes/cornell/views"));
+    let (code, stderr) = join(&scene, &views, "made/pano.exr");
     assert_eq!(code, Some(INPUT), "{stderr}");
     let seen: Vec<f32> = stderr
         .split("no view sees the direction [")
@@ -1551,38 +1547,13 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
         "a refused join leaves no folder"
     );
     // The whole cube joins, into a folder it makes.
-    let run = relume(
-        dir.path(),
-        &[
-            "panorama",
-            "join",
-            path_str(&cornell),
-            path_str(&root.join("scenes/cornell/views")),
-            "--out",
-            "made/pano.exr",
-        ],
-    );
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let (code, stderr) = join(&cornell, &views, "made/pano.exr");
+    assert_eq!(code, Some(0), "{stderr}");
     let pano = relume::images::read_image(&dir.path().join("made/pano.exr"), 1.0).unwrap();
     assert_eq!((pano.width, pano.height), (128, 64));
     let preview = image::open(dir.path().join("made/pano.png")).unwrap();
     assert_eq!((preview.width(), preview.height()), (128, 64));
     // Only as EXR.
-    let run = relume(
-        dir.path(),
-        &[
-            "panorama",
-            "join",
-            path_str(&cornell),
-            path_str(&root.join("scenes/cornell/views")),
-            "--out",
-            "pano.hdr",
-        ],
-    );
-    assert_eq!(run.status.code(), Some(2));
+    assert_eq!(join(&cornell, &views, "pano.hdr").0, Some(2));
     assert!(!dir.path().join("pano.hdr").exists());
 }

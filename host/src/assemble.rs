@@ -171,14 +171,9 @@ pub fn assemble(
 
     let mut views = Vec::with_capacity(desc.views.len());
     for v in &desc.views {
-        let view = View::new(
-            Vec3::from(v.position),
-            Vec3::from(v.direction),
-            Vec3::from(v.up),
-            v.fov_deg,
-            v.size,
-        )
-        .map_err(|e| core_err(&format!("view '{}'", v.name), e))?;
+        let view = v
+            .view()
+            .map_err(|e| core_err(&format!("view '{}'", v.name), e))?;
         views.push(view);
     }
 

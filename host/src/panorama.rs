@@ -1,5 +1,5 @@
-//! `relume panorama split` and `join`: an equirectangular panorama (a 360° capture, an HDRI) split into the
-//! six cube faces that a scene's views are, each face pixel the mean radiance over its
+//! `relume panorama split` and `join`: an equirectangular panorama (a 360° capture, an
+//! HDRI) split into the six cube faces that a scene's views are, each face pixel the mean radiance over its
 //! square footprint as scene-format.md defines a pixel, with the `[[view]]` tables that
 //! place them in the scene ([`split`]); and the way back, a scene's views rendered from
 //! one position (a relit room, say) joined into one equirectangular image, an environment
@@ -120,18 +120,23 @@ impl Frame {
     }
 }
 
-/// The image's radiance at `(u, v)`, bilinear between texel centres, wrapping around the
-/// turn and clamped at the poles.
-fn lookup(image: &Image, u: f32, v: f32) -> Vec3 {
+/// `image`'s radiance at pixel position `(x, y)` (pixel units, as [`View::ray`] takes
+/// them), bilinear between pixel centres: columns wrap around where `wrap` (an
+/// equirectangular image's turn) and are clamped otherwise; rows are clamped (at a view's
+/// edge, at the poles).
+fn bilinear(image: &Image, x: f32, y: f32, wrap: bool) -> Vec3 {
     let (w, h) = (image.width as i64, image.height as i64);
-    let x = u * w as f32 - 0.5;
-    let y = (v * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
+    let x = if wrap {
+        x - 0.5
+    } else {
+        (x - 0.5).clamp(0.0, (w - 1) as f32)
+    };
+    let y = (y - 0.5).clamp(0.0, (h - 1) as f32);
     let (x0, y0) = (math::floor(x), math::floor(y));
     let (tx, ty) = (x - x0, y - y0);
     let texel = |i: i64, j: i64| {
-        let i = i.rem_euclid(w);
-        let j = j.clamp(0, h - 1);
-        Vec3::from(image.pixels[(j * w + i) as usize])
+        let i = if wrap { i.rem_euclid(w) } else { i.min(w - 1) };
+        Vec3::from(image.pixels[(j.min(h - 1) * w + i) as usize])
     };
     let (i, j) = (x0 as i64, y0 as i64);
     let top = texel(i, j) * (1.0 - tx) + texel(i + 1, j) * tx;
@@ -155,7 +160,7 @@ fn face(pool: &rayon::ThreadPool, image: &Image, frame: &Frame, view: &View, k: 
                 let sx = x as f32 + (a as f32 + 0.5) / k as f32;
                 let sy = y as f32 + (b as f32 + 0.5) / k as f32;
                 let (u, v) = frame.image_position(view.ray(sx, sy).direction);
-                sum += lookup(image, u, v);
+                sum += bilinear(image, u * image.width as f32, v * image.height as f32, true);
             }
         }
         (sum / (k * k) as f32).to_array()
@@ -171,8 +176,8 @@ fn face(pool: &rayon::ThreadPool, image: &Image, frame: &Frame, view: &View, k: 
 fn views_toml(args: &PanoramaArgs, frame: &Frame, size: u32) -> String {
     let v = |d: Vec3| format!("[{:?}, {:?}, {:?}]", d.x, d.y, d.z);
     let mut text = format!(
-        "# The six cube faces of {}, written by `relume panorama split`: paste these tables\n# into the scene.toml beside this file (image paths are relative to it).\n",
-        args.image.display()
+        "# The six cube faces of {:?}, written by `relume panorama split`: paste these tables\n# into the scene.toml beside this file (image paths are relative to it).\n",
+        args.image.display().to_string()
     );
     for (name, direction, up) in frame.faces() {
         text.push_str(&format!(
@@ -202,24 +207,6 @@ fn in_view(view: &View, d: Vec3) -> Option<(f32, f32, f32)> {
         (0.5 - sy) * view.height as f32,
         along,
     ))
-}
-
-/// `image`'s radiance at pixel position `(x, y)`, bilinear between pixel centres and
-/// clamped at the edges.
-fn lookup_view(image: &Image, x: f32, y: f32) -> Vec3 {
-    let (w, h) = (image.width as i64, image.height as i64);
-    let x = (x - 0.5).clamp(0.0, (w - 1) as f32);
-    let y = (y - 0.5).clamp(0.0, (h - 1) as f32);
-    let (x0, y0) = (math::floor(x), math::floor(y));
-    let (tx, ty) = (x - x0, y - y0);
-    let texel = |i: i64, j: i64| {
-        let (i, j) = (i.min(w - 1), j.min(h - 1));
-        Vec3::from(image.pixels[(j * w + i) as usize])
-    };
-    let (i, j) = (x0 as i64, y0 as i64);
-    let top = texel(i, j) * (1.0 - tx) + texel(i + 1, j) * tx;
-    let bottom = texel(i, j + 1) * (1.0 - tx) + texel(i + 1, j + 1) * tx;
-    top * (1.0 - ty) + bottom * ty
 }
 
 pub struct JoinArgs {
@@ -260,14 +247,9 @@ pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
     let mut views = Vec::new();
     let mut inputs = desc.input_files();
     for v in &desc.views {
-        let view = View::new(
-            Vec3::from(v.position),
-            Vec3::from(v.direction),
-            Vec3::from(v.up),
-            v.fov_deg,
-            v.size,
-        )
-        .map_err(|e| Error::core(format!("{}: view '{}'", args.scene.display(), v.name), e))?;
+        let view = v
+            .view()
+            .map_err(|e| Error::core(format!("{}: view '{}'", args.scene.display(), v.name), e))?;
         let path = args.dir.join(format!("{}.exr", v.name));
         let image = images::read_view_image(&path, 1.0, v.size)?;
         inputs.push((path, format!("the image of view '{}'", v.name)));
@@ -357,7 +339,7 @@ fn equirect_from_views(
                     .filter_map(|(view, image)| in_view(view, d).map(|p| (p, image)))
                     .max_by(|a, b| a.0 .2.total_cmp(&b.0 .2));
                 match seen {
-                    Some(((x, y, _), image)) => sum += lookup_view(image, x, y),
+                    Some(((x, y, _), image)) => sum += bilinear(image, x, y, false),
                     None => return Err(d),
                 }
             }

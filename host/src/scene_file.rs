@@ -98,6 +98,20 @@ pub struct SceneDesc {
     pub groups: Vec<GroupDesc>,
 }
 
+impl ViewDesc {
+    /// The core's view (its frame checked and precomputed).
+    pub fn view(&self) -> Result<relume_core::geometry::View, relume_core::Error> {
+        use glam::Vec3;
+        relume_core::geometry::View::new(
+            Vec3::from(self.position),
+            Vec3::from(self.direction),
+            Vec3::from(self.up),
+            self.fov_deg,
+            self.size,
+        )
+    }
+}
+
 impl SceneDesc {
     /// The files this scene reads (path, and what it is): the scene file, its geometry and
     /// its views' images. No output of a run may replace them (`OutputSet::keeping`).
