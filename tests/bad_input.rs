@@ -1467,7 +1467,8 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(0), "{stderr}");
     assert!(
-        stderr.contains("holds 1.00 texels across a face pixel"),
+        stderr.contains("holds 1.00 texels across a face pixel")
+            && stderr.contains("a --size of 4 or less"),
         "{stderr}"
     );
     assert_eq!(common::files_in(&dir.path().join("out")).len(), 7);

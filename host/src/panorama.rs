@@ -386,10 +386,15 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
     let mut warnings = Vec::new();
     let texels = image.width as f64 / (4.0 * size as f64);
     if texels < MIN_TEXELS_PER_PIXEL {
+        let largest = (image.width as f64 / (4.0 * MIN_TEXELS_PER_PIXEL)).floor();
+        let within = if largest >= 1.0 {
+            format!("a --size of {largest} or less keeps within it")
+        } else {
+            "the capture is too small for any face to keep within it".into()
+        };
         warnings.push(format!(
-            "{} holds {texels:.2} texels across a face pixel (fewer than MIN_TEXELS_PER_PIXEL {MIN_TEXELS_PER_PIXEL}): the faces are finer than the capture, and their pixels at a group's edge mix in more than their footprint; a --size of {} or less keeps within it",
-            args.image.display(),
-            (image.width as f64 / (4.0 * MIN_TEXELS_PER_PIXEL)).floor()
+            "{} holds {texels:.2} texels across a face pixel (fewer than MIN_TEXELS_PER_PIXEL {MIN_TEXELS_PER_PIXEL}): the faces are finer than the capture, and their pixels at a group's edge mix in more than their footprint; {within}",
+            args.image.display()
         ));
     }
     let k = samples_per_side(image.width, size);
