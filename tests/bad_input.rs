@@ -1448,6 +1448,24 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
     assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
     assert!(stderr.contains("would replace the panorama"), "{stderr}");
     assert!(!dir.path().join("out").exists() && !dir.path().join("views.toml").exists());
+    // Nor over the scene given as the template.
+    common::copy_cornell(&dir.path().join("room"));
+    let args = [
+        "panorama",
+        "split",
+        "good.exr",
+        "--position",
+        "0,0,1",
+        "--scene",
+        "room/scene.toml",
+        "--out",
+        "room",
+    ];
+    let run = relume(dir.path(), &args);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    assert!(stderr.contains("would replace the scene file"), "{stderr}");
+    assert!(!dir.path().join("room/views.toml").exists());
     // The good image at last, split into faces of 8x8: written, and warned of as finer
     // than the capture (32 / (4 x 8) = 1 texel across a face pixel, under the floor of 2).
     let run = relume(

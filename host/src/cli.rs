@@ -106,6 +106,10 @@ enum PanoramaCommand {
         /// Pixels per face side (default: the image's width / 16, four texels a pixel).
         #[arg(long)]
         size: Option<u32>,
+        /// A scene.toml whose geometry, lights and groups go with the faces into
+        /// <out>/scene.toml (its own views left out), ready for check and recover.
+        #[arg(long)]
+        scene: Option<PathBuf>,
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
@@ -502,6 +506,7 @@ fn run(command: Command) -> Result<(), Error> {
             position,
             frame,
             size,
+            scene,
             out,
             threads,
         }) => {
@@ -511,6 +516,7 @@ fn run(command: Command) -> Result<(), Error> {
                 forward: frame.forward,
                 up: frame.up,
                 size,
+                scene,
                 out,
                 threads,
             };
@@ -519,10 +525,15 @@ fn run(command: Command) -> Result<(), Error> {
                 eprintln!("relume: warning: {w}");
             }
             println!(
-                "wrote six {0}x{0} faces ({1}x{1} samples per pixel) and {2} under {3}",
+                "wrote six {0}x{0} faces ({1}x{1} samples per pixel) and {2}{3} under {4}",
                 summary.size,
                 summary.samples_per_side,
                 crate::panorama::VIEWS_TOML,
+                if args.scene.is_some() {
+                    " and scene.toml"
+                } else {
+                    ""
+                },
                 args.out.display()
             );
             Ok(())

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use crate::error::Error;
 use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
-use crate::scene_file::{self, GroupKind, SceneDesc, ViewKey};
+use crate::scene_file::{self, GroupKind, SceneDesc, ViewDesc, ViewKey};
 
 /// Box-averages `image` by `factor` (its size must be a multiple of it).
 pub fn box_average(image: &Image, factor: u32) -> Image {
@@ -81,23 +81,7 @@ pub(crate) fn scene_toml(desc: &SceneDesc) -> Result<String, Error> {
         paths.join(", "),
         hide.join(", ")
     );
-    for v in &desc.views {
-        let _ = writeln!(t, "\n[[view]]\nname = {}", quoted(&v.name));
-        if let Some(image) = &v.image {
-            let _ = writeln!(t, "image = {}", quoted_path(&desc.path, image)?);
-        }
-        let _ = writeln!(
-            t,
-            "position = {}\ndirection = {}\nup = {}\nfov_deg = {}\nsize = [{}, {}]\nexposure = {:?}",
-            list(&v.position),
-            list(&v.direction),
-            list(&v.up),
-            list(&v.fov_deg),
-            v.size[0],
-            v.size[1],
-            v.exposure
-        );
-    }
+    t.push_str(&view_tables(&desc.path, &desc.views)?);
     for l in &desc.lights {
         let _ = writeln!(
             t,
@@ -118,6 +102,30 @@ pub(crate) fn scene_toml(desc: &SceneDesc) -> Result<String, Error> {
             "\n[[group]]\nname = {}\nkind = \"{kind}\"\nobjects = [{}]",
             quoted(&g.name),
             objects.join(", ")
+        );
+    }
+    Ok(t)
+}
+
+/// The `[[view]]` tables of `views`, each after a blank line, their images' paths as given
+/// (`scene` names the file in an error).
+pub(crate) fn view_tables(scene: &Path, views: &[ViewDesc]) -> Result<String, Error> {
+    let mut t = String::new();
+    for v in views {
+        let _ = writeln!(t, "\n[[view]]\nname = {}", quoted(&v.name));
+        if let Some(image) = &v.image {
+            let _ = writeln!(t, "image = {}", quoted_path(scene, image)?);
+        }
+        let _ = writeln!(
+            t,
+            "position = {}\ndirection = {}\nup = {}\nfov_deg = {}\nsize = [{}, {}]\nexposure = {:?}",
+            list(&v.position),
+            list(&v.direction),
+            list(&v.up),
+            list(&v.fov_deg),
+            v.size[0],
+            v.size[1],
+            v.exposure
         );
     }
     Ok(t)
