@@ -1466,6 +1466,51 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
     assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
     assert!(stderr.contains("would replace the scene file"), "{stderr}");
     assert!(!dir.path().join("room/views.toml").exists());
+    // Without --position, the template's views give it, when they are all at one place.
+    let run = relume(
+        dir.path(),
+        &["panorama", "split", "good.exr", "--out", "nowhere"],
+    );
+    assert_eq!(run.status.code(), Some(2));
+    let insert = common::workspace().join("scenes/cornell-insert/insert.toml");
+    let args = [
+        "panorama",
+        "split",
+        "good.exr",
+        "--scene",
+        path_str(&insert),
+        "--out",
+        "apart",
+    ];
+    let run = relume(dir.path(), &args);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("a panorama is seen from one position"),
+        "{stderr}"
+    );
+    let args = [
+        "panorama",
+        "split",
+        "good.exr",
+        "--scene",
+        "room/scene.toml",
+        "--out",
+        "placed",
+    ];
+    let run = relume(dir.path(), &args);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let views = std::fs::read_to_string(dir.path().join("placed/views.toml")).unwrap();
+    assert_eq!(
+        views.matches("position = [1.5, 0.9, 1.3]").count(),
+        6,
+        "{views}"
+    );
+    assert!(!dir.path().join("nowhere").exists() && !dir.path().join("apart").exists());
     // The good image at last, split into faces of 8x8: written, and warned of as finer
     // than the capture (32 / (4 x 8) = 1 texel across a face pixel, under the floor of 2).
     let run = relume(

@@ -98,9 +98,10 @@ enum PanoramaCommand {
     Split {
         /// The equirectangular image (.exr, .hdr or .png), twice as wide as high.
         image: PathBuf,
-        /// Where the panorama was taken, in the scene's coordinates: X,Y,Z.
+        /// Where the panorama was taken, in the scene's coordinates: X,Y,Z (default: where
+        /// the --scene's views all are).
         #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-        position: [f32; 3],
+        position: Option<[f32; 3]>,
         #[command(flatten)]
         frame: PanoramaFrame,
         /// Pixels per face side (default: the image's width / 16, four texels a pixel).

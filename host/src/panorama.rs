@@ -21,7 +21,7 @@ use crate::error::Error;
 use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::parallel;
-use crate::scene_file::{self, ViewDesc};
+use crate::scene_file::{self, SceneDesc, ViewDesc};
 
 /// Where the faces go under `--out`, and the views' file beside it.
 pub const FACES_DIR: &str = "views";
@@ -37,8 +37,9 @@ const MAX_SAMPLES_PER_SIDE: u32 = 32;
 pub struct PanoramaArgs {
     /// The equirectangular image (.exr, .hdr or .png), twice as wide as high.
     pub image: PathBuf,
-    /// Where the panorama was taken, in the scene's coordinates.
-    pub position: [f32; 3],
+    /// Where the panorama was taken, in the scene's coordinates; `None`: where the views
+    /// of `scene` all are.
+    pub position: Option<[f32; 3]>,
     /// The scene direction at the image's centre column, on the horizon.
     pub forward: [f32; 3],
     /// The scene's up: the image's top edge.
@@ -200,14 +201,14 @@ fn face(pool: &rayon::ThreadPool, image: &Image, frame: &Frame, view: &View, k: 
 }
 
 /// The six faces as a scene's views, their images `<images>/<face>.exr`.
-fn face_views(args: &PanoramaArgs, frame: &Frame, size: u32, images: &Path) -> Vec<ViewDesc> {
+fn face_views(position: [f32; 3], frame: &Frame, size: u32, images: &Path) -> Vec<ViewDesc> {
     frame
         .faces()
         .iter()
         .map(|&(name, direction, up)| ViewDesc {
             name: name.into(),
             image: Some(images.join(format!("{name}.exr"))),
-            position: args.position,
+            position,
             direction: direction.to_array(),
             up: up.to_array(),
             fov_deg: [90.0, 90.0],
@@ -250,27 +251,36 @@ pub struct JoinArgs {
     pub threads: Option<usize>,
 }
 
+/// Where every view of `desc` is, as a panorama's views are: an error naming two views
+/// apart (or a scene with none).
+fn common_position(desc: &SceneDesc) -> Result<[f32; 3], Error> {
+    let Some(first) = desc.views.first() else {
+        return Err(Error::input(&desc.path, "has no view"));
+    };
+    let p = Vec3::from(first.position);
+    match desc
+        .views
+        .iter()
+        .find(|v| (Vec3::from(v.position) - p).length() > 1e-5 * p.length().max(1.0))
+    {
+        Some(v) => Err(Error::input(
+            &desc.path,
+            format!(
+                "view '{}' is at {:?} and view '{}' at {:?}: a panorama is seen from one position",
+                v.name, v.position, first.name, first.position
+            ),
+        )),
+        None => Ok(first.position),
+    }
+}
+
 /// Joins the scene's views, all at one position, into one equirectangular image: each
 /// texel the mean of lookups on a grid over its footprint, each lookup in the view that
 /// sees its direction most centrally. Every direction must be seen by some view.
 pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
     let frame = Frame::new(args.forward, args.up)?;
     let desc = scene_file::load_scene(&args.scene)?;
-    let Some(first) = desc.views.first() else {
-        return Err(Error::input(&args.scene, "has no view to join"));
-    };
-    if let Some(v) = desc.views.iter().find(|v| {
-        let apart = (Vec3::from(v.position) - Vec3::from(first.position)).length();
-        apart > 1e-5 * Vec3::from(first.position).length().max(1.0)
-    }) {
-        return Err(Error::input(
-            &args.scene,
-            format!(
-                "view '{}' is at {:?} and view '{}' at {:?}: a panorama is seen from one position",
-                v.name, v.position, first.name, first.position
-            ),
-        ));
-    }
+    common_position(&desc)?;
     let mut views = Vec::new();
     let mut inputs = desc.input_files();
     for v in &desc.views {
@@ -388,9 +398,21 @@ fn equirect_from_views(
 /// nothing.
 pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
     let frame = Frame::new(args.forward, args.up)?;
-    if !math::is_finite(Vec3::from(args.position)) {
-        return Err(Error::Usage("--position must be finite".into()));
-    }
+    let template = args
+        .scene
+        .as_ref()
+        .map(|scene| scene_file::load_scene(scene))
+        .transpose()?;
+    let position = match (args.position, &template) {
+        (Some(p), _) if math::is_finite(Vec3::from(p)) => p,
+        (Some(_), _) => return Err(Error::Usage("--position must be finite".into())),
+        (None, Some(desc)) => common_position(desc)?,
+        (None, None) => {
+            return Err(Error::Usage(
+                "--position is needed: where the panorama was taken (or a --scene whose views are all there)".into(),
+            ))
+        }
+    };
     let image = images::read_image_sized(&args.image, 1.0, |w, h| {
         if w == 2 * h {
             Ok(())
@@ -426,11 +448,6 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
     }
     let k = samples_per_side(image.width, size);
     let pool = parallel::thread_pool(args.threads)?;
-    let template = args
-        .scene
-        .as_ref()
-        .map(|scene| scene_file::load_scene(scene))
-        .transpose()?;
     let mut inputs = vec![(args.image.clone(), "the panorama".to_string())];
     if let Some(desc) = &template {
         inputs.extend(desc.input_files());
@@ -439,7 +456,7 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
     let faces_dir = args.out.join(FACES_DIR);
     let views_toml = args.out.join(VIEWS_TOML);
     let scene_toml = args.out.join("scene.toml");
-    let relative = face_views(args, &frame, size, Path::new(FACES_DIR));
+    let relative = face_views(position, &frame, size, Path::new(FACES_DIR));
     set.check_targets(
         relative
             .iter()
@@ -473,7 +490,7 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
         // made absolute, as a derived scene's are (`bench downsample`).
         let faces_absolute =
             std::fs::canonicalize(&faces_dir).map_err(|e| Error::io(&faces_dir, e))?;
-        desc.views = face_views(args, &frame, size, &faces_absolute);
+        desc.views = face_views(position, &frame, size, &faces_absolute);
         desc.geometry = desc
             .geometry
             .iter()
