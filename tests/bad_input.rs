@@ -1621,3 +1621,33 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
     assert_eq!(join(&cornell, &views, "pano.hdr").0, Some(2));
     assert!(!dir.path().join("pano.hdr").exists());
 }
+
+/// `relume check` on small scenes: views of 8 pixels are warned of as recover warns after
+/// its work, and a panorama that sees no group whole is refused as recover refuses it,
+/// before any render, writing nothing.
+#[test]
+fn check_warns_of_small_views_and_refuses_a_panorama_that_sees_no_group() {
+    let dir = lit_and_unlit(LIT_AND_UNLIT);
+    let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("a view is only 8 pixels on a side: below 32"),
+        "{stderr}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("check.json")).unwrap())
+            .unwrap();
+    let few = report["few_pixels"].as_array().unwrap();
+    assert_eq!(few.len(), 2, "both groups seen, in a few pixels: {few:?}");
+
+    let dir = lit_and_unlit(&looking_away());
+    let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("no view sees any group in whole pixels"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("check.json").exists());
+}

@@ -232,6 +232,27 @@ fn check_counts_each_groups_pixels_and_tells_a_mirrored_view() {
             "{group}: {counts:?}"
         );
     }
+    // The groups under 256 pure pixels are named, each with its count from the table.
+    let few: Vec<String> = [
+        "floor",
+        "ceiling",
+        "wall_red",
+        "wall_green",
+        "walls_white",
+        "box",
+        "sphere",
+        "plate",
+        "mirror",
+    ]
+    .iter()
+    .filter(|g| row(g)[0] < 256)
+    .map(|g| format!("{g} {}", row(g)[0]))
+    .collect();
+    assert!(few.len() >= 3, "{few:?}");
+    assert!(
+        stdout.contains(&format!("few pixels: {} (fewer than 256", few.join(", "))),
+        "{stdout}"
+    );
     assert!(stdout.contains("calibration: light 'light' in view 'pz' reads 1.000 1.000 1.000"));
     assert!(
         stdout.contains("orientation: view 'ny' not read"),

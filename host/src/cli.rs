@@ -393,6 +393,18 @@ fn print_check(report: &recover_cmd::CheckReport) {
             ),
         }
     }
+    if !report.few_pixels.is_empty() {
+        let groups: Vec<String> = report
+            .few_pixels
+            .iter()
+            .map(|(g, n)| format!("{g} {n}"))
+            .collect();
+        println!(
+            "few pixels: {} (fewer than {} pure pixels): a lobe recovered there was seen to change with the seed (docs/stability.md); a finer panorama sees them better",
+            groups.join(", "),
+            crate::recover::FEW_PIXELS
+        );
+    }
     for w in &report.warnings {
         eprintln!("relume: warning: {w}");
     }

@@ -13,6 +13,7 @@ use serde::Serialize;
 use super::calibration::{self, LightReading};
 use super::orientation::{self, OrientationReading};
 use super::pixels::{self, PurePixel};
+use super::warnings;
 use crate::assemble::{self, MaterialSource, OwnedScene};
 use crate::error::Error;
 use crate::fsutil::OutputSet;
@@ -172,9 +173,12 @@ pub struct CheckReport {
     pub groups: Vec<GroupSight>,
     pub light_readings: Vec<LightReading>,
     pub orientation_readings: Vec<OrientationReading>,
-    /// The warnings `relume recover` would print before its work, and one per group that
-    /// no view sees whole (recover says so after its first stage).
+    /// The warnings `relume recover` would print before its work, and those of its input
+    /// that it prints after: a group that no view sees whole, views too small.
     pub warnings: Vec<String>,
+    /// The groups seen, but in fewer than `warnings::FEW_PIXELS` pure pixels: a lobe
+    /// recovered on them was seen to change with the seed.
+    pub few_pixels: Vec<(String, u32)>,
     pub seconds: f64,
 }
 
@@ -219,12 +223,25 @@ pub fn check(
             g.group
         ));
     }
+    let smallest_side = input
+        .owned
+        .views
+        .iter()
+        .map(|v| v.width.min(v.height))
+        .min();
+    warnings.extend(smallest_side.and_then(warnings::small_view));
+    let few_pixels = groups
+        .iter()
+        .filter(|g| (1..warnings::FEW_PIXELS).contains(&g.total()))
+        .map(|g| (g.group.clone(), g.total()))
+        .collect();
     let report = CheckReport {
         views: input.view_names,
         groups,
         light_readings,
         orientation_readings,
         warnings,
+        few_pixels,
         seconds: start.elapsed().as_secs_f64(),
     };
     if let Some(path) = json {

@@ -70,6 +70,7 @@ pub use output::{output_files, UNSEEN_TOML};
 use pixels::PurePixel;
 use report::keep_rule;
 pub use report::{ComparisonReport, GroupReport, RecoverReport, StageReport};
+pub use warnings::FEW_PIXELS;
 
 /// How much work the recovery may spend: samples per pixel of the renders and caches in
 /// the loop, and of the final render that the report's errors come from.

@@ -49,6 +49,15 @@ pub struct Inputs<'a> {
 }
 
 /// The warnings, input-wide first, then group by group.
+/// The warning for views of `smallest_side` pixels on their shorter side, if small.
+pub fn small_view(smallest_side: u32) -> Option<String> {
+    (smallest_side < SMALL_VIEW).then(|| {
+        format!(
+            "a view is only {smallest_side} pixels on a side: below {SMALL_VIEW} speculars and small groups were lost (docs/stability.md)"
+        )
+    })
+}
+
 pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
     let mut warnings = Vec::new();
     const SEE: &str = "(docs/stability.md)";
@@ -59,12 +68,7 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
             100.0 * NOISY_PANORAMA
         ));
     }
-    if inputs.smallest_view_side < SMALL_VIEW {
-        warnings.push(format!(
-            "a view is only {} pixels on a side: below {SMALL_VIEW} speculars and small groups were lost {SEE}",
-            inputs.smallest_view_side
-        ));
-    }
+    warnings.extend(small_view(inputs.smallest_view_side));
     if inputs.budget.loop_spp < FEW_LOOP_SAMPLES {
         warnings.push(format!(
             "{} samples per pixel in the loop (effort fast): diffuse reflectances were seen to spread up to about 1% over seeds, 0.3% at {FEW_LOOP_SAMPLES} (effort default) {SEE}",
