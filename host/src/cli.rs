@@ -129,7 +129,8 @@ enum PanoramaCommand {
         /// The equirectangular EXR to write (<name>.exr; a tone-mapped <name>.png beside it).
         #[arg(long)]
         out: PathBuf,
-        /// Its width in texels, twice its height (default: four per widest view's side).
+        /// Its width in texels, twice its height (default: four times the widest view's side,
+        /// about a texel per view pixel on the horizon).
         #[arg(long)]
         width: Option<u32>,
         #[command(flatten)]

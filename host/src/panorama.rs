@@ -244,7 +244,8 @@ pub struct JoinArgs {
     pub dir: PathBuf,
     /// The equirectangular image to write (.exr; its PNG preview goes beside it).
     pub out: PathBuf,
-    /// Its width (twice its height); `None`: four texels per widest view's side.
+    /// Its width (twice its height); `None`: four times the widest view's side, about a
+    /// texel per view pixel on the horizon.
     pub width: Option<u32>,
     pub forward: [f32; 3],
     pub up: [f32; 3],
