@@ -64,8 +64,9 @@ enum Command {
         #[command(flatten)]
         knobs: BudgetOverrides,
     },
-    /// Check a scene and its panorama as `recover` does before its work, and stop there:
-    /// each group's pure pixels per view, the lights the views see against their declared
+    /// Check a scene and its panorama as `recover` does before its work, and stop there.
+    ///
+    /// Each group's pure pixels per view, the lights the views see against their declared
     /// radiance, each view's orientation; no render, nothing written but --json.
     Check {
         /// The scene.toml, whose views carry the panorama's images.
@@ -91,10 +92,11 @@ enum Command {
 
 #[derive(Subcommand)]
 enum PanoramaCommand {
-    /// Split an equirectangular image into the six cube faces a scene's views are:
-    /// <out>/views/<face>.exr, and <out>/views.toml with their [[view]] tables. The image's
-    /// centre column looks along --forward, its columns turn to the right, its top row
-    /// looks along --up.
+    /// Split an equirectangular image into the six cube faces a scene's views are.
+    ///
+    /// Writes <out>/views/<face>.exr, and <out>/views.toml with their [[view]] tables. The
+    /// image's centre column looks along --forward, its columns turn to the right, its top
+    /// row looks along --up.
     Split {
         /// The equirectangular image (.exr, .hdr or .png), twice as wide as high.
         image: PathBuf,
@@ -118,9 +120,10 @@ enum PanoramaCommand {
         #[arg(long)]
         threads: Option<usize>,
     },
-    /// Join a scene's views, rendered from one position (`relume render`'s <view>.exr in
-    /// a folder), into one equirectangular EXR: an environment map of a relit or edited
-    /// scene for other tools.
+    /// Join a scene's views, rendered from one position, into one equirectangular EXR.
+    ///
+    /// The views are `relume render`'s <view>.exr in a folder; the result is an
+    /// environment map of a relit or edited scene for other tools.
     Join {
         /// The scene.toml whose views the images are.
         scene: PathBuf,
