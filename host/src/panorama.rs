@@ -601,28 +601,33 @@ mod tests {
         }
     }
 
-    /// A light's texels, a hundred times the wall around it, reach no face pixel whose
-    /// footprint holds none of them, though texels across that footprint's edge hold
-    /// some: pure pixels beside a light stay the wall's. A pixel on the light's edge mixes.
+    /// A light a hundred times the wall around it, captured as a camera would (each texel
+    /// the mean of its own footprint, so texels on the light's edge are part light), reaches
+    /// no face pixel whose footprint does not meet the light, though texels across that
+    /// footprint's edge hold some of it: pure pixels beside a light stay the wall's. Every
+    /// lookup's texel (not only whole ones) gave 4 of them 1.2% more than the wall.
     #[test]
     fn a_lights_texels_stay_out_of_the_pixels_beside_it() {
         let frame = z_up();
         let (w, h) = (512u32, 256u32);
-        // The light: the texels within 10 degrees of straight ahead; the wall 1.
-        let lit = |i: u32, j: u32| {
-            let d = frame.direction((i as f32 + 0.5) / w as f32, (j as f32 + 0.5) / h as f32);
-            d.dot(frame.forward) > math::cos(math::radians(10.0))
-        };
+        // The light: the directions within 10 degrees of straight ahead; the wall 1.
+        let lit = |d: Vec3| d.dot(frame.forward) > math::cos(math::radians(10.0));
+        let radiance = |d: Vec3| if lit(d) { 100.0 } else { 1.0 };
         let image = Image {
             width: w,
             height: h,
             pixels: (0..w * h)
                 .map(|p| {
-                    if lit(p % w, p / w) {
-                        [100.0; 3]
-                    } else {
-                        [1.0; 3]
-                    }
+                    let (i, j) = ((p % w) as f32, (p / w) as f32);
+                    let mean = (0..64)
+                        .map(|s| {
+                            let u = (i + ((s % 8) as f32 + 0.5) / 8.0) / w as f32;
+                            let v = (j + ((s / 8) as f32 + 0.5) / 8.0) / h as f32;
+                            radiance(frame.direction(u, v))
+                        })
+                        .sum::<f32>()
+                        / 64.0;
+                    [mean; 3]
                 })
                 .collect(),
         };
@@ -632,19 +637,12 @@ mod tests {
         let (mut wall, mut mixed) = (0, 0);
         for y in 0..16 {
             for x in 0..16 {
-                // Whether the pixel's footprint meets a light texel, on a fine grid over it.
-                let meets_light = (0..64 * 64).any(|s| {
-                    let d = view
-                        .ray(
-                            x as f32 + ((s % 64) as f32 + 0.5) / 64.0,
-                            y as f32 + ((s / 64) as f32 + 0.5) / 64.0,
-                        )
-                        .direction;
-                    let (u, v) = frame.image_position(d);
-                    lit(
-                        (u * w as f32) as u32 % w,
-                        ((v * h as f32) as u32).min(h - 1),
-                    )
+                // Whether the pixel's footprint meets the light, on a fine grid over it.
+                let meets_light = (0..128 * 128).any(|s| {
+                    let (a, b) = ((s % 128) as f32, (s / 128) as f32);
+                    lit(view
+                        .ray(x as f32 + (a + 0.5) / 128.0, y as f32 + (b + 0.5) / 128.0)
+                        .direction)
                 });
                 let value = got.pixels[(y * 16 + x) as usize][0];
                 if meets_light {
