@@ -282,23 +282,7 @@ pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
     let frame = Frame::new(args.forward, args.up)?;
     let desc = scene_file::load_scene(&args.scene)?;
     common_position(&desc)?;
-    let mut views = Vec::new();
-    let mut inputs = desc.input_files();
-    for v in &desc.views {
-        let view = v
-            .view()
-            .map_err(|e| Error::core(format!("{}: view '{}'", args.scene.display(), v.name), e))?;
-        let path = args.dir.join(format!("{}.exr", v.name));
-        let image = images::read_view_image(&path, 1.0, v.size)?;
-        inputs.push((path, format!("the image of view '{}'", v.name)));
-        views.push((view, image));
-    }
-    let widest = desc
-        .views
-        .iter()
-        .map(|v| v.size[0].max(v.size[1]))
-        .max()
-        .unwrap_or(1);
+    let widest = widest_side(desc.views.iter().map(|v| v.size));
     let width = args.width.unwrap_or(4 * widest);
     let max = relume_core::config::MAX_VIEW_SIDE;
     if width < 2 || !width.is_multiple_of(2) || width > max {
@@ -311,6 +295,17 @@ pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
             "--out {}: the joined panorama is written as EXR (and a PNG preview beside it): name it <name>.exr",
             args.out.display()
         )));
+    }
+    let mut views = Vec::new();
+    let mut inputs = desc.input_files();
+    for v in &desc.views {
+        let view = v
+            .view()
+            .map_err(|e| Error::core(format!("{}: view '{}'", args.scene.display(), v.name), e))?;
+        let path = args.dir.join(format!("{}.exr", v.name));
+        let image = images::read_view_image(&path, 1.0, v.size)?;
+        inputs.push((path, format!("the image of view '{}'", v.name)));
+        views.push((view, image));
     }
     let preview = args.out.with_extension("png");
     let mut set = OutputSet::keeping(inputs);
@@ -348,6 +343,11 @@ pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
     Ok((width, k))
 }
 
+/// The longest side of views of these sizes (1 for none).
+fn widest_side(sizes: impl Iterator<Item = [u32; 2]>) -> u32 {
+    sizes.map(|[w, h]| w.max(h)).max().unwrap_or(1)
+}
+
 /// The equirectangular image `width` texels wide of what `views` see: each texel the mean
 /// of lookups on a grid over its footprint (two per view pixel it spans at a view's centre,
 /// where pixels are widest), each in the view that sees the direction most centrally.
@@ -359,11 +359,7 @@ fn equirect_from_views(
     width: u32,
 ) -> Result<(Image, u32), Vec3> {
     let height = width / 2;
-    let widest = views
-        .iter()
-        .map(|(v, _)| v.width.max(v.height))
-        .max()
-        .unwrap_or(1);
+    let widest = widest_side(views.iter().map(|(v, _)| [v.width, v.height]));
     let k = ((8.0 * widest as f64 / width as f64).ceil() as u32).clamp(2, MAX_SAMPLES_PER_SIDE);
     let texels = parallel::map_grid(pool, width, height, |i, j| {
         let mut sum = Vec3::ZERO;
