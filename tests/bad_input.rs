@@ -1640,6 +1640,26 @@ fn check_warns_of_small_views_and_refuses_a_panorama_that_sees_no_group() {
             .unwrap();
     let few = report["few_pixels"].as_array().unwrap();
     assert_eq!(few.len(), 2, "both groups seen, in a few pixels: {few:?}");
+    // Its preview of stage 1 finds the cellar unlit, as recover does, and gives it no colour.
+    assert!(
+        stderr.contains("group 'cellar': no light of the scene reaches it")
+            && stderr.contains("its material is not recovered"),
+        "{stderr}"
+    );
+    let cellar = report["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|g| g["group"] == "cellar")
+        .unwrap();
+    assert!(cellar["preview_colour"].is_null(), "{cellar}");
+    let seen: u64 = cellar["pure_pixels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_u64().unwrap())
+        .sum();
+    assert!(seen > 0, "{cellar}");
 
     let dir = lit_and_unlit(&looking_away());
     let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
@@ -1647,6 +1667,25 @@ fn check_warns_of_small_views_and_refuses_a_panorama_that_sees_no_group() {
     assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
     assert!(
         stderr.contains("no view sees any group in whole pixels"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("check.json").exists());
+
+    // With the lamp hidden too, no light reaches what the views see: refused, as recover
+    // refuses it.
+    let no_light = LIT_AND_UNLIT
+        .replace("hide = []", "hide = [\"lamp\"]")
+        .replace(
+            "[[light]]\nobject = \"lamp\"\nradiance = [10.0, 10.0, 10.0]\n",
+            "",
+        );
+    let dir = lit_and_unlit(LIT_AND_UNLIT);
+    std::fs::write(dir.path().join("scene.toml"), no_light).unwrap();
+    let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("scene.toml: no light of the scene reaches what its views see"),
         "{stderr}"
     );
     assert!(!dir.path().join("check.json").exists());

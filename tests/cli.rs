@@ -216,8 +216,10 @@ fn check_counts_each_groups_pixels_and_tells_a_mirrored_view() {
             .lines()
             .find(|l| l.split_whitespace().next() == Some(group))
             .unwrap_or_else(|| panic!("no row for {group}: {stdout}"));
+        // The total and one count per view; the first diffuse colour follows.
         line.split_whitespace()
             .skip(2)
+            .take(7)
             .map(|n| n.parse().unwrap())
             .collect()
     };
@@ -298,6 +300,75 @@ fn check_counts_each_groups_pixels_and_tells_a_mirrored_view() {
         );
     }
     assert_eq!(common::files_in(tmp.path()).len(), before.len() + 1);
+}
+
+/// `relume check`'s preview of stage 1: the bundled scene's diffuse groups read near their
+/// true colours; with the light declared a tenth as bright, every group would need a colour
+/// above white, and check says so (beside the calibration's reading of the light itself).
+#[test]
+fn check_reads_a_first_diffuse_colour_and_tells_a_light_too_dim_for_the_panorama() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("cornell");
+    common::copy_cornell(&scene);
+    let truth = relume::materials_file::load_materials(&scene.join("materials.toml"))
+        .unwrap()
+        .materials;
+    let colour_of = |report: &serde_json::Value, group: &str| -> Vec<f64> {
+        let g = report["groups"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|g| g["group"] == group)
+            .unwrap();
+        let c = g["preview_colour"].as_array().unwrap();
+        c.iter().map(|v| v.as_f64().unwrap()).collect()
+    };
+    let check = |json: &str| -> (serde_json::Value, String) {
+        let out = relume_ok(&scene, &["check", "scene.toml", "--json", json]);
+        let report =
+            serde_json::from_str(&std::fs::read_to_string(scene.join(json)).unwrap()).unwrap();
+        (report, String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (report, stderr) = check("check.json");
+    assert!(!stderr.contains("warning"), "{stderr}");
+    for group in ["floor", "ceiling", "wall_red", "wall_green", "walls_white"] {
+        let t = truth
+            .iter()
+            .find(|m| m.group == group)
+            .unwrap()
+            .color
+            .unwrap();
+        let c = colour_of(&report, group);
+        for k in 0..3 {
+            assert!(
+                (c[k] / t[k] as f64 - 1.0).abs() < 0.1,
+                "{group}: {c:?} against the truth {t:?}"
+            );
+        }
+    }
+
+    let text = std::fs::read_to_string(scene.join("scene.toml")).unwrap();
+    let dim = text.replace(
+        "radiance = [30.0, 28.0, 24.0]",
+        "radiance = [3.0, 2.8, 2.4]",
+    );
+    assert_ne!(dim, text);
+    std::fs::write(scene.join("scene.toml"), dim).unwrap();
+    let (report, stderr) = check("dim.json");
+    let told: Vec<&str> = stderr.lines().filter(|l| l.contains("warning")).collect();
+    let brighter: Vec<&&str> = told
+        .iter()
+        .filter(|l| l.contains("brighter in the panorama than any diffuse colour renders"))
+        .collect();
+    assert_eq!(brighter.len(), 1, "{stderr}");
+    for group in ["floor", "ceiling", "wall_red", "wall_green", "walls_white"] {
+        assert!(brighter[0].contains(&format!("'{group}'")), "{stderr}");
+        assert!(colour_of(&report, group).contains(&0.99), "{group}");
+    }
+    assert!(
+        told.iter().any(|l| l.contains("light 'light'")),
+        "the calibration tells it too: {stderr}"
+    );
 }
 
 /// `relume panorama` against the bundled scene's own cube faces: they are laid out as an

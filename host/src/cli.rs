@@ -64,10 +64,11 @@ enum Command {
         #[command(flatten)]
         knobs: BudgetOverrides,
     },
-    /// Check a scene and its panorama as `recover` does before its work, and stop there.
+    /// Check a scene and its panorama as `recover` does before its work, with a first look at its light.
     ///
     /// Each group's pure pixels per view, the lights the views see against their declared
-    /// radiance, each view's orientation; no render, nothing written but --json.
+    /// radiance, each view's orientation, and a first diffuse colour per group at a few
+    /// samples (whether light reaches it); nothing written but --json.
     Check {
         /// The scene.toml, whose views carry the panorama's images.
         scene: PathBuf,
@@ -375,14 +376,23 @@ fn print_check(report: &recover_cmd::CheckReport) {
     for (v, w) in report.views.iter().zip(&widths) {
         header.push_str(&format!(" {v:>w$}"));
     }
-    println!("{header}");
+    println!("{header}  first diffuse colour");
     for g in &report.groups {
         let mut row = format!("{:<16} {:<8} {:>11}", g.group, g.kind, g.total());
         for (n, w) in g.pure_pixels.iter().zip(&widths) {
             row.push_str(&format!(" {n:>w$}"));
         }
+        match g.preview_colour {
+            Some([r, gr, b]) => row.push_str(&format!("  {r:.3} {gr:.3} {b:.3}")),
+            None => row.push_str("  -"),
+        }
         println!("{row}");
     }
+    println!(
+        "first diffuse colour: stage 1's iteration at {} samples per pixel ({}), every group diffuse: a reading of the scene's light and the panorama's scale, not a result (a glossy group's is off)",
+        report.preview_spp,
+        crate::text::counted(report.preview_renders, "render")
+    );
     if report.light_readings.is_empty() {
         println!("calibration: not checked (no view sees a light's emitting side in whole pixels)");
     }

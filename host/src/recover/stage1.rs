@@ -8,6 +8,7 @@ use relume_core::fit;
 use relume_core::stages::diffuse::{self, DiffuseVerdict};
 
 use super::model::{GroupModel, NEUTRAL_STAND_IN};
+use super::warnings::BRIGHTER_THAN_LIT;
 use super::{
     min_samples_spp, pixels, progress_bar, GroupReport, Recovery, StageReport, CACHE_MIN_SAMPLES,
     POLISH_MIN_SAMPLES, POLISH_NEWTON_MAX_GROUPS, POLISH_RESPONSE_STEP, POLISH_SPP_FACTOR,
@@ -32,25 +33,7 @@ pub(super) fn run(
     let (first, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
     let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
     let unlit = unlit_groups(rec, &first, spp)?;
-    // (A scene whose views see no group whole is a different matter: every group unseen.)
-    let lit = (0..n_groups).any(|g| pure_pixels[g] > 0 && unlit[g].is_none());
-    if !lit && unlit.iter().any(Option::is_some) {
-        return Err(Error::input(
-            &rec.owned.desc.path,
-            "no light of the scene reaches what its views see: every group's pure pixels render black, so no material can be recovered (a light hidden, of radiance 0, facing away, or none?)",
-        ));
-    }
-    // A panorama that is 0 over every lit group's pure pixels is not a room of black
-    // materials but an image or exposure gone wrong.
-    let seen_lit: Vec<usize> = (0..n_groups)
-        .filter(|&g| pure_pixels[g] > 0 && unlit[g].is_none())
-        .collect();
-    if !seen_lit.is_empty() && seen_lit.iter().all(|&g| first[g].sum_real == [0.0; 3]) {
-        return Err(Error::input(
-            &rec.owned.desc.path,
-            "the panorama is 0 over every group's pure pixels, though the scene's light reaches them: no material can be recovered (are the views' images black, or their exposure wrong?)",
-        ));
-    }
+    refuse_unlit_or_black(rec, &first, &unlit, &pure_pixels)?;
     // Which groups go on is decided on the bias-only error, at the decisions' samples and
     // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
     // own noise (heavy-tailed paths), by whole percents either way.
@@ -95,11 +78,7 @@ pub(super) fn run(
                 "unlit: {}; material not recovered",
                 unlit.describe()
             ));
-            warnings.push(format!(
-                "group '{}': {}; its material is not recovered (are the scene's lights right?)",
-                names[g],
-                unlit.describe()
-            ));
+            warnings.push(unlit.warning(&names[g]));
             continue;
         }
         match diffuse::verdict(pure_pixels[g], decided[g]) {
@@ -178,6 +157,102 @@ pub(super) fn run(
     Ok((report, candidates))
 }
 
+/// The refusals of a scene whose first render says that nothing can be recovered: no light
+/// reaches what its views see, or the panorama is 0 over every lit group (`first`: the
+/// iteration's first fits; `unlit`: [`unlit_groups`] of them).
+fn refuse_unlit_or_black(
+    rec: &Recovery,
+    first: &[fit::GroupFit],
+    unlit: &[Option<Unlit>],
+    pure_pixels: &[u32],
+) -> Result<(), Error> {
+    let n_groups = unlit.len();
+    // (A scene whose views see no group whole is a different matter: every group unseen.)
+    let lit = (0..n_groups).any(|g| pure_pixels[g] > 0 && unlit[g].is_none());
+    if !lit && unlit.iter().any(Option::is_some) {
+        return Err(Error::input(
+            &rec.owned.desc.path,
+            "no light of the scene reaches what its views see: every group's pure pixels render black, so no material can be recovered (a light hidden, of radiance 0, facing away, or none?)",
+        ));
+    }
+    // A panorama that is 0 over every lit group's pure pixels is not a room of black
+    // materials but an image or exposure gone wrong.
+    let seen_lit: Vec<usize> = (0..n_groups)
+        .filter(|&g| pure_pixels[g] > 0 && unlit[g].is_none())
+        .collect();
+    if !seen_lit.is_empty() && seen_lit.iter().all(|&g| first[g].sum_real == [0.0; 3]) {
+        return Err(Error::input(
+            &rec.owned.desc.path,
+            "the panorama is 0 over every group's pure pixels, though the scene's light reaches them: no material can be recovered (are the views' images black, or their exposure wrong?)",
+        ));
+    }
+    Ok(())
+}
+
+/// What stage 1 reads of the scene at a few samples per pixel, for `relume check`: each
+/// group's diffuse colour after the iteration (`None` where no pixel sees it or no light
+/// reaches it), and the warnings recover would give of its light: groups unlit, and
+/// colours held at their bound under a panorama brighter than the lights can make them.
+pub(super) struct LightPreview {
+    pub colours: Vec<Option<[f64; 3]>>,
+    pub warnings: Vec<String>,
+    /// Renders spent, the iteration's and the bound's check.
+    pub evaluations: u32,
+}
+
+/// Runs stage 1's diffuse iteration at `spp` from every group at 0.5 grey and judges the
+/// light it finds. Refuses the scene as stage 1 would (no light reaches what the views
+/// see; a panorama black over every lit group).
+pub(super) fn preview_light(
+    rec: &mut Recovery,
+    names: &[String],
+    spp: u32,
+) -> Result<LightPreview, Error> {
+    let n_groups = rec.n_groups();
+    let all = vec![true; n_groups];
+    let (first, mut evaluations) =
+        rec.diffuse_iteration(spp, &all, &indicatif::ProgressBar::hidden())?;
+    let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
+    let unlit = unlit_groups(rec, &first, spp)?;
+    refuse_unlit_or_black(rec, &first, &unlit, &pure_pixels)?;
+    // The colours' own render, for the bound's check: the iteration's last render was of
+    // the colours before its last update.
+    let subset = rec.diffuse_subset();
+    let fits = rec.evaluate_pixels(&subset, spp, rec.seed, &|_| true)?;
+    evaluations += 1;
+    let mut colours = vec![None; n_groups];
+    let mut warnings = Vec::new();
+    let mut too_bright = Vec::new();
+    for g in 0..n_groups {
+        if let Some(unlit) = &unlit[g] {
+            warnings.push(unlit.warning(&names[g]));
+        } else if let (true, GroupModel::Diffuse { color }) = (pure_pixels[g] > 0, rec.models[g]) {
+            colours[g] = Some(color);
+            let ratio = fits[g].mean_ratio();
+            let worst = (0..3)
+                .filter(|&c| color[c] >= diffuse::MAX_DIFFUSE_REFLECTANCE)
+                .map(|c| ratio[c])
+                .fold(0.0, f64::max);
+            if worst > 1.0 + BRIGHTER_THAN_LIT {
+                too_bright.push(format!("'{}' {worst:.2}x", names[g]));
+            }
+        }
+    }
+    if !too_bright.is_empty() {
+        warnings.push(format!(
+            "{} brighter in the panorama than any diffuse colour renders under the scene's lights ({}, with the colour at its bound {}): recover gives a group a lobe where one explains it; for groups that are not glossy, a light's radiance or a view's exposure is likely too low",
+            if too_bright.len() == 1 { "1 group reads".to_string() } else { format!("{} groups read", too_bright.len()) },
+            too_bright.join(", "),
+            diffuse::MAX_DIFFUSE_REFLECTANCE
+        ));
+    }
+    Ok(LightPreview {
+        colours,
+        warnings,
+        evaluations,
+    })
+}
+
 /// Pixel samples (at least) at which a group that rendered black in the iteration's first
 /// step is rendered again before it is called unlit: at the loop's few samples a dim group
 /// of a few pixels, lit only by light reflected off other groups, could miss every path.
@@ -200,6 +275,13 @@ impl Unlit {
         format!(
             "no light of the scene reaches it: its pure pixels render black ({} of them at {} samples per pixel), where the panorama's mean is [{r:.4}, {g:.4}, {b:.4}]",
             self.pixels, self.spp
+        )
+    }
+
+    fn warning(&self, group: &str) -> String {
+        format!(
+            "group '{group}': {}; its material is not recovered (are the scene's lights right?)",
+            self.describe()
         )
     }
 }
