@@ -655,67 +655,91 @@ mod tests {
         );
     }
 
-    /// Six faces of a radiance linear in the direction (each pixel its footprint's mean),
-    /// joined: each texel is the function's mean over the texel's footprint, within what
-    /// the faces' pixels resolve.
-    #[test]
-    fn joined_faces_give_each_texel_the_mean_over_its_footprint() {
-        let frame = z_up();
-        let radiance = |d: Vec3| Vec3::new(1.0 + 0.5 * d.x, 1.0 + 0.5 * d.y, 1.0 + 0.5 * d.z);
-        let n = 32u32;
-        let views: Vec<(View, Image)> = frame
-            .faces()
+    /// A radiance linear in the direction, which a texel's or a pixel's footprint mean
+    /// holds to within the footprint's curvature.
+    fn linear_radiance(d: Vec3) -> Vec3 {
+        Vec3::new(1.0 + 0.5 * d.x, 1.0 + 0.5 * d.y, 1.0 + 0.5 * d.z)
+    }
+
+    /// Views from the origin (direction, up, field of view, size) whose pixels are each
+    /// the mean of [`linear_radiance`] over the pixel's footprint.
+    fn views_of_linear_radiance(specs: &[(Vec3, Vec3, [f32; 2], [u32; 2])]) -> Vec<(View, Image)> {
+        specs
             .iter()
-            .map(|&(_, direction, up)| {
-                let view = View::new(Vec3::ZERO, direction, up, [90.0, 90.0], [n, n]).unwrap();
-                let pixels = (0..n * n)
+            .map(|&(direction, up, fov, [w, h])| {
+                let view = View::new(Vec3::ZERO, direction, up, fov, [w, h]).unwrap();
+                let pixels = (0..w * h)
                     .map(|p| {
-                        let (x, y) = ((p % n) as f32, (p / n) as f32);
+                        let (x, y) = ((p % w) as f32, (p / w) as f32);
                         let mut sum = Vec3::ZERO;
                         for b in 0..8 {
                             for a in 0..8 {
                                 let d = view
                                     .ray(x + (a as f32 + 0.5) / 8.0, y + (b as f32 + 0.5) / 8.0)
                                     .direction;
-                                sum += radiance(d) / 64.0;
+                                sum += linear_radiance(d) / 64.0;
                             }
                         }
                         sum.to_array()
                     })
                     .collect();
                 let image = Image {
-                    width: n,
-                    height: n,
+                    width: w,
+                    height: h,
                     pixels,
                 };
                 (view, image)
             })
-            .collect();
-        let pool = parallel::thread_pool(Some(2)).unwrap();
-        let width = 32;
-        let (image, k) = equirect_from_views(&pool, &frame, &views, width).unwrap();
-        assert_eq!((image.width, image.height, k), (32, 16, 8));
+            .collect()
+    }
+
+    /// How far the joined `image`'s texels are from [`linear_radiance`]'s mean over their
+    /// footprints: the worst within 67.5 degrees of the horizon, and the worst nearer the
+    /// poles.
+    fn worst_texels(frame: &Frame, image: &Image) -> (f32, f32) {
+        let (width, height) = (image.width, image.height);
         let mut worst = 0.0f32;
         let mut worst_pole = 0.0f32;
-        for j in 0..16u32 {
-            for i in 0..32u32 {
+        for j in 0..height {
+            for i in 0..width {
                 let mut want = Vec3::ZERO;
                 for b in 0..16 {
                     for a in 0..16 {
-                        let u = (i as f32 + (a as f32 + 0.5) / 16.0) / 32.0;
-                        let v = (j as f32 + (b as f32 + 0.5) / 16.0) / 16.0;
-                        want += radiance(frame.direction(u, v)) / 256.0;
+                        let u = (i as f32 + (a as f32 + 0.5) / 16.0) / width as f32;
+                        let v = (j as f32 + (b as f32 + 0.5) / 16.0) / height as f32;
+                        want += linear_radiance(frame.direction(u, v)) / 256.0;
                     }
                 }
-                let got = Vec3::from(image.pixels[(j * 32 + i) as usize]);
+                let got = Vec3::from(image.pixels[(j * width + i) as usize]);
                 let off = (got - want).abs().max_element();
-                if (2..14).contains(&j) {
+                if (height / 8..height - height / 8).contains(&j) {
                     worst = worst.max(off);
                 } else {
                     worst_pole = worst_pole.max(off);
                 }
             }
         }
+        (worst, worst_pole)
+    }
+
+    /// Six faces of a radiance linear in the direction (each pixel its footprint's mean),
+    /// joined: each texel is the function's mean over the texel's footprint, within what
+    /// the faces' pixels resolve.
+    #[test]
+    fn joined_faces_give_each_texel_the_mean_over_its_footprint() {
+        let frame = z_up();
+        let n = 32u32;
+        let specs: Vec<_> = frame
+            .faces()
+            .iter()
+            .map(|&(_, direction, up)| (direction, up, [90.0, 90.0], [n, n]))
+            .collect();
+        let views = views_of_linear_radiance(&specs);
+        let pool = parallel::thread_pool(Some(2)).unwrap();
+        let width = 32;
+        let (image, k) = equirect_from_views(&pool, &frame, &views, width).unwrap();
+        assert_eq!((image.width, image.height, k), (32, 16, 8));
+        let (worst, worst_pole) = worst_texels(&frame, &image);
         // Within 67.5 degrees of the horizon a texel spans several face pixels (0.003 left);
         // nearer the poles it is narrower than one, and takes what a face pixel holds: at
         // most half the function's change across a face pixel, 0.5 x 0.5 x (pi / 2) / 32.
@@ -726,6 +750,41 @@ mod tests {
         );
         // Five faces leave a hole: the direction is named.
         let hole = equirect_from_views(&pool, &frame, &views[..5], width).unwrap_err();
+        assert!(hole.dot(-frame.up) > 0.5, "{hole}");
+    }
+
+    /// Views that are not a cube: a ring of six around the horizon, turned 15 degrees off
+    /// the frame's forward, 70 x 100 degrees and 24 x 32 pixels each, overlapping one
+    /// another and the two of 120 degrees (40 pixels) that look up and down, their up
+    /// vectors turned too. Joined, the texels are the function's footprint means as from
+    /// the cube.
+    #[test]
+    fn joined_views_of_any_layout_that_sees_every_direction_agree_with_the_function() {
+        let frame = z_up();
+        let mut specs: Vec<_> = (0..6)
+            .map(|k| {
+                let yaw = (15.0 + 60.0 * k as f32).to_radians();
+                let direction = Vec3::new(yaw.cos(), yaw.sin(), 0.0);
+                (direction, Vec3::Z, [70.0, 100.0], [24, 32])
+            })
+            .collect();
+        let turned = Vec3::new(0.6, 0.8, 0.0);
+        specs.push((Vec3::Z, turned, [120.0, 120.0], [40, 40]));
+        specs.push((-Vec3::Z, -turned, [120.0, 120.0], [40, 40]));
+        let views = views_of_linear_radiance(&specs);
+        let pool = parallel::thread_pool(Some(2)).unwrap();
+        let width = 32;
+        let (image, _) = equirect_from_views(&pool, &frame, &views, width).unwrap();
+        let (worst, worst_pole) = worst_texels(&frame, &image);
+        // The widest pixel is at the up and down views' centres, 2 tan(60 deg) / 40 = 0.087
+        // radians: half the function's change across it is 0.5 x 0.5 x 0.087 = 0.022.
+        assert!(worst < 0.005, "worst texel off by {worst}");
+        assert!(
+            worst_pole < 0.022,
+            "worst texel near the poles off by {worst_pole}"
+        );
+        // Without the view that looks down, the nadir is seen by none.
+        let hole = equirect_from_views(&pool, &frame, &views[..7], width).unwrap_err();
         assert!(hole.dot(-frame.up) > 0.5, "{hole}");
     }
 
