@@ -764,7 +764,7 @@ mod tests {
         let mut specs: Vec<_> = (0..6)
             .map(|k| {
                 let yaw = (15.0 + 60.0 * k as f32).to_radians();
-                let direction = Vec3::new(yaw.cos(), yaw.sin(), 0.0);
+                let direction = Vec3::new(math::cos(yaw), math::sin(yaw), 0.0);
                 (direction, Vec3::Z, [70.0, 100.0], [24, 32])
             })
             .collect();
