@@ -371,7 +371,7 @@ impl Recovery {
     /// pixel of the whole group), both with bias-only errors (see
     /// [`pixels::evaluate_cross`]) on the decisions' own seed, paired pixel by pixel
     /// ([`fit::ModelComparison`]), from `spp` samples per pixel up while the comparison is
-    /// promising or unresolved ([`fit::DECISION_SPP_GROWTH`]). A subtracted variance
+    /// promising or unresolved ([`fit::next_decision_spp`]). A subtracted variance
     /// estimate would favour the model whose sampling is noisier (any Ward lobe, however
     /// weak), not the better model. Leaves the group's model as it was. Returns the last
     /// comparison and its samples per pixel; `None` for a group without lit pixels.
@@ -389,13 +389,17 @@ impl Recovery {
             let Some(c) = self.compare_once(g, simple, complex, &pixels, spp, seed)? else {
                 return Ok(None);
             };
-            let next_spp = spp.saturating_mul(fit::DECISION_SPP_GROWTH);
-            let next_samples = pixels.len() as u64 * next_spp as u64;
-            let again = (c.is_promising() && next_samples <= fit::DECISION_MAX_SAMPLES)
-                || (c.is_unresolved() && next_samples <= fit::UNRESOLVED_MAX_SAMPLES);
-            if !again || round == fit::DECISION_MAX_ROUNDS {
+            let cap = if c.is_promising() {
+                Some(fit::DECISION_MAX_SAMPLES)
+            } else if c.is_unresolved() {
+                Some(fit::UNRESOLVED_MAX_SAMPLES)
+            } else {
+                None
+            };
+            let next_spp = cap.and_then(|cap| fit::next_decision_spp(spp, pixels.len(), cap));
+            let Some(next_spp) = next_spp.filter(|_| round < fit::DECISION_MAX_ROUNDS) else {
                 return Ok(Some((c, spp)));
-            }
+            };
             spp = next_spp;
             round += 1;
         }
@@ -924,6 +928,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             "DECISION_SPP_GROWTH": fit::DECISION_SPP_GROWTH,
             "DECISION_MAX_ROUNDS": fit::DECISION_MAX_ROUNDS,
             "DECISION_MAX_SAMPLES": fit::DECISION_MAX_SAMPLES,
+            "DECISION_MIN_GROWTH": fit::DECISION_MIN_GROWTH,
             "MIRROR_SPECULAR_FRACTION": fit::MIRROR_SPECULAR_FRACTION,
             "MIRROR_MAX_ROUGHNESS": fit::MIRROR_MAX_ROUGHNESS,
             "MIRROR_MAX_TINT": fit::MIRROR_MAX_TINT,
