@@ -84,8 +84,10 @@ pub struct RaceOutcome {
     pub evaluations: u32,
     /// The challengers measured against the incumbent.
     pub challengers: usize,
-    /// The best challenger's z over the incumbent (`None` when none could be compared).
+    /// The best challenger's z over the incumbent (`None` when none could be compared),
+    /// and that challenger.
     pub best_z: Option<f64>,
+    pub best_challenger: Option<GroupModel>,
     /// Whether a challenger replaced the incumbent.
     pub replaced: bool,
     pub spp: u32,
@@ -172,6 +174,7 @@ pub(super) fn race(
         evaluations: 1,
         challengers: 0,
         best_z: None,
+        best_challenger: None,
         replaced: false,
         spp,
     };
@@ -187,6 +190,7 @@ pub(super) fn race(
         let z = c.z();
         if outcome.best_z.is_none_or(|b| z > b) {
             outcome.best_z = Some(z);
+            outcome.best_challenger = Some(model);
         }
         if z >= RACE_SIGNIFICANCE && c.gain > best_gain {
             best_gain = c.gain;

@@ -355,6 +355,59 @@ pub(super) fn run(
                 }
             }
         }
+        // The race keeps the cache's proposal unless a search point renders better at
+        // RACE_SIGNIFICANCE; a proposal the test then rejects has lost that credit. Where
+        // the ladder finds nothing either, the point that rendered best against the
+        // proposal in the race is tested in its place: glossy's teal box at 64 px (effort
+        // fast, seed 2; s 0.04, roughness 0.08), whose proposal (s 0.118) and best rung
+        // fell short, is kept with the race's point (s 0.051, roughness 0.086) at z 3.3.
+        let challenger = refined
+            .race
+            .filter(|race| !race.replaced && race.best_z.is_some_and(|z| z > 0.0))
+            .and_then(|race| {
+                race.best_challenger
+                    .map(|m| (m, race.best_z.unwrap_or(0.0)))
+            });
+        let still_failed = matches!(comparison, Some((c, _)) if !c.favours_complex());
+        if let (true, Some((challenger, race_z)), GroupModel::Isotropic { .. }) =
+            (still_failed, challenger, candidate.0)
+        {
+            if challenger != candidate.0 && mirror_test(&challenger).is_none() {
+                let test = rec.compare_models(g, stage1, challenger, 4 * verify_spp)?;
+                evaluations += 2;
+                let (failed, _) = comparison.expect("the candidate was measured");
+                let look = |c: &fit::ModelComparison, spp: u32| {
+                    format!(
+                        "stage 2 second look: the candidate tested last removes {:.4} +- {:.4} (z {:.1}), short of the test; the search's point that rendered best against the proposal in the race (z {race_z:.1}) removes {:.4} +- {:.4} (z {:.1}) at {spp} spp",
+                        failed.gain,
+                        failed.gain_sigma,
+                        failed.z(),
+                        c.gain,
+                        c.gain_sigma,
+                        c.z()
+                    )
+                };
+                if let Some((c, spp)) = test.filter(|(c, _)| !c.favours_complex()) {
+                    let why = format!("{}: short of the test too", look(&c, spp));
+                    reports[g].decisions.push(why);
+                }
+                if let Some((c, spp)) = test.filter(|(c, _)| c.favours_complex()) {
+                    let why = format!("{} and is taken in its place", look(&c, spp));
+                    reports[g].decisions.push(why);
+                    if let GroupModel::Isotropic {
+                        specularity: s,
+                        roughness: a,
+                        ..
+                    } = challenger
+                    {
+                        (specularity, alpha) = (s, a);
+                    }
+                    candidate = (challenger, None);
+                    comparison = test;
+                    ladder_sigmas = None;
+                }
+            }
+        }
         let r = &mut reports[g];
         let Some((c, decision_spp)) = comparison else {
             r.decisions
