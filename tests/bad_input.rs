@@ -864,6 +864,17 @@ fn lit_and_unlit(scene: &str) -> tempfile::TempDir {
     dir
 }
 
+/// LIT_AND_UNLIT with its lamp hidden and no light declared: nothing lights what the
+/// views see.
+fn without_light() -> String {
+    LIT_AND_UNLIT
+        .replace("hide = []", "hide = [\"lamp\"]")
+        .replace(
+            "[[light]]\nobject = \"lamp\"\nradiance = [10.0, 10.0, 10.0]\n",
+            "",
+        )
+}
+
 /// A group no light reaches renders black whatever its material: recovery says so and
 /// leaves it unrecovered (it kept its starting colour, 0.5, as a "diffuse" result with
 /// an error of 100%), and recovers the rest. With the lamp hidden too, no group is lit
@@ -915,13 +926,7 @@ fn a_group_no_light_reaches_is_not_recovered_and_a_scene_without_light_is_refuse
     assert!(run.status.success(), "{stderr}");
     assert!(dir.path().join("edits/edits.csv").is_file());
 
-    let no_light = LIT_AND_UNLIT
-        .replace("hide = []", "hide = [\"lamp\"]")
-        .replace(
-            "[[light]]\nobject = \"lamp\"\nradiance = [10.0, 10.0, 10.0]\n",
-            "",
-        );
-    std::fs::write(dir.path().join("scene.toml"), no_light).unwrap();
+    std::fs::write(dir.path().join("scene.toml"), without_light()).unwrap();
     let run = relume(
         dir.path(),
         &["recover", "scene.toml", "--out", "dark", "--effort", "fast"],
@@ -1661,32 +1666,24 @@ fn check_warns_of_small_views_and_refuses_a_panorama_that_sees_no_group() {
         .sum();
     assert!(seen > 0, "{cellar}");
 
-    let dir = lit_and_unlit(&looking_away());
-    let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
-    assert!(
-        stderr.contains("no view sees any group in whole pixels"),
-        "{stderr}"
+    // Refused, naming why, and nothing written.
+    let refused = |dir: &tempfile::TempDir, why: &str| {
+        let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+        assert!(stderr.contains(why), "{stderr}");
+        assert!(!dir.path().join("check.json").exists());
+    };
+    refused(
+        &lit_and_unlit(&looking_away()),
+        "no view sees any group in whole pixels",
     );
-    assert!(!dir.path().join("check.json").exists());
-
     // With the lamp hidden too, no light reaches what the views see: refused, as recover
     // refuses it.
-    let no_light = LIT_AND_UNLIT
-        .replace("hide = []", "hide = [\"lamp\"]")
-        .replace(
-            "[[light]]\nobject = \"lamp\"\nradiance = [10.0, 10.0, 10.0]\n",
-            "",
-        );
     let dir = lit_and_unlit(LIT_AND_UNLIT);
-    std::fs::write(dir.path().join("scene.toml"), no_light).unwrap();
-    let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
-    assert!(
-        stderr.contains("scene.toml: no light of the scene reaches what its views see"),
-        "{stderr}"
+    std::fs::write(dir.path().join("scene.toml"), without_light()).unwrap();
+    refused(
+        &dir,
+        "scene.toml: no light of the scene reaches what its views see",
     );
-    assert!(!dir.path().join("check.json").exists());
 }
