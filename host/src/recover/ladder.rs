@@ -348,10 +348,10 @@ pub struct Found {
 
 /// The ladder for group `g` after `proposal` (the failed test of the cache's proposal)
 /// and, when its best rung shows any gain, that rung's test against `diffuse` by
-/// `Recovery::compare_models`, from the ladder's samples up: from the usual start (4x the
-/// loop's samples) a weak lobe's errors are lost in the noise and the test stops there
-/// (glossy's yellow box on seed 6: 0.016 at z 4.9 on the ladder, -0.029 +- 0.010 at 32
-/// spp).
+/// `Recovery::compare_models`, from the ladder's samples or the usual start (4x the loop's
+/// samples), whichever is more: from the usual start alone a weak lobe's errors are lost
+/// in the noise at effort fast and the test stops there (glossy's yellow box on seed 6:
+/// 0.016 at z 4.9 on the ladder, -0.029 +- 0.010 at 32 spp).
 pub fn second_look(
     rec: &mut Recovery,
     g: usize,
@@ -399,7 +399,12 @@ pub fn second_look(
         spread.specularity.0,
         spread.specularity.1,
     );
-    let test = rec.compare_models(g, diffuse, rung.model, group_spp)?;
+    // At no fewer samples than the proposal's own test (4x the loop's): at effort default
+    // the ladder's samples are the fewer, and glossy's white sphere at 256 px read its
+    // rung (s 0.025, roughness 0.039 against 0.03, 0.02) at z -1.0 on 96 spp of its
+    // decision pixels, where its proposal had 384.
+    let test_spp = group_spp.max(4 * spp);
+    let test = rec.compare_models(g, diffuse, rung.model, test_spp)?;
     evaluations += 2;
     Ok(SecondLook {
         found: match test {
