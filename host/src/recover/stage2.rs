@@ -363,19 +363,16 @@ pub(super) fn run(
         // fell short, is kept with the race's point (s 0.051, roughness 0.086) at z 3.3.
         let challenger = refined
             .race
-            .filter(|race| !race.replaced && race.best_z.is_some_and(|z| z > 0.0))
-            .and_then(|race| {
-                race.best_challenger
-                    .map(|m| (m, race.best_z.unwrap_or(0.0)))
-            });
-        let still_failed = matches!(comparison, Some((c, _)) if !c.favours_complex());
-        if let (true, Some((challenger, race_z)), GroupModel::Isotropic { .. }) =
-            (still_failed, challenger, candidate.0)
+            .filter(|race| !race.replaced)
+            .and_then(|race| Some((race.best_challenger?, race.best_z?)))
+            .filter(|&(_, z)| z > 0.0);
+        let failed = comparison.filter(|(c, _)| !c.favours_complex());
+        if let (Some((failed, _)), Some((challenger, race_z)), GroupModel::Isotropic { .. }) =
+            (failed, challenger, candidate.0)
         {
             if challenger != candidate.0 && mirror_test(&challenger).is_none() {
                 let test = rec.compare_models(g, stage1, challenger, 4 * verify_spp)?;
                 evaluations += 2;
-                let (failed, _) = comparison.expect("the candidate was measured");
                 let look = |c: &fit::ModelComparison, spp: u32| {
                     format!(
                         "stage 2 second look: the candidate tested last removes {:.4} +- {:.4} (z {:.1}), short of the test; the search's point that rendered best against the proposal in the race (z {race_z:.1}) removes {:.4} +- {:.4} (z {:.1}) at {spp} spp",
