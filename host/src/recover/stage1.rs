@@ -8,7 +8,7 @@ use relume_core::fit;
 use relume_core::stages::diffuse::{self, DiffuseVerdict};
 
 use super::model::{GroupModel, NEUTRAL_STAND_IN};
-use super::warnings::BRIGHTER_THAN_LIT;
+use super::warnings::brighter_at_bound;
 use super::{
     min_samples_spp, pixels, progress_bar, GroupReport, Recovery, StageReport, CACHE_MIN_SAMPLES,
     POLISH_MIN_SAMPLES, POLISH_NEWTON_MAX_GROUPS, POLISH_RESPONSE_STEP, POLISH_SPP_FACTOR,
@@ -228,12 +228,7 @@ pub(super) fn preview_light(
             warnings.push(unlit.warning(&names[g]));
         } else if let (true, GroupModel::Diffuse { color }) = (pure_pixels[g] > 0, rec.models[g]) {
             colours[g] = Some(color);
-            let ratio = fits[g].mean_ratio();
-            let worst = (0..3)
-                .filter(|&c| color[c] >= diffuse::MAX_DIFFUSE_REFLECTANCE)
-                .map(|c| ratio[c])
-                .fold(0.0, f64::max);
-            if worst > 1.0 + BRIGHTER_THAN_LIT {
+            if let Some((_, worst)) = brighter_at_bound(&rec.models[g], &fits[g]) {
                 too_bright.push(format!("'{}' {worst:.2}x", names[g]));
             }
         }

@@ -179,21 +179,27 @@ pub const BRIGHTER_THAN_LIT: f64 = 0.05;
 /// too dark (a milder error hides in higher reflectances, whose interreflections brighten
 /// a closed room; at 2x no colour reached the bound).
 pub fn brighter_than_lit(name: &str, model: &GroupModel, fit: &GroupFit) -> Option<String> {
+    let (c, worst) = brighter_at_bound(model, fit)?;
+    Some(format!(
+        "group '{name}': the panorama is {worst:.2}x as bright as the render with its diffuse reflectance at the bound {} ({} channel): no material explains it under the scene's lights; a light's radiance or a view's exposure is likely too low",
+        diffuse::MAX_DIFFUSE_REFLECTANCE,
+        ["red", "green", "blue"][c]
+    ))
+}
+
+/// For a diffuse `model` whose colour is at [`diffuse::MAX_DIFFUSE_REFLECTANCE`] in some
+/// channel where the panorama is brighter than its render `fit` by more than
+/// [`BRIGHTER_THAN_LIT`]: the channel where it is most so, and the panorama over the render.
+pub fn brighter_at_bound(model: &GroupModel, fit: &GroupFit) -> Option<(usize, f64)> {
     let GroupModel::Diffuse { color } = *model else {
         return None;
     };
     let ratio = fit.mean_ratio();
-    let (c, worst) = (0..3)
+    (0..3)
         .filter(|&c| color[c] >= diffuse::MAX_DIFFUSE_REFLECTANCE)
         .map(|c| (c, ratio[c]))
-        .max_by(|a, b| a.1.total_cmp(&b.1))?;
-    (worst > 1.0 + BRIGHTER_THAN_LIT).then(|| {
-        format!(
-            "group '{name}': the panorama is {worst:.2}x as bright as the render with its diffuse reflectance at the bound {} ({} channel): no material explains it under the scene's lights; a light's radiance or a view's exposure is likely too low",
-            diffuse::MAX_DIFFUSE_REFLECTANCE,
-            ["red", "green", "blue"][c]
-        )
-    })
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .filter(|&(_, worst)| worst > 1.0 + BRIGHTER_THAN_LIT)
 }
 
 /// A textured group's lobe share and its specularity's relative standard error, when
