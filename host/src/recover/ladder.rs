@@ -15,7 +15,8 @@
 //! large group's rungs all specularity: the living room's desk at 256 px, s 0.2 against
 //! 0.05 at every rung, each rendering worse than diffuse), every rung is
 //! rendered against the diffuse model on fresh samples, and the rung that removes the most
-//! error (at its lower confidence bound; then refined by half a rung) goes to the same
+//! error (at its lower confidence bound, measured again at 4x where that bound leaves the
+//! choice open; then refined by half a rung) goes to the same
 //! keep-or-reject test as the proposal did, from the ladder's samples up. One more test on
 //! a group that already failed one adds a little to the false-positive rate; the test's z
 //! of `GAIN_SIGNIFICANCE` on fresh samples bounds it.
@@ -186,13 +187,38 @@ fn better(a: Option<Rung>, b: Option<Rung>) -> Option<Rung> {
     }
 }
 
+/// Rungs measured again in the ladder's second round ([`best_rung`]).
+pub const SECOND_ROUND_RUNGS: usize = 3;
+
+/// How many times the first round's samples the second round renders with: half the
+/// standard error on each rung's gain.
+pub const SECOND_ROUND_GROWTH: u32 = 4;
+
+/// What [`best_rung`] found: the best rung, every rung's latest reading, the group
+/// samples per pixel its choice was made at, and the renders spent.
+struct Ladder {
+    best: Option<Rung>,
+    measured: Vec<Rung>,
+    group_spp: u32,
+    /// The first round's best, when a second round was taken.
+    first_round: Option<Rung>,
+    evaluations: u32,
+}
+
 /// The rung of group `g`'s ladder whose gain over `diffuse` is largest at its lower bound
 /// (`gain - EXCEEDS_SIGMAS sigma`, in squared error: a sharp rung's gain is the noisiest,
 /// and the plain largest gain is most often a sharp rung the samples favour; and a weak
 /// group's errors, cut at 0 when noise outweighs them, would rank nothing), then the
 /// better of it and the two roughnesses halfway (in log) to its neighbours; each rendered
-/// with at least [`LADDER_SAMPLES`] on the ladder's own seed. Also returns the renders
-/// spent. `None` when no rung could be compared.
+/// with at least [`LADDER_SAMPLES`] on the ladder's own seed.
+///
+/// A first round whose best rung does not gain at its lower bound has not chosen: its
+/// rungs' gains are within their noise of each other and of 0. Glossy's teal box (s 0.04,
+/// roughness 0.08; 426 pixels at 64 px) read its best rung at 0.0003-0.0007 +- 0.0005-0.0007
+/// on seeds where the test kept it, and below 0 or at the search's bound (roughness 0.3)
+/// where it stayed diffuse. Then the [`SECOND_ROUND_RUNGS`] rungs of most gain are measured
+/// again at [`SECOND_ROUND_GROWTH`] times the samples on a fresh seed, and the choice (and
+/// the half-rungs) made there.
 fn best_rung(
     rec: &mut Recovery,
     g: usize,
@@ -200,14 +226,27 @@ fn best_rung(
     kind: Kind,
     diffuse: GroupModel,
     group_spp: u32,
-) -> Result<(Option<Rung>, Vec<Rung>, u32), Error> {
+) -> Result<Ladder, Error> {
     let seed = rec.seed ^ 0x001A_DDE2 ^ g as u64;
     let mut meter = RungMeter::new(rec, g, kind, diffuse, group_spp, seed)?;
     let mut measured = meter.measure_ladder(rec, cache)?;
-    let mut best = measured
-        .iter()
-        .copied()
-        .fold(None, |b, r| better(b, Some(r)));
+    let mut best = best_of(&measured);
+    let mut evaluations = 0;
+    let mut first_round = None;
+    let mut chosen_at = group_spp;
+    if let Some(again) = second_round(&measured) {
+        evaluations += meter.finish(rec);
+        first_round = best;
+        chosen_at = group_spp.saturating_mul(SECOND_ROUND_GROWTH);
+        meter = RungMeter::new(rec, g, kind, diffuse, chosen_at, seed ^ 0x2ED0_0000)?;
+        measured.retain(|r| !again.iter().any(|a| a.roughness == r.roughness));
+        let mut second = Vec::with_capacity(again.len());
+        for rung in again {
+            second.extend(meter.measure_model(rec, rung.model)?);
+        }
+        best = best_of(&second);
+        measured.extend(second);
+    }
     if let Some(at) = best.as_ref().map(|b| b.roughness) {
         for roughness in [at / half_step(), at * half_step()] {
             if (ROUGHNESS_MIN..=ROUGHNESS_MAX).contains(&roughness) {
@@ -217,7 +256,39 @@ fn best_rung(
             }
         }
     }
-    Ok((best, measured, meter.finish(rec)))
+    evaluations += meter.finish(rec);
+    Ok(Ladder {
+        best,
+        measured,
+        group_spp: chosen_at,
+        first_round,
+        evaluations,
+    })
+}
+
+/// The rungs a first round `measured` leaves to a second: none when it has decided, for a
+/// rung (the best gains at its lower bound) or against them all (none gains at its upper
+/// bound, `gain + EXCEEDS_SIGMAS sigma`: the living room's floor at 256 px, its best
+/// rung at -0.00014 +- 0.00001); else, of the rungs that may gain, the
+/// [`SECOND_ROUND_RUNGS`] of most gain.
+fn second_round(measured: &[Rung]) -> Option<Vec<Rung>> {
+    best_of(measured).filter(|b| b.lower <= 0.0)?;
+    let mut open: Vec<Rung> = measured
+        .iter()
+        .filter(|r| r.squared_gain + fit::EXCEEDS_SIGMAS * r.squared_gain_sigma > 0.0)
+        .copied()
+        .collect();
+    open.sort_by(|a, b| b.squared_gain.total_cmp(&a.squared_gain));
+    open.truncate(SECOND_ROUND_RUNGS);
+    (!open.is_empty()).then_some(open)
+}
+
+/// The best of `measured` by [`better`].
+fn best_of(measured: &[Rung]) -> Option<Rung> {
+    measured
+        .iter()
+        .copied()
+        .fold(None, |b, r| better(b, Some(r)))
 }
 
 /// How far a weak lobe that the cache proposed and the test kept can be trusted: the
@@ -361,28 +432,34 @@ pub fn second_look(
     spp: u32,
     proposal: Option<fit::ModelComparison>,
 ) -> Result<SecondLook, Error> {
-    let group_spp = ladder_spp(rec, g, spp);
-    let (rung, measured, mut evaluations) = best_rung(rec, g, cache, kind, diffuse, group_spp)?;
-    let Some(rung) = rung.filter(|r| r.squared_gain > 0.0) else {
+    let ladder = best_rung(rec, g, cache, kind, diffuse, ladder_spp(rec, g, spp))?;
+    let (measured, mut evaluations) = (&ladder.measured, ladder.evaluations);
+    let rounds = ladder.first_round.map_or(String::new(), |first| {
+        format!(
+            " (none gained at its lower bound at {} spp, the best there roughness {:.4} at {:.5} +- {:.5}, so the SECOND_ROUND_RUNGS {SECOND_ROUND_RUNGS} of most gain were measured again at SECOND_ROUND_GROWTH {SECOND_ROUND_GROWTH}x)",
+            first.spp, first.roughness, first.squared_gain, first.squared_gain_sigma
+        )
+    });
+    let Some(rung) = ladder.best.filter(|r| r.squared_gain > 0.0) else {
         let proposal = format!(
-            "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test",
+            "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test{rounds}",
             proposal.map_or(0.0, |c| c.gain),
             proposal.map_or(0.0, |c| c.gain_sigma),
             proposal.map_or(0.0, |c| c.z()),
         );
         return Ok(SecondLook {
-            found: Err(match rung {
+            found: Err(match ladder.best {
                 None => format!(
                     "{proposal}; no rung of LADDER_RUNGS {LADDER_RUNGS} has a positive specularity in closed form"
                 ),
-                Some(best) => no_gain(&proposal, &best, &measured),
+                Some(best) => no_gain(&proposal, &best, measured),
             }),
             evaluations,
         });
     };
-    let spread = plausible(&rung, &measured);
+    let spread = plausible(&rung, measured);
     let decision = format!(
-        "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test; of LADDER_RUNGS {LADDER_RUNGS} roughnesses and the half-rungs around the best, {:.4} (s {:.4}) removes most ({:.5} +- {:.5} of squared relative error at {} spp) and is tested in its place; {} of the {} measured are within EXCEEDS_SIGMAS {} standard errors of it: roughness {:.4}-{:.4}, s {:.4}-{:.4}",
+        "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test{rounds}; of LADDER_RUNGS {LADDER_RUNGS} roughnesses and the half-rungs around the best, {:.4} (s {:.4}) removes most ({:.5} +- {:.5} of squared relative error at {} spp) and is tested in its place; {} of the {} measured are within EXCEEDS_SIGMAS {} standard errors of it: roughness {:.4}-{:.4}, s {:.4}-{:.4}",
         proposal.map_or(0.0, |c| c.gain),
         proposal.map_or(0.0, |c| c.gain_sigma),
         proposal.map_or(0.0, |c| c.z()),
@@ -399,11 +476,11 @@ pub fn second_look(
         spread.specularity.0,
         spread.specularity.1,
     );
-    // At no fewer samples than the proposal's own test (4x the loop's): at effort default
-    // the ladder's samples are the fewer, and glossy's white sphere at 256 px read its
-    // rung (s 0.025, roughness 0.039 against 0.03, 0.02) at z -1.0 on 96 spp of its
-    // decision pixels, where its proposal had 384.
-    let test_spp = group_spp.max(4 * spp);
+    // From the samples the rung was chosen at, and at no fewer than the proposal's own
+    // test (4x the loop's): at effort default the ladder's samples are the fewer, and
+    // glossy's white sphere at 256 px read its rung (s 0.025, roughness 0.039 against
+    // 0.03, 0.02) at z -1.0 on 96 spp of its decision pixels, where its proposal had 384.
+    let test_spp = ladder.group_spp.max(4 * spp);
     let test = rec.compare_models(g, diffuse, rung.model, test_spp)?;
     evaluations += 2;
     Ok(SecondLook {
@@ -500,6 +577,44 @@ mod tests {
         );
         let text = no_gain("stage 2 ladder: p", &best, &[best]);
         assert!(!text.contains("other rung"), "{text}");
+    }
+
+    #[test]
+    fn a_first_round_that_has_not_chosen_leaves_its_rungs_of_most_gain_to_a_second() {
+        // The best at its lower bound gains: chosen, no second round.
+        let resolved = [
+            rung(0.005, 0.05, 0.0001, 0.0004),
+            rung(0.0114, 0.05, 0.0009, 0.0002),
+            rung(0.0260, 0.05, 0.0003, 0.0001),
+        ];
+        assert!(second_round(&resolved).is_none());
+        // No rung gains at its lower bound (glossy's teal box, 64 px, seed 9: the best,
+        // at the search's bound, 0.0066 +- 0.0067): the three of most gain, the noisiest
+        // among them, go on; the rung of least gain does not.
+        let unresolved = [
+            rung(0.005, 0.02, 0.0004, 0.0005),
+            rung(0.0114, 0.02, -0.0002, 0.0003),
+            rung(0.0260, 0.03, 0.0002, 0.0004),
+            rung(0.3, 0.02, 0.0066, 0.0067),
+        ];
+        let again = second_round(&unresolved).unwrap();
+        let roughnesses: Vec<f64> = again.iter().map(|r| r.roughness).collect();
+        assert_eq!(roughnesses, [0.3, 0.005, 0.0260]);
+        // Fewer rungs than a round holds: all of them.
+        assert_eq!(second_round(&unresolved[..2]).unwrap().len(), 2);
+        assert!(second_round(&[]).is_none());
+        // Only the rungs that may gain at their upper bound; none when no rung may (a
+        // diffuse floor's ladder has decided against them all).
+        let against = [
+            rung(0.005, 0.01, -0.0004, 0.0001),
+            rung(0.1323, 0.01, -0.00014, 0.00001),
+            rung(0.3, 0.01, -0.0003, 0.0001),
+        ];
+        assert!(second_round(&against).is_none());
+        let one_open = [against[0], rung(0.0260, 0.03, -0.0001, 0.0002), against[2]];
+        let again = second_round(&one_open).unwrap();
+        assert_eq!(again.len(), 1);
+        assert_eq!(again[0].roughness, 0.0260);
     }
 
     #[test]
