@@ -350,7 +350,10 @@ pub const SPECULAR_GAIN_THRESHOLD: f64 = 0.01;
 /// also takes in the cache's noise and the spikes of its finite incident samples, which
 /// read as more gain, not less (the weak lobes found on the references read 0.0136 and
 /// more; groups diffuse in the truth 0.0009-0.0093 where under the threshold), so a lobe
-/// at most [`SPECULAR_GAIN_THRESHOLD`] here is not one a render would keep.
+/// at most [`SPECULAR_GAIN_THRESHOLD`] here is not one a render would keep. The exception
+/// is a lobe on the threshold itself: glossy's white sphere (s 0.03, roughness 0.02),
+/// whose true lobe accounts for about 0.01, reads 0.0000-0.0064 on some seeds and
+/// 0.013-0.028 on others (docs/recovery.md, "The ladder's second round").
 pub fn cache_effect(diffuse_error: f64, lobe_error: f64) -> f64 {
     libm::sqrt((diffuse_error * diffuse_error - lobe_error * lobe_error).max(0.0))
 }
