@@ -39,8 +39,9 @@ pub(super) fn run(
     // own noise (heavy-tailed paths), by whole percents either way.
     let mut decided = rec.error_estimates(4 * spp)?;
     // A small group whose error straddles the gate is measured again alone, with at least
-    // CACHE_MIN_SAMPLES pixel samples: at the loop's samples its standard error (0.024 on
-    // glossy's 492-pixel yellow box) hides a weak lobe either way.
+    // CACHE_MIN_SAMPLES pixel samples, and at 4x while it still does: at the loop's
+    // samples its standard error (0.024 on glossy's 492-pixel yellow box) hides a weak
+    // lobe either way.
     for (g, estimate) in decided.iter_mut().enumerate() {
         let first_spp = min_samples_spp(4 * spp, pure_pixels[g], CACHE_MIN_SAMPLES);
         if pure_pixels[g] >= fit::MIN_PIXELS_FOR_MODEL_CHOICE && first_spp > 4 * spp {
