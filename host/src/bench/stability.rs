@@ -428,7 +428,10 @@ pub fn spread_of(values: &[f64]) -> Option<(f64, f64, Option<f64>)> {
     Some((mean, std, (mean != 0.0).then(|| std / mean.abs())))
 }
 
-/// The parameters a material of `model` carries, as written in materials.toml.
+/// The scalar parameters a material of `model` carries, as written in materials.toml: the
+/// colour (none for a textured model, whose colour is its map), and a lobe's specularity
+/// and roughness or roughnesses, textured or not. (A lobe's direction is a vector, left
+/// out.)
 fn parameters(m: &MaterialDesc) -> Vec<(&'static str, Option<f64>)> {
     let c = m.color.map(|c| c.map(f64::from));
     let mut p = vec![
@@ -436,9 +439,18 @@ fn parameters(m: &MaterialDesc) -> Vec<(&'static str, Option<f64>)> {
         ("color_g", c.map(|c| c[1])),
         ("color_b", c.map(|c| c[2])),
     ];
-    if m.model == Model::Isotropic {
-        p.push(("specularity", m.specularity.map(f64::from)));
-        p.push(("roughness", m.roughness.map(f64::from)));
+    let scalar = |v: Option<f32>| v.map(f64::from);
+    match m.model {
+        Model::Isotropic | Model::TexturedIsotropic => {
+            p.push(("specularity", scalar(m.specularity)));
+            p.push(("roughness", scalar(m.roughness)));
+        }
+        Model::Anisotropic | Model::TexturedAnisotropic => {
+            p.push(("specularity", scalar(m.specularity)));
+            p.push(("roughness_u", scalar(m.roughness_u)));
+            p.push(("roughness_v", scalar(m.roughness_v)));
+        }
+        Model::Diffuse | Model::Mirror | Model::TexturedDiffuse => {}
     }
     p
 }
@@ -968,6 +980,36 @@ mod tests {
             .unwrap();
         assert_eq!((b_s.model.as_str(), b_s.seeds_with_model), ("isotropic", 2));
         assert!((b_s.mean - 0.105).abs() < 1e-6);
+    }
+
+    /// A textured or anisotropic lobe's parameters spread too: the textured study's seed
+    /// spread held the diffuse groups' colours alone, not the checker's lobe (2026-12-01).
+    #[test]
+    fn seed_spread_covers_anisotropic_and_textured_lobes() {
+        let lobe = |model: Model, s: f32| {
+            let mut m = MaterialDesc::new("p", model);
+            m.specularity = Some(s);
+            m.roughness_u = Some(0.05);
+            m.roughness_v = Some(2.0 * s);
+            m
+        };
+        let runs: Vec<StabilityRun> = [0.06f32, 0.07]
+            .iter()
+            .enumerate()
+            .map(|(i, &s)| {
+                let picture = outcome("p", lobe(Model::TexturedAnisotropic, s), 50);
+                seed_run(i as u64, vec![picture])
+            })
+            .collect();
+        let spread = seed_spread(&runs, &[lobe(Model::TexturedAnisotropic, 0.06)]);
+        let names: Vec<&str> = spread.iter().map(|s| s.parameter).collect();
+        assert_eq!(names, ["specularity", "roughness_u", "roughness_v"]);
+        let v = spread
+            .iter()
+            .find(|s| s.parameter == "roughness_v")
+            .unwrap();
+        assert_eq!(v.truth, Some(f64::from(0.12f32)));
+        assert!((v.mean - 0.13).abs() < 1e-6, "{v:?}");
     }
 
     /// Fewer pixels are the harsher perturbation: the glossy study's 32-px run changed
