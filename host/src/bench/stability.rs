@@ -493,14 +493,8 @@ pub fn seed_spread(runs: &[StabilityRun], truth: &[MaterialDesc]) -> Vec<Spread>
             .filter(|m| m.model.name() == model)
             .collect();
         let true_m = truth.iter().find(|t| t.group == g.group);
-        let true_params: Vec<(&'static str, Option<f64>)> = true_m
-            .map(|t| {
-                let mut p = parameters(t);
-                p.push(("specularity", t.specularity.map(f64::from)));
-                p.push(("roughness", t.roughness.map(f64::from)));
-                p
-            })
-            .unwrap_or_default();
+        let true_params: Vec<(&'static str, Option<f64>)> =
+            true_m.map(parameters).unwrap_or_default();
         for (i, (name, _)) in parameters(same[0]).into_iter().enumerate() {
             let values: Vec<f64> = same.iter().filter_map(|m| parameters(m)[i].1).collect();
             let Some((mean, std, rel_std)) = spread_of(&values) else {
