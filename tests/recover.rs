@@ -1000,13 +1000,14 @@ fn living_room_small_gives_its_15_pixel_frames_their_lobe() {
 /// goes on (to stay diffuse). No group small enough to be measured alone ends straddling.
 #[test]
 fn living_room_small_measures_a_straddling_stage_1_error_again_until_it_sides() {
+    use relume_core::fit;
     let (out, rows) = living_room_small();
     let report = report_json(out);
     let loop_spp = report["budget"]["loop_spp"].as_u64().unwrap();
     let straddles = |g: &serde_json::Value| {
         let e = g["error_diffuse"].as_f64().unwrap();
         let sigma = g["error_diffuse_sigma"].as_f64().unwrap();
-        (e - 0.01).abs() < 2.0 * sigma
+        (e - fit::SPECULAR_GAIN_THRESHOLD).abs() < fit::EXCEEDS_SIGMAS * sigma
     };
     let sofa = group_report(out, "sofa");
     assert!(
@@ -1024,7 +1025,8 @@ fn living_room_small_measures_a_straddling_stage_1_error_again_until_it_sides() 
         let pixels = g["pure_pixels"].as_u64().unwrap();
         // Measured alone: at least CACHE_MIN_SAMPLES (2^16) samples take more than the
         // decisions' 4x the loop's samples per pixel.
-        let alone = pixels >= 4 && (1u64 << 16).div_ceil(pixels) > 4 * loop_spp;
+        let alone = pixels >= u64::from(fit::MIN_PIXELS_FOR_MODEL_CHOICE)
+            && (1u64 << 16).div_ceil(pixels) > 4 * loop_spp;
         if alone && !g["error_diffuse"].is_null() {
             assert!(!straddles(g), "{g}");
         }
