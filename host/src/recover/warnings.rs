@@ -90,8 +90,8 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
             ));
         }
         if let GroupModel::Textured { lobe, .. } = model {
-            // A lobe left out still lit the room in the panorama, and the groups it lit
-            // took its light into their colours.
+            // If the picture has a lobe that recovery left out, the lobe's light is in the
+            // panorama still, and the groups it lit took that light into their colours.
             let neighbours = if lobe.specularity() > 0.0 {
                 ""
             } else {
