@@ -715,3 +715,43 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
         &["dark/b.exr", "No such file"],
     );
 }
+
+/// `compare views --view NAME` compares those views alone, as `render --view` renders
+/// them: the folders need no image of the other views, and the table has no row for
+/// them. Without the flag the missing image is named; a name that is no view of the
+/// scene lists the views it has.
+#[test]
+fn compare_views_of_some_views_needs_only_their_images() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), TWO_VIEWS).unwrap();
+    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
+    for sub in ["A", "B"] {
+        std::fs::create_dir(dir.path().join(sub)).unwrap();
+    }
+    flat(&dir.path().join("A/a.exr"), 1.0);
+    flat(&dir.path().join("A/b.exr"), 1.0);
+    flat(&dir.path().join("B/b.exr"), 1.1);
+    let views = |more: &[&str]| {
+        let args = [&["compare", "views", "scene.toml", "A", "B"][..], more].concat();
+        relume(dir.path(), &args)
+    };
+
+    let run = views(&["--view", "b"]);
+    let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+    assert!(run.status.success(), "{stdout}");
+    let shelf = stdout.lines().find(|l| l.starts_with("shelf ")).unwrap();
+    assert!(shelf.contains("+10.00%"), "{shelf}");
+    assert!(
+        !stdout.lines().any(|l| l.starts_with("a ")),
+        "view a has a row: {stdout}"
+    );
+    let image = stdout.lines().find(|l| l.starts_with("image ")).unwrap();
+    assert!(image.contains("+10.00%"), "{image}");
+
+    fails(&views(&[]), 4, &["B/a.exr"]);
+    fails(
+        &views(&["--view", "c"]),
+        USAGE,
+        &["--view c: scene.toml has no such view (its views: a, b)"],
+    );
+}

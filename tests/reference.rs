@@ -27,7 +27,7 @@ fn check_scene(name: &str, spp: &str) {
         ],
     );
     let report =
-        relume::compare::views_report(&scene, &bench.join("views-small"), &out, None, None)
+        relume::compare::views_report(&scene, &bench.join("views-small"), &out, None, &[], None)
             .unwrap();
     let mut bad = Vec::new();
     for row in &report.groups {

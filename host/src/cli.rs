@@ -230,6 +230,10 @@ enum CompareCommand {
         /// (sqrt(mean (B - A).(B2 - A)) / mean A; negative where it is under the noise).
         #[arg(long, value_name = "DIR_B2")]
         independent: Option<PathBuf>,
+        /// Compare only these views (by name), as `render --view` renders them: the
+        /// folders need no image of the others.
+        #[arg(long = "view")]
+        views: Vec<String>,
         /// Also write the table as JSON.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -605,6 +609,7 @@ fn run(command: Command) -> Result<(), Error> {
             dir_a,
             dir_b,
             independent,
+            views,
             json,
             threads,
         }) => compare::compare_views(
@@ -612,6 +617,7 @@ fn run(command: Command) -> Result<(), Error> {
             &dir_a,
             &dir_b,
             independent.as_deref(),
+            &views,
             json.as_deref(),
             threads,
         ),

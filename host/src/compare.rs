@@ -172,15 +172,17 @@ impl ViewImages<'_> {
     }
 }
 
-/// Compares `dir_a/<view>.exr` with `dir_b/<view>.exr` for every view of the scene over
-/// pure pixels (whole footprint on one group; lights and silhouettes left out).
-/// With `dir_b2` (an independent render of B's materials, on another seed), each row also
-/// has its misfit with the render noise taken out (`ViewsRow::rel_misfit`).
+/// Compares `dir_a/<view>.exr` with `dir_b/<view>.exr` for the views of the scene named
+/// in `views` (every view when it is empty) over pure pixels (whole footprint on one
+/// group; lights and silhouettes left out). With `dir_b2` (an independent render of B's
+/// materials, on another seed), each row also has its misfit with the render noise taken
+/// out (`ViewsRow::rel_misfit`).
 pub fn views_report(
     scene_path: &Path,
     dir_a: &Path,
     dir_b: &Path,
     dir_b2: Option<&Path>,
+    views: &[String],
     threads: Option<usize>,
 ) -> Result<ViewsReport, Error> {
     views_report_of(
@@ -188,6 +190,7 @@ pub fn views_report(
         ViewImages::Folder(dir_a),
         ViewImages::Folder(dir_b),
         dir_b2.map(ViewImages::Folder),
+        views,
         threads,
     )
 }
@@ -198,9 +201,11 @@ pub fn views_report_of(
     a: ViewImages<'_>,
     b: ViewImages<'_>,
     b2: Option<ViewImages<'_>>,
+    selected: &[String],
     threads: Option<usize>,
 ) -> Result<ViewsReport, Error> {
     let mut owned = assemble::load_and_assemble(scene_path, MaterialSource::GeometryOnly)?;
+    owned.desc.check_view_names(selected)?;
     let pool = parallel::thread_pool(threads)?;
     let descs = owned.desc.views.clone();
     let views = owned.views.clone();
@@ -212,7 +217,11 @@ pub fn views_report_of(
     let mut seen_in: Vec<Vec<&str>> = vec![Vec::new(); group_names.len()];
     let mut per_view = Vec::new();
     let mut all = Sums::default();
-    for (desc, view) in descs.iter().zip(&views) {
+    for (desc, view) in descs
+        .iter()
+        .zip(&views)
+        .filter(|(d, _)| SceneDesc::view_selected(selected, &d.name))
+    {
         let a = a.read(desc, scene_path)?;
         let b = b.read(desc, scene_path)?;
         let b2 = b2.map(|b2| b2.read(desc, scene_path)).transpose()?;
@@ -334,6 +343,7 @@ pub fn compare_views(
     dir_a: &Path,
     dir_b: &Path,
     dir_b2: Option<&Path>,
+    views: &[String],
     json: Option<&Path>,
     threads: Option<usize>,
 ) -> Result<(), Error> {
@@ -345,8 +355,13 @@ pub fn compare_views(
         )));
     }
     let desc = scene_file::load_scene(scene)?;
+    desc.check_view_names(views)?;
     let mut inputs = desc.input_files();
-    for v in &desc.views {
+    for v in desc
+        .views
+        .iter()
+        .filter(|v| SceneDesc::view_selected(views, &v.name))
+    {
         let image = format!("{}.exr", v.name);
         inputs.push((
             dir_a.join(&image),
@@ -367,7 +382,7 @@ pub fn compare_views(
     if let Some(path) = json {
         set.check_target(path)?;
     }
-    let report = views_report(scene, dir_a, dir_b, dir_b2, threads)?;
+    let report = views_report(scene, dir_a, dir_b, dir_b2, views, threads)?;
     print_views_table(&report);
     if let Some(path) = json {
         let text =

@@ -17,6 +17,7 @@ use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::materials_file;
 use crate::parallel;
+use crate::scene_file::SceneDesc;
 
 /// The settings and timing of a render, beside its views.
 const RENDER_JSON: &str = "render.json";
@@ -68,16 +69,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         files.push(materials_file::load_materials(m)?);
     }
     let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::Files(&files))?;
-    for name in &args.views {
-        if !owned.desc.views.iter().any(|v| &v.name == name) {
-            let names: Vec<&str> = owned.desc.views.iter().map(|v| v.name.as_str()).collect();
-            return Err(Error::Usage(format!(
-                "--view {name}: {} has no such view (its views: {})",
-                args.scene.display(),
-                names.join(", ")
-            )));
-        }
-    }
+    owned.desc.check_view_names(&args.views)?;
     let fallbacks: Vec<String> = owned
         .isotropic_fallbacks()
         .into_iter()
@@ -102,7 +94,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     };
 
     let selected: Vec<usize> = (0..views.len())
-        .filter(|&i| args.views.is_empty() || args.views.contains(&view_descs[i].name))
+        .filter(|&i| SceneDesc::view_selected(&args.views, &view_descs[i].name))
         .collect();
     let total_rows: u64 = selected.iter().map(|&i| views[i].height as u64).sum();
     let progress = ProgressBar::new(total_rows).with_style(

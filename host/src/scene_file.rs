@@ -113,6 +113,27 @@ impl ViewDesc {
 }
 
 impl SceneDesc {
+    /// Checks the names a `--view` flag gave (an empty list selects every view): each must
+    /// be one of this scene's views, or the error lists them.
+    pub fn check_view_names(&self, names: &[String]) -> Result<(), Error> {
+        for name in names {
+            if !self.views.iter().any(|v| &v.name == name) {
+                let all: Vec<&str> = self.views.iter().map(|v| v.name.as_str()).collect();
+                return Err(Error::Usage(format!(
+                    "--view {name}: {} has no such view (its views: {})",
+                    self.path.display(),
+                    all.join(", ")
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether view `name` is among those a `--view` flag selected (all when it gave none).
+    pub fn view_selected(names: &[String], name: &str) -> bool {
+        names.is_empty() || names.iter().any(|n| n == name)
+    }
+
     /// The files this scene reads (path, and what it is): the scene file, its geometry and
     /// its views' images. No output of a run may replace them (`OutputSet::keeping`).
     pub fn input_files(&self) -> Vec<(PathBuf, String)> {

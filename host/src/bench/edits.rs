@@ -153,6 +153,7 @@ pub fn run(args: &EditsArgs) -> Result<Vec<EditOutcome>, Error> {
                 ViewImages::Scene,
                 ViewImages::Folder(&out),
                 None,
+                &[],
                 args.threads,
             )?;
             Ok(ArmError::of(views))
