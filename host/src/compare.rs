@@ -355,7 +355,6 @@ pub fn compare_views(
         )));
     }
     let desc = scene_file::load_scene(scene)?;
-    desc.check_view_names(views)?;
     let mut inputs = desc.input_files();
     for v in desc
         .views
