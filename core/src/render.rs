@@ -42,10 +42,15 @@ impl Default for RenderSettings {
 /// Relative offset of secondary ray origins from the surface, against self-intersection.
 pub const RAY_EPSILON: f32 = 1e-4;
 
-/// A secondary ray's origin: `p` moved off the surface along `n`.
+/// A secondary ray's origin: `p` moved off the surface along `n` by [`RAY_EPSILON`] of
+/// the scene's size (`scene_size`, [`Scene::size`]), or of `p`'s largest coordinate where
+/// that is larger (a hit point's rounding error grows with its coordinates). Relative to
+/// the scene, not to a unit of length: the same scene in millimetres or kilometres gets
+/// the same offsets, where a floor of one unit leaked light through the corners of a
+/// room a few units small.
 #[inline]
-pub fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
-    let scale = p.abs().max_element().max(1.0);
+pub fn offset_origin(p: Vec3, n: Vec3, scene_size: f32) -> Vec3 {
+    let scale = p.abs().max_element().max(scene_size);
     p + n * (RAY_EPSILON * scale)
 }
 
@@ -302,7 +307,7 @@ fn path_radiance(
             .diffuse_map
             .map(|id| scene.textures.lookup(id, tri.uv_at(hit.b1, hit.b2)));
         let bsdf = Bsdf::new(&surface.material, rho_d, n);
-        let origin = offset_origin(p, n);
+        let origin = offset_origin(p, n, scene.size());
 
         // Next-event estimation: one point on one light, seen directly and in each
         // planar mirror.
@@ -506,7 +511,7 @@ pub fn light_image_in_mirror(
     } else {
         -mirror.normal
     };
-    let from_mirror = offset_origin(to_mirror.at(hit.t), facing);
+    let from_mirror = offset_origin(to_mirror.at(hit.t), facing, scene.size());
     let to_light = ls.point - from_mirror;
     let dist_after = to_light.length();
     if !(dist_after > 0.0) {
@@ -740,6 +745,70 @@ pub(crate) mod tests {
             assert!(
                 (mean - expected).abs() <= tolerance,
                 "albedo {albedo}: mean {mean:.5} +- {se:.5}, expected {expected:.5} (f = {f:.4})"
+            );
+        }
+    }
+
+    /// A closed unit cube, corner at the origin, scaled by `scale`: its six faces group 0
+    /// and a square light facing down just under the ceiling.
+    fn room(scale: f32) -> Vec<Triangle> {
+        let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z) * scale;
+        let faces = [
+            [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
+            [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
+            [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
+            [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
+            [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
+            [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
+        ];
+        let mut triangles: Vec<Triangle> = faces
+            .iter()
+            .flat_map(|&f| quad(f, Surface::Group(0)))
+            .collect();
+        let (lo, hi, h) = (0.4, 0.6, 0.99);
+        let light = [v(lo, lo, h), v(lo, hi, h), v(hi, hi, h), v(hi, lo, h)];
+        triangles.extend(quad(light, Surface::Light(0)));
+        triangles
+    }
+
+    /// The same room in millimetres, metres or kilometres renders the same: secondary rays
+    /// leave a surface by a fraction of the scene's size, not of a unit of length. (With
+    /// a floor of one unit, the millimetre room read 9% bright: light leaked through its
+    /// corners.) The paths share their random numbers, so the renders differ only by
+    /// rounding; their paired difference is held to its own noise and 0.1%.
+    #[test]
+    fn a_room_renders_the_same_at_any_scale() {
+        let (materials, light) = (diffuse(0.7), [Vec3::splat(5.0)]);
+        let settings = RenderSettings {
+            seed: 7,
+            ..RenderSettings::default()
+        };
+        let render = |scale: f32| -> Vec<f64> {
+            let triangles = room(scale);
+            let mut storage = LentStorage::new(triangles.len());
+            let scene = storage.build(&triangles, &materials, &light);
+            let centre = Vec3::splat(0.5 * scale);
+            (0..20_000)
+                .map(|k| {
+                    let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+                    let [u1, u2] = sampler.next_2d();
+                    let z = 1.0 - 2.0 * u1;
+                    let r = math::sqrt((1.0 - z * z).max(0.0));
+                    let phi = 2.0 * math::PI * u2;
+                    let dir = Vec3::new(r * math::cos(phi), r * math::sin(phi), z);
+                    radiance(&scene, Ray::new(centre, dir), &mut sampler, &settings).y as f64
+                })
+                .collect()
+        };
+        let metres = render(1.0);
+        let (mean, _) = mean_and_standard_error(metres.iter().copied());
+        for scale in [1e-3f32, 1e3] {
+            let other = render(scale);
+            let (diff, se) = mean_and_standard_error(other.iter().zip(&metres).map(|(a, b)| a - b));
+            assert!(
+                diff.abs() <= 4.0 * se + 1e-3 * mean,
+                "scale {scale}: mean radiance {:.5} against {mean:.5} in metres (+- {se:.5})",
+                mean + diff
             );
         }
     }

@@ -59,7 +59,11 @@ pub struct MirrorPlanes {
 impl MirrorPlanes {
     /// The groups with a mirror material whose triangles (the degenerate ones aside) share
     /// one plane, in group order.
-    fn find(triangles: &[Triangle], materials: &[SurfaceMaterial]) -> MirrorPlanes {
+    fn find(
+        triangles: &[Triangle],
+        materials: &[SurfaceMaterial],
+        scene_size: f32,
+    ) -> MirrorPlanes {
         let mut found = MirrorPlanes::default();
         for (g, m) in materials.iter().enumerate() {
             if let Material::Mirror { rho } = m.material {
@@ -100,7 +104,9 @@ impl MirrorPlanes {
                 plane.offset = plane.normal.dot(t.v[0]);
                 continue;
             }
-            let scale = t.v.iter().fold(1.0f32, |m, v| m.max(v.abs().max_element()));
+            let scale =
+                t.v.iter()
+                    .fold(scene_size, |m, v| m.max(v.abs().max_element()));
             let tolerance = PLANE_TOLERANCE * scale;
             let parallel = math::abs(plane.normal.dot(n2 / len)) >= 1.0 - PLANE_TOLERANCE;
             let on_plane =
@@ -114,7 +120,7 @@ impl MirrorPlanes {
         for (plane, planar) in found.planes[..found.len].iter().zip(planar) {
             if planar && plane.normal != Vec3::ZERO {
                 let (lo, hi) = plane.bounds;
-                let pad = PLANE_TOLERANCE * lo.abs().max(hi.abs()).max_element().max(1.0);
+                let pad = PLANE_TOLERANCE * lo.abs().max(hi.abs()).max_element().max(scene_size);
                 kept.planes[kept.len] = MirrorPlane {
                     bounds: (lo - Vec3::splat(pad), hi + Vec3::splat(pad)),
                     ..*plane
@@ -136,7 +142,7 @@ impl MirrorPlanes {
 }
 
 /// Relative tolerance of a mirror's flatness: normals within it of parallel, vertices
-/// within it (times the coordinates' size) of the plane.
+/// within it (times the scene's size, or the coordinates' where larger) of the plane.
 const PLANE_TOLERANCE: f32 = 1e-5;
 
 /// The buffers a [`Scene`] is built over, lent by the caller.
@@ -157,6 +163,7 @@ pub struct Scene<'a> {
     bvh: Bvh<'a>,
     light_table: &'a [LightTriangle],
     mirrors: MirrorPlanes,
+    size: f32,
 }
 
 /// What [`Scene::build`] filled in its storage: with [`Scene::from_built`], the same
@@ -276,6 +283,23 @@ fn fill_light_table(
     Ok(n_emitting)
 }
 
+/// The longest side of the triangles' bounding box (0 with no triangles; the build has
+/// already refused non-finite vertices).
+fn geometry_size(triangles: &[Triangle]) -> f32 {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for triangle in triangles {
+        let (a, b) = triangle.bounds();
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    if triangles.is_empty() {
+        0.0
+    } else {
+        (hi - lo).max_element()
+    }
+}
+
 impl<'a> Scene<'a> {
     /// Checks the tables against each other and the capacities, builds the BVH and the
     /// light-sampling table (emitting triangles picked in proportion to area times
@@ -291,6 +315,7 @@ impl<'a> Scene<'a> {
         let n_emitting = fill_light_table(triangles, light_radiance, storage.light_table)?;
         let light_table: &'a [LightTriangle] = storage.light_table;
         let bvh = Bvh::build(triangles, storage.bvh)?;
+        let size = geometry_size(triangles);
         Ok(Scene {
             triangles,
             materials,
@@ -298,7 +323,8 @@ impl<'a> Scene<'a> {
             textures,
             bvh,
             light_table: &light_table[..n_emitting],
-            mirrors: MirrorPlanes::find(triangles, materials),
+            mirrors: MirrorPlanes::find(triangles, materials, size),
+            size,
         })
     }
 
@@ -329,6 +355,7 @@ impl<'a> Scene<'a> {
             });
         };
         let bvh = Bvh::from_built(triangles, built.nodes, built.packed, built.counts.nodes)?;
+        let size = geometry_size(triangles);
         Ok(Scene {
             triangles,
             materials,
@@ -336,7 +363,8 @@ impl<'a> Scene<'a> {
             textures,
             bvh,
             light_table,
-            mirrors: MirrorPlanes::find(triangles, materials),
+            mirrors: MirrorPlanes::find(triangles, materials, size),
+            size,
         })
     }
 
@@ -352,6 +380,13 @@ impl<'a> Scene<'a> {
 
     pub fn bvh(&self) -> &Bvh<'a> {
         &self.bvh
+    }
+
+    /// The longest side of the geometry's bounding box: the length that the offset of a
+    /// secondary ray's origin is measured in ([`crate::render::offset_origin`]), so that
+    /// a scene renders the same in millimetres as in metres.
+    pub fn size(&self) -> f32 {
+        self.size
     }
 
     /// The planar mirrors that light is sampled through.
@@ -470,7 +505,7 @@ mod tests {
             tri([[0.0, 0.0, 4.0], [1.0, 0.0, 4.0], [0.0, 1.0, 4.0]], 2),
             tri([[0.0, 0.0, 5.0], [1.0, 0.0, 5.0], [0.0, 1.0, 5.0]], 3),
         ];
-        let found = MirrorPlanes::find(&triangles, &materials);
+        let found = MirrorPlanes::find(&triangles, &materials, geometry_size(&triangles));
         assert_eq!(found.as_slice().len(), 1);
         let plane = found.as_slice()[0];
         assert_eq!(plane.group, 0);

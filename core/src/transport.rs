@@ -137,7 +137,7 @@ pub fn trace_pixel_sample(
     let n = if ng.dot(ray.direction) < 0.0 { ng } else { -ng };
     let wo = -ray.direction;
     let p = ray.at(hit.t);
-    let origin = render::offset_origin(p, n);
+    let origin = render::offset_origin(p, n, scene.size());
     let uv = tri.uv_at(hit.b1, hit.b2).to_array();
     let mut written = 0;
 
