@@ -258,11 +258,10 @@ fn common_position(desc: &SceneDesc) -> Result<[f32; 3], Error> {
     let Some(first) = desc.views.first() else {
         return Err(Error::input(&desc.path, "has no view"));
     };
-    let p = Vec3::from(first.position);
     match desc
         .views
         .iter()
-        .find(|v| (Vec3::from(v.position) - p).length() > 1e-5 * p.length().max(1.0))
+        .find(|v| apart(v.position, first.position))
     {
         Some(v) => Err(Error::input(
             &desc.path,
@@ -273,6 +272,13 @@ fn common_position(desc: &SceneDesc) -> Result<[f32; 3], Error> {
         )),
         None => Ok(first.position),
     }
+}
+
+/// Whether two view positions are apart by more than rounding: by 1e-5 of their distance
+/// from the origin, in whatever unit the scene is in.
+fn apart(a: [f32; 3], b: [f32; 3]) -> bool {
+    let (a, b) = (Vec3::from(a), Vec3::from(b));
+    (a - b).length() > 1e-5 * a.length().max(b.length())
 }
 
 /// Joins the scene's views, all at one position, into one equirectangular image: each
@@ -509,6 +515,20 @@ mod tests {
 
     fn z_up() -> Frame {
         Frame::new([1.0, 0.0, 0.0], [0.0, 0.0, 1.0]).unwrap()
+    }
+
+    /// Views a millimetre apart in a scene in metres are apart, and so are views a
+    /// micrometre apart in one in millimetres; rounding is not.
+    #[test]
+    fn view_positions_are_apart_relative_to_their_size() {
+        for scale in [1e-3f32, 1.0, 1e3] {
+            let p = [1.5 * scale, 0.9 * scale, 1.3 * scale];
+            let moved = |d: f32| [p[0] + d * scale, p[1], p[2]];
+            assert!(apart(p, moved(1e-3)), "{scale}");
+            assert!(!apart(p, moved(1e-7)), "{scale}");
+        }
+        assert!(!apart([0.0; 3], [0.0; 3]));
+        assert!(apart([0.0; 3], [1e-6, 0.0, 0.0]));
     }
 
     #[test]
