@@ -517,8 +517,8 @@ mod tests {
         Frame::new([1.0, 0.0, 0.0], [0.0, 0.0, 1.0]).unwrap()
     }
 
-    /// Views a millimetre apart in a scene in metres are apart, and so are views a
-    /// micrometre apart in one in millimetres; rounding is not.
+    /// Views a thousandth of a unit apart in a scene a few units across are apart, and so
+    /// they are in the same scene scaled by 1e-3 or 1e3; rounding is not.
     #[test]
     fn view_positions_are_apart_relative_to_their_size() {
         for scale in [1e-3f32, 1.0, 1e3] {
