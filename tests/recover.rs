@@ -1124,7 +1124,7 @@ fn glossy_small_seed_4_chooses_the_teal_boxs_rung_in_a_second_round() {
     let first = number_after("the best there roughness ");
     let kept = number_after("half-rungs around the best, ");
     let truth = 0.08f64;
-    let off = |roughness: f64| (roughness / truth).ln().abs();
+    let off = |roughness: f64| libm::log(roughness / truth).abs();
     assert!(
         off(kept) < off(first),
         "the second round's rung {kept} is no nearer the truth's {truth} than the first's {first}: {ladder}"
