@@ -1627,6 +1627,45 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
     assert!(!dir.path().join("pano.hdr").exists());
 }
 
+/// `relume check` tells a view whose exposure is off by orders of magnitude from its
+/// preview, in a second, where recover tells it after its work: cornell with view px's
+/// exposure given as 0.01 (its render under the first look's colours reads 42x the
+/// panorama). The scene as it is gets no such warning, and each view has its reading.
+#[test]
+fn check_tells_a_view_whose_exposure_is_off_by_orders_of_magnitude() {
+    let cornell = common::workspace().join("scenes/cornell");
+    let text = std::fs::read_to_string(cornell.join("scene.toml")).unwrap();
+    let absolute = |text: &str| {
+        let at = |name: &str| format!("\"{}", path_str(&cornell.join(name)));
+        text.replace("\"geometry.obj", &at("geometry.obj"))
+            .replace("\"views/", &at("views/"))
+    };
+    let check = |text: &str| {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("scene.toml"), absolute(text)).unwrap();
+        let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
+        let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+        assert_eq!(run.status.code(), Some(0), "{stderr}");
+        let json = std::fs::read_to_string(dir.path().join("check.json")).unwrap();
+        let report: serde_json::Value = serde_json::from_str(&json).unwrap();
+        (stderr, report)
+    };
+    let (stderr, report) = check(&text);
+    assert!(!stderr.contains("may be off by about"), "{stderr}");
+    assert_eq!(report["view_readings"].as_array().unwrap().len(), 6);
+    // The first view's exposure: px's.
+    let dim = text.replacen("exposure = 1.0", "exposure = 0.01", 1);
+    let (stderr, report) = check(&dim);
+    assert!(
+        stderr.contains("view 'px': the first look's diffuse colours render its")
+            && stderr.contains("its exposure or image may be off by about"),
+        "{stderr}"
+    );
+    let px = &report["view_readings"][0];
+    assert_eq!(px["view"], "px", "{px}");
+    assert!(px["rel_mean_diff"].as_f64().unwrap() > 10.0, "{px}");
+}
+
 /// `relume check` on small scenes: views of 8 pixels are warned of as recover warns after
 /// its work, and a panorama that sees no group whole is refused as recover refuses it,
 /// before any render, writing nothing.

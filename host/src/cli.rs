@@ -68,7 +68,8 @@ enum Command {
     ///
     /// Each group's pure pixels per view, the lights the views see against their declared
     /// radiance, each view's orientation, and a first diffuse colour per group at a few
-    /// samples (whether light reaches it); nothing written but --json.
+    /// samples (whether light reaches it, and whether a view reads far off the others
+    /// under it); nothing written but --json.
     Check {
         /// The scene.toml, whose views carry the panorama's images.
         scene: PathBuf,

@@ -10,6 +10,7 @@
 //! left in that view's residual, in part (the groups it alone sees absorb the rest).
 
 use glam::Vec3;
+use relume_core::fit::GroupFit;
 use serde::Serialize;
 
 use super::pixels::{LightPixel, PurePixel};
@@ -186,7 +187,8 @@ pub const MIN_VIEW_PIXELS: u32 = 256;
 /// But a view of fewer is still warned of when the panorama over the render is off the
 /// others' by more than this factor either way: after the fit no group's misfit moves a
 /// view's mean so far, and an exposure off by orders of magnitude in one 8-px view left
-/// its recovery wrong without a word.
+/// its recovery wrong without a word. So is a view of any size, in ratios; and `relume
+/// check` tells this much from its preview of stage 1.
 pub const VIEW_GROSS_FACTOR: f64 = 2.0;
 
 /// The final render against the panorama over one view's pure pixels.
@@ -263,30 +265,62 @@ fn median(mut values: Vec<f64>) -> Option<f64> {
     }
 }
 
+/// One view's reading from the fits of its pixels' groups (`relume check`'s preview,
+/// which renders a subset of each group's pure pixels: `pure_pixels` counts those). No
+/// standard error: the preview's readings are for the gross test only.
+pub fn read_view_fits(view: &str, fits: &[GroupFit]) -> ViewReading {
+    let pixels: u32 = fits.iter().map(|f| f.pixels).sum();
+    let real: f64 = fits.iter().flat_map(|f| f.sum_real).sum();
+    let rendered: f64 = fits.iter().flat_map(|f| f.sum_rendered).sum();
+    let n = pixels.max(1) as f64;
+    ViewReading {
+        view: view.to_string(),
+        pure_pixels: pixels,
+        panorama_mean: real / (3.0 * n),
+        render_mean: rendered / (3.0 * n),
+        rel_mean_diff: (real > 0.0).then(|| (rendered - real) / real),
+        rel_mean_diff_sigma: None,
+    }
+}
+
 /// A warning for each view whose mean residual lies more than [`VIEW_AGREEMENT`], and
 /// more than [`VIEW_SIGMAS`] of its standard errors, from the median of the other views'
-/// (views of at least [`MIN_VIEW_PIXELS`]; at least two others to take a median of).
+/// (views of at least [`MIN_VIEW_PIXELS`]; at least two others to take a median of); and
+/// for each view, of any size, off the others by more than [`VIEW_GROSS_FACTOR`].
 pub fn view_warnings(readings: &[ViewReading]) -> Vec<String> {
     let mut warnings = Vec::new();
     for (r, diff, typical) in against_the_others(readings, MIN_VIEW_PIXELS) {
         let sigma = r.rel_mean_diff_sigma.unwrap_or(f64::INFINITY);
-        if (diff - typical).abs() <= VIEW_AGREEMENT.max(VIEW_SIGMAS * sigma) {
+        let gross =
+            !(1.0 / VIEW_GROSS_FACTOR..=VIEW_GROSS_FACTOR).contains(&view_factor(diff, typical));
+        if gross || (diff - typical).abs() <= VIEW_AGREEMENT.max(VIEW_SIGMAS * sigma) {
             continue;
         }
-        // The panorama over the render, against the same for the other views: the factor
-        // by which this view's exposure may be off.
-        let factor = (1.0 + typical) / (1.0 + diff);
         warnings.push(format!(
-            "view '{}': the recovered model renders its {} pure pixels {:+.1}% (+- {:.1}%) off the panorama, where the other views' median is {:+.1}%: its exposure may be off by about {factor:.3}x (partly absorbed by the groups only it sees)",
+            "view '{}': the recovered model renders its {} pure pixels {:+.1}% (+- {:.1}%) off the panorama, where the other views' median is {:+.1}%: its exposure may be off by about {:.3}x (partly absorbed by the groups only it sees)",
             r.view,
             r.pure_pixels,
             100.0 * diff,
             100.0 * sigma,
-            100.0 * typical
+            100.0 * typical,
+            view_factor(diff, typical)
         ));
     }
-    warnings.extend(gross_view_warnings(readings));
+    warnings.extend(gross_view_warnings(readings, "the recovered model renders"));
     warnings
+}
+
+/// The gross part of [`view_warnings`] for `relume check`, whose readings are of stage 1's
+/// preview: every group diffuse at a few samples, too rough for the 2% test (a glossy
+/// group's highlight in one view moves its mean), not for a factor of 2.
+pub fn preview_view_warnings(readings: &[ViewReading]) -> Vec<String> {
+    gross_view_warnings(readings, "the first look's diffuse colours render")
+}
+
+/// The factor by which a view's exposure may be off: the panorama over the render, against
+/// the same for the other views (`diff` and `typical` are render over panorama, minus 1).
+fn view_factor(diff: f64, typical: f64) -> f64 {
+    (1.0 + typical) / (1.0 + diff)
 }
 
 /// Each view of at least `min_pixels` pure pixels with its mean residual and the median
@@ -312,21 +346,19 @@ fn against_the_others(readings: &[ViewReading], min_pixels: u32) -> Vec<(&ViewRe
         .collect()
 }
 
-/// A warning for each view of fewer than [`MIN_VIEW_PIXELS`] pure pixels whose panorama
-/// over the render lies more than [`VIEW_GROSS_FACTOR`] from the median of every other
-/// view's (at least two others).
-fn gross_view_warnings(readings: &[ViewReading]) -> Vec<String> {
+/// A warning for each view, of any number of pure pixels, whose panorama over what
+/// `subject` renders lies more than [`VIEW_GROSS_FACTOR`] from the median of every other
+/// view's (at least two others): told in ratios, which percentages would hide (a view
+/// whose exposure was given as 1e-30 read +4e31%).
+fn gross_view_warnings(readings: &[ViewReading], subject: &str) -> Vec<String> {
     let mut warnings = Vec::new();
     for (r, diff, typical) in against_the_others(readings, 1) {
-        if r.pure_pixels >= MIN_VIEW_PIXELS {
-            continue;
-        }
-        let factor = (1.0 + typical) / (1.0 + diff);
+        let factor = view_factor(diff, typical);
         if (1.0 / VIEW_GROSS_FACTOR..=VIEW_GROSS_FACTOR).contains(&factor) {
             continue;
         }
         warnings.push(format!(
-            "view '{}': the recovered model renders its {} {:.3e}x the panorama, where the other views' median is {:.3}x: its exposure or image may be off by about {factor:.3e}x (more than VIEW_GROSS_FACTOR {VIEW_GROSS_FACTOR} either way; with fewer than MIN_VIEW_PIXELS {MIN_VIEW_PIXELS} pure pixels only so gross a difference is told)",
+            "view '{}': {subject} its {} {:.3e}x the panorama, where the other views' median is {:.3}x: its exposure or image may be off by about {factor:.3e}x (more than VIEW_GROSS_FACTOR {VIEW_GROSS_FACTOR} either way; partly absorbed by the groups only it sees)",
             r.view,
             counted(r.pure_pixels, "pure pixel"),
             1.0 + diff,
@@ -493,6 +525,20 @@ mod tests {
                 && warnings[1].contains("1.000e3x the panorama")
                 && warnings[1].contains("median is 1.003x")
                 && warnings[1].contains("about 1.003e-3x"),
+            "{}",
+            warnings[1]
+        );
+        readings.pop();
+        // A large view off by more than a factor of 2 is told in ratios: a view whose
+        // exposure was given as 1e-30 read +4e31% in percent.
+        readings.push(reading("dim", 4000, 4.0e29));
+        let warnings = view_warnings(&readings);
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(
+            warnings[1].starts_with("view 'dim'")
+                && warnings[1].contains("4000 pure pixels 4.000e29x the panorama")
+                && warnings[1].contains("about 2.508e-30x")
+                && !warnings[1].contains('%'),
             "{}",
             warnings[1]
         );

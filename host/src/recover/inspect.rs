@@ -12,7 +12,7 @@ use std::time::Instant;
 use relume_core::geometry::View;
 use serde::Serialize;
 
-use super::calibration::{self, LightReading};
+use super::calibration::{self, LightReading, ViewReading};
 use super::model::GroupModel;
 use super::orientation::{self, OrientationReading};
 use super::pixels::{self, PurePixel};
@@ -186,6 +186,9 @@ pub struct CheckReport {
     /// The groups seen, but in fewer than `warnings::FEW_PIXELS` pure pixels: a lobe
     /// recovered on them was seen to change with the seed.
     pub few_pixels: Vec<(String, u32)>,
+    /// Each view's pixels of the preview rendered under its colours against the
+    /// panorama: a view off the others by more than `VIEW_GROSS_FACTOR` is warned of.
+    pub view_readings: Vec<ViewReading>,
     /// Samples per pixel of the colours' preview, and the renders it took.
     pub preview_spp: u32,
     pub preview_renders: u32,
@@ -204,6 +207,29 @@ const PREVIEW_GROUP_PIXELS: usize = 2048;
 /// The seed of `relume check`'s preview: check takes none, and its findings are the same
 /// from run to run.
 const PREVIEW_SEED: u64 = 0xC4EC_0001;
+
+/// Each view's reading under the preview's colours: its pixels of the preview rendered
+/// again (one render per view, at the preview's samples and seed) against the panorama.
+fn preview_view_readings(
+    rec: &mut Recovery,
+    view_names: &[String],
+) -> Result<Vec<ViewReading>, Error> {
+    let mut readings = Vec::with_capacity(view_names.len());
+    for (v, name) in view_names.iter().enumerate() {
+        let pixels: Vec<PurePixel> = rec
+            .pure
+            .iter()
+            .filter(|p| p.view as usize == v)
+            .copied()
+            .collect();
+        let fits = match pixels.is_empty() {
+            true => Vec::new(),
+            false => rec.evaluate_pixels(&pixels, PREVIEW_SPP, rec.seed, &|_| true)?,
+        };
+        readings.push(calibration::read_view_fits(name, &fits));
+    }
+    Ok(readings)
+}
 
 /// The input checks of `relume recover` and a preview of its first stage: each group's
 /// diffuse colour at a few samples per pixel, and whether light reaches it. No output but
@@ -259,6 +285,8 @@ pub fn check(
         g.preview_colour = colour;
     }
     warnings.extend(preview.warnings);
+    let view_readings = preview_view_readings(&mut rec, &input.view_names)?;
+    warnings.extend(calibration::preview_view_warnings(&view_readings));
     for g in groups.iter().filter(|g| g.total() == 0) {
         warnings.push(format!(
             "group '{}': no pure pixel in any view; recover will not recover its material",
@@ -279,8 +307,9 @@ pub fn check(
         orientation_readings,
         warnings,
         few_pixels,
+        view_readings,
         preview_spp: PREVIEW_SPP,
-        preview_renders: preview.evaluations,
+        preview_renders: preview.evaluations + n_views as u32,
         seconds: start.elapsed().as_secs_f64(),
     };
     if let Some(path) = json {
