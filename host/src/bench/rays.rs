@@ -286,6 +286,12 @@ pub fn run(args: &BenchRaysArgs) -> Result<BenchRaysResult, Error> {
         None => None,
     };
     let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::GeometryOnly)?;
+    // The rays are in the scene's own coordinates; the geometry may have been moved.
+    let origin = owned.origin;
+    let rays: Vec<Ray> = rays
+        .into_iter()
+        .map(|r| Ray::new(r.origin - origin, r.direction))
+        .collect();
     let scene = owned.build()?;
     if let Some((path, hits)) = &reference {
         check_triangles(path, hits, scene.triangles.len())?;
