@@ -36,8 +36,8 @@ pub struct OwnedScene {
     pub light_names: Vec<String>,
     pub views: Vec<View>,
     /// The point of the scene's own coordinates that `triangles` and `views` are placed
-    /// relative to ([`recentred`]): zero unless the scene lies far from its origin.
-    pub origin: Vec3,
+    /// relative to ([`far_scene_centre`]): zero unless the scene lies far from its origin.
+    pub origin: [f64; 3],
     pub materials: Vec<SurfaceMaterial>,
     pub light_radiance: Vec<Vec3>,
     pub texture_infos: Vec<TextureInfo>,
@@ -59,11 +59,12 @@ struct BuiltFor {
 /// An error when every face of the light `object` is degenerate: a light of no area
 /// emits nothing, and rendered only black with a warning that could not say why.
 fn refuse_a_light_without_area(object: &ObjObject) -> Result<(), Error> {
+    // In 32 bits relative to the first vertex: the shape's, not the place's, precision.
     let area: f32 = object
         .triangles
         .iter()
-        .map(|[a, b, c]| {
-            let [a, b, c] = [a, b, c].map(|p| Vec3::from(*p));
+        .map(|t| {
+            let [a, b, c] = t.map(|p| moved(p, t[0]));
             (b - a).cross(c - a).length() / 2.0
         })
         .sum();
@@ -136,6 +137,11 @@ pub fn assemble(
         ));
     }
 
+    let origin = far_scene_centre(
+        objects
+            .iter()
+            .filter(|o| !desc.hide.iter().any(|h| h == &o.name)),
+    );
     let mut triangles = Vec::new();
     for object in objects {
         if desc.hide.iter().any(|h| h == &object.name) {
@@ -159,7 +165,7 @@ pub fn assemble(
                 None => [Vec2::ZERO; 3],
             };
             triangles.push(Triangle {
-                v: v.map(Vec3::from),
+                v: v.map(|p| moved(p, origin)),
                 uv,
                 surface,
             });
@@ -177,9 +183,11 @@ pub fn assemble(
         let view = v
             .view()
             .map_err(|e| core_err(&format!("view '{}'", v.name), e))?;
-        views.push(view);
+        views.push(View {
+            position: moved(view.position.to_array().map(f64::from), origin),
+            ..view
+        });
     }
-    let origin = recentred(&mut triangles, &mut views);
 
     let light_radiance: Vec<Vec3> = desc.lights.iter().map(|l| Vec3::from(l.radiance)).collect();
 
@@ -225,34 +233,43 @@ pub fn assemble(
     })
 }
 
-/// Moves a scene that lies farther from its origin than it is large (the centre of its
-/// bounding box, in its largest coordinate, beyond the box's longest side) so that the
-/// centre is the origin, and returns the centre (zero for a scene left where it is). In
-/// 32-bit floats a point's rounding, and with it every ray's offset from the surface it
-/// leaves, grows with its distance from the origin: the cornell room moved 100 units off
-/// it rendered 1% bright, 1000 units off 8%, 10000 off twice as bright, and 1e5 off black
-/// (a building in site or map coordinates is that far). Views move with the geometry;
-/// what is rendered does not change, only where the arithmetic happens.
-fn recentred(triangles: &mut [Triangle], views: &mut [View]) -> Vec3 {
-    let (lo, hi) = triangles.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), t| {
-            let (a, b) = t.bounds();
-            (lo.min(a), hi.max(b))
-        },
-    );
-    let centre = 0.5 * (lo + hi);
-    let size = (hi - lo).max_element();
-    if triangles.is_empty() || centre.abs().max_element() <= size {
-        return Vec3::ZERO;
+/// The point a scene is moved to the origin by: the centre of its bounding box where the
+/// scene lies farther from its origin than it is large (the centre's largest coordinate
+/// beyond the box's longest side), else zero (the scene stays where it is). In 32-bit
+/// floats a point's rounding, and with it every ray's offset from the surface it leaves,
+/// grows with its distance from the origin: the cornell room moved 100 units off it
+/// rendered 1% bright, 1000 units off 8%, 10000 off twice as bright, and 1e5 off black (a
+/// building in site or map coordinates is that far). The vertices are read in 64 bits and
+/// rounded to 32 only after the move, and the views move with them: what is rendered does
+/// not change, only where the arithmetic happens.
+fn far_scene_centre<'a>(objects: impl Iterator<Item = &'a ObjObject>) -> [f64; 3] {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in objects.flat_map(|o| o.triangles.iter().flatten()) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
     }
-    for t in triangles.iter_mut() {
-        t.v = t.v.map(|v| v - centre);
-    }
-    for view in views.iter_mut() {
-        view.position -= centre;
+    let centre: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
+    let size = (0..3)
+        .map(|k| hi[k] - lo[k])
+        .fold(f64::NEG_INFINITY, f64::max);
+    let distance = centre.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    // Without vertices the size is negative: no move.
+    if size < 0.0 || distance <= size {
+        return [0.0; 3];
     }
     centre
+}
+
+/// `p - origin`, in 64 bits, rounded to 32.
+fn moved(p: [f64; 3], origin: [f64; 3]) -> Vec3 {
+    Vec3::new(
+        (p[0] - origin[0]) as f32,
+        (p[1] - origin[1]) as f32,
+        (p[2] - origin[2]) as f32,
+    )
 }
 
 /// The first object of `group` in the scene (not hidden) without texture coordinates on

@@ -36,8 +36,9 @@ pub struct ObjObject {
     pub name: String,
     /// The OBJ file it comes from.
     pub file: PathBuf,
-    /// Triangles in file order, counter-clockwise as in the file.
-    pub triangles: Vec<[[f32; 3]; 3]>,
+    /// Triangles in file order, counter-clockwise as in the file, in 64 bits: rounded to
+    /// 32 only once the scene is moved near its origin (`assemble::recentred`).
+    pub triangles: Vec<[[f64; 3]; 3]>,
     /// Texture coordinates per triangle corner, when every face has them.
     pub uvs: Option<Vec<[[f32; 2]; 3]>>,
 }
@@ -115,7 +116,7 @@ pub fn load_obj(path: &Path) -> Result<Vec<ObjObject>, Error> {
                 3 * info.n_triangles
             )));
         }
-        let position = |i: u32| -> Option<[f32; 3]> {
+        let position = |i: u32| -> Option<[f64; 3]> {
             let i = i as usize * 3;
             Some([
                 *m.positions.get(i)?,
@@ -125,7 +126,7 @@ pub fn load_obj(path: &Path) -> Result<Vec<ObjObject>, Error> {
         };
         let texcoord = |i: u32| -> Option<[f32; 2]> {
             let i = i as usize * 2;
-            Some([*m.texcoords.get(i)?, *m.texcoords.get(i + 1)?])
+            Some([*m.texcoords.get(i)? as f32, *m.texcoords.get(i + 1)? as f32])
         };
         let mut triangles = Vec::with_capacity(info.n_triangles);
         for c in m.indices.chunks_exact(3) {
@@ -499,7 +500,7 @@ mod tests {
     #[test]
     fn polygons_are_fanned_from_their_first_vertex() {
         let objs = load("o p\nv 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nf 1 2 3 4 5\n");
-        let t: Vec<[f32; 3]> = objs[0]
+        let t: Vec<[f64; 3]> = objs[0]
             .triangles
             .iter()
             .map(|t| [t[0][0], t[1][0], t[2][0]])
@@ -717,8 +718,8 @@ mod tests {
 
     /// Triangles of an OBJ by the most naive reading of the text (every `o` starts an object,
     /// faces fanned from the first vertex), to compare the loader with.
-    fn naive(text: &str) -> Vec<(String, [[f32; 3]; 3])> {
-        let mut v: Vec<[f32; 3]> = Vec::new();
+    fn naive(text: &str) -> Vec<(String, [[f64; 3]; 3])> {
+        let mut v: Vec<[f64; 3]> = Vec::new();
         let mut name = String::new();
         let mut out = Vec::new();
         for line in text.lines() {
@@ -759,7 +760,7 @@ mod tests {
             let path = bench.join(scene).join("geometry.obj");
             let objs = load_obj(&path).unwrap_or_else(|e| panic!("{e}"));
             assert_eq!(objs.len(), n_objects, "{scene}");
-            let flat: Vec<(String, [[f32; 3]; 3])> = objs
+            let flat: Vec<(String, [[f64; 3]; 3])> = objs
                 .iter()
                 .flat_map(|o| o.triangles.iter().map(|t| (o.name.clone(), *t)))
                 .collect();

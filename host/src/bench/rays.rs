@@ -287,7 +287,7 @@ pub fn run(args: &BenchRaysArgs) -> Result<BenchRaysResult, Error> {
     };
     let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::GeometryOnly)?;
     // The rays are in the scene's own coordinates; the geometry may have been moved.
-    let origin = owned.origin;
+    let origin = Vec3::from(owned.origin.map(|c| c as f32));
     let rays: Vec<Ray> = rays
         .into_iter()
         .map(|r| Ray::new(r.origin - origin, r.direction))
