@@ -690,17 +690,21 @@ pub(crate) mod tests {
         (mean, (var / count as f64).sqrt())
     }
 
+    /// A direction spread uniformly over the sphere, from the sampler's next two numbers.
+    fn uniform_direction(sampler: &mut Sampler) -> Vec3 {
+        let [u1, u2] = sampler.next_2d();
+        let z = 1.0 - 2.0 * u1;
+        let r = math::sqrt((1.0 - z * z).max(0.0));
+        let phi = 2.0 * math::PI * u2;
+        Vec3::new(r * math::cos(phi), r * math::sin(phi), z)
+    }
+
     /// Mean and standard error of the radiance seen from the sphere's centre along
     /// uniformly spread directions that meet the diffuse part.
     fn mean_radiance_from_centre(scene: &Scene, n: u32, settings: &RenderSettings) -> (f64, f64) {
         mean_and_standard_error((0..n).filter_map(|k| {
             let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
-            let [u1, u2] = sampler.next_2d();
-            let z = 1.0 - 2.0 * u1;
-            let r = math::sqrt((1.0 - z * z).max(0.0));
-            let phi = 2.0 * math::PI * u2;
-            let dir = Vec3::new(r * math::cos(phi), r * math::sin(phi), z);
-            let ray = Ray::new(Vec3::ZERO, dir);
+            let ray = Ray::new(Vec3::ZERO, uniform_direction(&mut sampler));
             let hit = scene.intersect(&ray, f32::INFINITY)?;
             if scene.triangles[hit.triangle as usize].surface != Surface::Group(0) {
                 return None;
@@ -791,12 +795,8 @@ pub(crate) mod tests {
             (0..20_000)
                 .map(|k| {
                     let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
-                    let [u1, u2] = sampler.next_2d();
-                    let z = 1.0 - 2.0 * u1;
-                    let r = math::sqrt((1.0 - z * z).max(0.0));
-                    let phi = 2.0 * math::PI * u2;
-                    let dir = Vec3::new(r * math::cos(phi), r * math::sin(phi), z);
-                    radiance(&scene, Ray::new(centre, dir), &mut sampler, &settings).y as f64
+                    let ray = Ray::new(centre, uniform_direction(&mut sampler));
+                    radiance(&scene, ray, &mut sampler, &settings).y as f64
                 })
                 .collect()
         };

@@ -242,15 +242,27 @@ pub fn read_views(
             let variance = (squares / n - mean_diff * mean_diff).max(0.0);
             let defined = real > 0.0 && pixels > 1;
             ViewReading {
-                view: name.clone(),
-                pure_pixels: pixels,
-                panorama_mean: real / (3.0 * n),
-                render_mean: rendered / (3.0 * n),
-                rel_mean_diff: (real > 0.0).then(|| (rendered - real) / real),
                 rel_mean_diff_sigma: defined.then(|| (variance / (n - 1.0)).sqrt() / (real / n)),
+                ..ViewReading::from_sums(name, pixels, real, rendered)
             }
         })
         .collect()
+}
+
+impl ViewReading {
+    /// A reading from a view's sums over its `pixels` (channels summed) of the panorama
+    /// and the render, without a standard error.
+    fn from_sums(view: &str, pixels: u32, real: f64, rendered: f64) -> ViewReading {
+        let n = pixels.max(1) as f64;
+        ViewReading {
+            view: view.to_string(),
+            pure_pixels: pixels,
+            panorama_mean: real / (3.0 * n),
+            render_mean: rendered / (3.0 * n),
+            rel_mean_diff: (real > 0.0).then(|| (rendered - real) / real),
+            rel_mean_diff_sigma: None,
+        }
+    }
 }
 
 /// The median of `values` (the mean of the middle two for an even count); `None` when
@@ -272,15 +284,7 @@ pub fn read_view_fits(view: &str, fits: &[GroupFit]) -> ViewReading {
     let pixels: u32 = fits.iter().map(|f| f.pixels).sum();
     let real: f64 = fits.iter().flat_map(|f| f.sum_real).sum();
     let rendered: f64 = fits.iter().flat_map(|f| f.sum_rendered).sum();
-    let n = pixels.max(1) as f64;
-    ViewReading {
-        view: view.to_string(),
-        pure_pixels: pixels,
-        panorama_mean: real / (3.0 * n),
-        render_mean: rendered / (3.0 * n),
-        rel_mean_diff: (real > 0.0).then(|| (rendered - real) / real),
-        rel_mean_diff_sigma: None,
-    }
+    ViewReading::from_sums(view, pixels, real, rendered)
 }
 
 /// A warning for each view whose mean residual lies more than [`VIEW_AGREEMENT`], and
@@ -515,34 +519,38 @@ mod tests {
             "{}",
             warnings[0]
         );
-        // A view of few pixels is warned of when it is off by more than a factor of 2:
-        // here its panorama is a 1000th of what the others' calibration gives.
-        readings.push(reading("tiny", 40, 999.0));
-        let warnings = view_warnings(&readings);
-        assert_eq!(warnings.len(), 2, "{warnings:?}");
-        assert!(
-            warnings[1].starts_with("view 'tiny'")
-                && warnings[1].contains("1.000e3x the panorama")
-                && warnings[1].contains("median is 1.003x")
-                && warnings[1].contains("about 1.003e-3x"),
-            "{}",
-            warnings[1]
-        );
-        readings.pop();
-        // A large view off by more than a factor of 2 is told in ratios: a view whose
-        // exposure was given as 1e-30 read +4e31% in percent.
-        readings.push(reading("dim", 4000, 4.0e29));
-        let warnings = view_warnings(&readings);
-        assert_eq!(warnings.len(), 2, "{warnings:?}");
-        assert!(
-            warnings[1].starts_with("view 'dim'")
-                && warnings[1].contains("4000 pure pixels 4.000e29x the panorama")
-                && warnings[1].contains("about 2.508e-30x")
-                && !warnings[1].contains('%'),
-            "{}",
-            warnings[1]
-        );
-        readings.pop();
+        // A view off the others by more than a factor of 2 is warned of at any size, in
+        // ratios: one of few pixels whose panorama is a 1000th of what the others'
+        // calibration gives, and a large one whose exposure was given as 1e-30 (which read
+        // +4e31% in percent).
+        let gross = [
+            (
+                "tiny",
+                40,
+                999.0,
+                ["1.000e3x the panorama", "about 1.003e-3x"],
+            ),
+            (
+                "dim",
+                4000,
+                4.0e29,
+                ["4000 pure pixels 4.000e29x", "about 2.508e-30x"],
+            ),
+        ];
+        for (name, pixels, diff, says) in gross {
+            readings.push(reading(name, pixels, diff));
+            let warnings = view_warnings(&readings);
+            assert_eq!(warnings.len(), 2, "{warnings:?}");
+            let w = &warnings[1];
+            assert!(
+                w.starts_with(&format!("view '{name}'"))
+                    && w.contains("median is 1.003x")
+                    && says.iter().all(|s| w.contains(s))
+                    && !w.contains('%'),
+                "{w}"
+            );
+            readings.pop();
+        }
         // With one other view there is no median to trust.
         assert!(view_warnings(&readings[2..4]).is_empty());
         // Nor is a difference within three of the view's standard errors a finding.
