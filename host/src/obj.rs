@@ -37,7 +37,7 @@ pub struct ObjObject {
     /// The OBJ file it comes from.
     pub file: PathBuf,
     /// Triangles in file order, counter-clockwise as in the file, in 64 bits: rounded to
-    /// 32 only once the scene is moved near its origin (`assemble::recentred`).
+    /// 32 only once the scene is moved near its origin (`assemble::far_scene_centre`).
     pub triangles: Vec<[[f64; 3]; 3]>,
     /// Texture coordinates per triangle corner, when every face has them.
     pub uvs: Option<Vec<[[f32; 2]; 3]>>,
