@@ -39,6 +39,20 @@ pub struct Triangle {
     pub surface: Surface,
 }
 
+/// The longest side of the triangles' bounding box (0 with none): a scene's or a group's
+/// size, which tolerances and ray offsets are measured in so that they do not depend on
+/// the unit of length.
+pub fn longest_side<'a>(triangles: impl IntoIterator<Item = &'a Triangle>) -> f32 {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for triangle in triangles {
+        let (a, b) = triangle.bounds();
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    (hi - lo).max_element().max(0.0)
+}
+
 impl Triangle {
     /// The unnormalised front normal; its length is twice the area.
     #[inline]

@@ -4,7 +4,7 @@
 use crate::bvh::{Bvh, BvhBuffers, BvhNode, Hit, PackedTriangle};
 use crate::config;
 use crate::error::{check_capacity, Error};
-use crate::geometry::{Ray, Surface, Triangle};
+use crate::geometry::{longest_side, Ray, Surface, Triangle};
 use crate::material::{Material, SurfaceMaterial, Textures};
 use crate::math::{self, Vec3};
 
@@ -283,23 +283,6 @@ fn fill_light_table(
     Ok(n_emitting)
 }
 
-/// The longest side of the triangles' bounding box (0 with no triangles; the build has
-/// already refused non-finite vertices).
-fn geometry_size(triangles: &[Triangle]) -> f32 {
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for triangle in triangles {
-        let (a, b) = triangle.bounds();
-        lo = lo.min(a);
-        hi = hi.max(b);
-    }
-    if triangles.is_empty() {
-        0.0
-    } else {
-        (hi - lo).max_element()
-    }
-}
-
 impl<'a> Scene<'a> {
     /// Checks the tables against each other and the capacities, builds the BVH and the
     /// light-sampling table (emitting triangles picked in proportion to area times
@@ -315,7 +298,7 @@ impl<'a> Scene<'a> {
         let n_emitting = fill_light_table(triangles, light_radiance, storage.light_table)?;
         let light_table: &'a [LightTriangle] = storage.light_table;
         let bvh = Bvh::build(triangles, storage.bvh)?;
-        let size = geometry_size(triangles);
+        let size = longest_side(triangles);
         Ok(Scene {
             triangles,
             materials,
@@ -355,7 +338,7 @@ impl<'a> Scene<'a> {
             });
         };
         let bvh = Bvh::from_built(triangles, built.nodes, built.packed, built.counts.nodes)?;
-        let size = geometry_size(triangles);
+        let size = longest_side(triangles);
         Ok(Scene {
             triangles,
             materials,
@@ -505,7 +488,7 @@ mod tests {
             tri([[0.0, 0.0, 4.0], [1.0, 0.0, 4.0], [0.0, 1.0, 4.0]], 2),
             tri([[0.0, 0.0, 5.0], [1.0, 0.0, 5.0], [0.0, 1.0, 5.0]], 3),
         ];
-        let found = MirrorPlanes::find(&triangles, &materials, geometry_size(&triangles));
+        let found = MirrorPlanes::find(&triangles, &materials, longest_side(&triangles));
         assert_eq!(found.as_slice().len(), 1);
         let plane = found.as_slice()[0];
         assert_eq!(plane.group, 0);

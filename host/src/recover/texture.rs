@@ -6,7 +6,7 @@ use std::collections::HashMap;
 
 use glam::{Vec2, Vec3};
 use relume_core::fit;
-use relume_core::geometry::{Surface, Triangle};
+use relume_core::geometry::{longest_side, Surface, Triangle};
 use relume_core::material::Material;
 use relume_core::math::luminance;
 use relume_core::render::RenderSettings;
@@ -543,14 +543,7 @@ fn affine_map(triangles: &[&Triangle]) -> Option<UvAffine> {
     if det.is_nan() || det <= 1e-10 * a * c {
         return None;
     }
-    let (lo, hi) = triangles.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), t| {
-            let (a, b) = t.bounds();
-            (lo.min(a), hi.max(b))
-        },
-    );
-    let off_plane = 1e-4 * (hi - lo).max_element();
+    let off_plane = 1e-4 * longest_side(triangles.iter().copied());
     // The in-plane gradient x e1 + y e2 whose products with the edges give the uv steps.
     let gradient = |d1: f32, d2: f32| {
         let x = (c * d1 - b * d2) / det;
