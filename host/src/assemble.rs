@@ -184,7 +184,7 @@ pub fn assemble(
             .view()
             .map_err(|e| core_err(&format!("view '{}'", v.name), e))?;
         views.push(View {
-            position: moved(view.position.to_array().map(f64::from), origin),
+            position: moved(v.position, origin),
             ..view
         });
     }

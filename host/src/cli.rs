@@ -104,8 +104,8 @@ enum PanoramaCommand {
         image: PathBuf,
         /// Where the panorama was taken, in the scene's coordinates: X,Y,Z (default: where
         /// the --scene's views all are).
-        #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-        position: Option<[f32; 3]>,
+        #[arg(long, value_parser = parse_position, allow_hyphen_values = true)]
+        position: Option<[f64; 3]>,
         #[command(flatten)]
         frame: PanoramaFrame,
         /// Pixels per face side (default: the image's width / 16, four texels a pixel).
@@ -195,10 +195,19 @@ impl BudgetOverrides {
 
 /// "X,Y,Z" as three finite numbers.
 fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    let v = parse_position(s)?.map(|x| x as f32);
+    match v.iter().all(|x| x.is_finite()) {
+        true => Ok(v),
+        false => Err(format!("'{s}' is out of range for 32-bit floats")),
+    }
+}
+
+/// X,Y,Z kept in 64 bits, as a scene file's view positions are.
+fn parse_position(s: &str) -> Result<[f64; 3], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    let numbers: Vec<f32> = parts
+    let numbers: Vec<f64> = parts
         .iter()
-        .filter_map(|p| p.parse::<f32>().ok().filter(|v| v.is_finite()))
+        .filter_map(|p| p.parse::<f64>().ok().filter(|v| v.is_finite()))
         .collect();
     match numbers[..] {
         [x, y, z] if parts.len() == 3 => Ok([x, y, z]),

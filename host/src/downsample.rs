@@ -39,7 +39,7 @@ pub fn box_average(image: &Image, factor: u32) -> Image {
     }
 }
 
-fn list(v: &[f32]) -> String {
+fn list<T: std::fmt::Debug>(v: &[T]) -> String {
     let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
     format!("[{}]", items.join(", "))
 }

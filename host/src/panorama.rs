@@ -39,7 +39,7 @@ pub struct PanoramaArgs {
     pub image: PathBuf,
     /// Where the panorama was taken, in the scene's coordinates; `None`: where the views
     /// of `scene` all are.
-    pub position: Option<[f32; 3]>,
+    pub position: Option<[f64; 3]>,
     /// The scene direction at the image's centre column, on the horizon.
     pub forward: [f32; 3],
     /// The scene's up: the image's top edge.
@@ -201,7 +201,7 @@ fn face(pool: &rayon::ThreadPool, image: &Image, frame: &Frame, view: &View, k: 
 }
 
 /// The six faces as a scene's views, their images `<images>/<face>.exr`.
-fn face_views(position: [f32; 3], frame: &Frame, size: u32, images: &Path) -> Vec<ViewDesc> {
+fn face_views(position: [f64; 3], frame: &Frame, size: u32, images: &Path) -> Vec<ViewDesc> {
     frame
         .faces()
         .iter()
@@ -254,7 +254,7 @@ pub struct JoinArgs {
 
 /// Where every view of `desc` is, as a panorama's views are: an error naming two views
 /// apart (or a scene with none).
-fn common_position(desc: &SceneDesc) -> Result<[f32; 3], Error> {
+fn common_position(desc: &SceneDesc) -> Result<[f64; 3], Error> {
     let Some(first) = desc.views.first() else {
         return Err(Error::input(&desc.path, "has no view"));
     };
@@ -276,9 +276,9 @@ fn common_position(desc: &SceneDesc) -> Result<[f32; 3], Error> {
 
 /// Whether two view positions are apart by more than rounding: by 1e-5 of their distance
 /// from the origin, in whatever unit the scene is in.
-fn apart(a: [f32; 3], b: [f32; 3]) -> bool {
-    let (a, b) = (Vec3::from(a), Vec3::from(b));
-    (a - b).length() > 1e-5 * a.length().max(b.length())
+fn apart(a: [f64; 3], b: [f64; 3]) -> bool {
+    let length = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    length(std::array::from_fn(|k| a[k] - b[k])) > 1e-5 * length(a).max(length(b))
 }
 
 /// Joins the scene's views, all at one position, into one equirectangular image: each
@@ -407,7 +407,7 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
         .map(|scene| scene_file::load_scene(scene))
         .transpose()?;
     let position = match (args.position, &template) {
-        (Some(p), _) if math::is_finite(Vec3::from(p)) => p,
+        (Some(p), _) if p.iter().all(|x| x.is_finite()) => p,
         (Some(_), _) => return Err(Error::Usage("--position must be finite".into())),
         (None, Some(desc)) => common_position(desc)?,
         (None, None) => {
@@ -521,9 +521,9 @@ mod tests {
     /// they are in the same scene scaled by 1e-3 or 1e3; rounding is not.
     #[test]
     fn view_positions_are_apart_relative_to_their_size() {
-        for scale in [1e-3f32, 1.0, 1e3] {
+        for scale in [1e-3f64, 1.0, 1e3] {
             let p = [1.5 * scale, 0.9 * scale, 1.3 * scale];
-            let moved = |d: f32| [p[0] + d * scale, p[1], p[2]];
+            let moved = |d: f64| [p[0] + d * scale, p[1], p[2]];
             assert!(apart(p, moved(1e-3)), "{scale}");
             assert!(!apart(p, moved(1e-7)), "{scale}");
         }

@@ -58,7 +58,9 @@ pub struct ViewDesc {
     pub name: String,
     /// The view's image, resolved against the scene file's folder (input of `recover`).
     pub image: Option<PathBuf>,
-    pub position: [f32; 3],
+    /// Read in 64 bits, as the OBJ vertices are: a view far from the origin is moved with
+    /// the scene before it is rounded to 32 (`assemble::far_scene_centre`).
+    pub position: [f64; 3],
     pub direction: [f32; 3],
     pub up: [f32; 3],
     /// Full horizontal and vertical angles, in degrees.
@@ -103,7 +105,7 @@ impl ViewDesc {
     pub fn view(&self) -> Result<relume_core::geometry::View, relume_core::Error> {
         use glam::Vec3;
         relume_core::geometry::View::new(
-            Vec3::from(self.position),
+            Vec3::from(self.position.map(|x| x as f32)),
             Vec3::from(self.direction),
             Vec3::from(self.up),
             self.fov_deg,
@@ -389,7 +391,7 @@ fn check_view(file: &TomlFile, v: &RawView) -> Result<ViewDesc, Error> {
         Some(i) => Some(file.resolve(&file.name(i, "image")?)),
         None => None,
     };
-    let position: [f32; 3] = file.vector(&v.position, "position")?;
+    let position: [f64; 3] = file.vector64(&v.position, "position")?;
     let direction: [f32; 3] = file.vector(&v.direction, "direction")?;
     let up: [f32; 3] = file.vector(&v.up, "up")?;
     let fov_deg: [f32; 2] = file.vector(&v.fov_deg, "fov_deg")?;
@@ -841,6 +843,24 @@ pub mod toml_src {
             v: &Spanned<Vec<f64>>,
             what: &str,
         ) -> Result<[f32; N], Error> {
+            self.numbers(v, what, to_f32)
+        }
+
+        /// Exactly `N` finite numbers that fit an f32, kept in 64 bits.
+        pub fn vector64<const N: usize>(
+            &self,
+            v: &Spanned<Vec<f64>>,
+            what: &str,
+        ) -> Result<[f64; N], Error> {
+            self.numbers(v, what, |x| to_f32(x).map(|_| x))
+        }
+
+        fn numbers<T: Copy + Default, const N: usize>(
+            &self,
+            v: &Spanned<Vec<f64>>,
+            what: &str,
+            convert: fn(f64) -> Result<T, String>,
+        ) -> Result<[T; N], Error> {
             let xs = v.get_ref();
             if xs.len() != N {
                 return Err(self.at(
@@ -848,9 +868,9 @@ pub mod toml_src {
                     format!("`{what}` must have {N} numbers, found {}", xs.len()),
                 ));
             }
-            let mut out = [0.0f32; N];
+            let mut out = [T::default(); N];
             for (o, &x) in out.iter_mut().zip(xs) {
-                *o = to_f32(x).map_err(|m| self.at(v.span(), format!("`{what}` {m}")))?;
+                *o = convert(x).map_err(|m| self.at(v.span(), format!("`{what}` {m}")))?;
             }
             Ok(out)
         }
