@@ -1630,7 +1630,8 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
 /// `relume check` tells a view whose exposure is off by orders of magnitude from its
 /// preview, in a second, where recover tells it after its work: cornell with view px's
 /// exposure given as 0.01 (its render under the first look's colours reads 42x the
-/// panorama). The scene as it is gets no such warning, and each view has its reading.
+/// panorama), or with its image black. The scene as it is gets no such warning, and each
+/// view has its reading.
 #[test]
 fn check_tells_a_view_whose_exposure_is_off_by_orders_of_magnitude() {
     let cornell = common::workspace().join("scenes/cornell");
@@ -1664,6 +1665,21 @@ fn check_tells_a_view_whose_exposure_is_off_by_orders_of_magnitude() {
     let px = &report["view_readings"][0];
     assert_eq!(px["view"], "px", "{px}");
     assert!(px["rel_mean_diff"].as_f64().unwrap() > 10.0, "{px}");
+    // A view black in the panorama has no ratio to compare, and is told as such.
+    let black = tempfile::tempdir().unwrap();
+    let black_png = black.path().join("px.png");
+    image::RgbImage::new(32, 32).save(&black_png).unwrap();
+    let black_px = text.replacen(
+        "\"views/px.exr\"",
+        &format!("\"{}\"", path_str(&black_png)),
+        1,
+    );
+    let (stderr, _) = check(&black_px);
+    assert!(
+        stderr.contains("view 'px': its")
+            && stderr.contains("pure pixels are all 0 in the panorama, where the first look's diffuse colours render them at"),
+        "{stderr}"
+    );
 }
 
 /// `relume check` on small scenes: views of 8 pixels are warned of as recover warns after

@@ -355,7 +355,20 @@ fn against_the_others(readings: &[ViewReading], min_pixels: u32) -> Vec<(&ViewRe
 /// view's (at least two others): told in ratios, which percentages would hide (a view
 /// whose exposure was given as 1e-30 read +4e31%).
 fn gross_view_warnings(readings: &[ViewReading], subject: &str) -> Vec<String> {
-    let mut warnings = Vec::new();
+    // A view black in the panorama has no ratio to compare (a division by its 0), and is
+    // the grossest case of all: an image left black or an exposure mistyped.
+    let mut warnings: Vec<String> = readings
+        .iter()
+        .filter(|r| r.pure_pixels > 0 && r.panorama_mean == 0.0 && r.render_mean > 0.0)
+        .map(|r| {
+            format!(
+                "view '{}': its {} are all 0 in the panorama, where {subject} them at {:.3e} on average: its image may be black or its exposure off (the groups only it sees are recovered black)",
+                r.view,
+                counted(r.pure_pixels, "pure pixel"),
+                r.render_mean
+            )
+        })
+        .collect();
     for (r, diff, typical) in against_the_others(readings, 1) {
         let factor = view_factor(diff, typical);
         if (1.0 / VIEW_GROSS_FACTOR..=VIEW_GROSS_FACTOR).contains(&factor) {
@@ -550,6 +563,29 @@ mod tests {
                 "{w}"
             );
             readings.pop();
+        }
+        // A view black in the panorama where the others are lit is told at any size,
+        // without a median: it has no ratio to compare.
+        for others in [&readings[..], &readings[..1]] {
+            let mut with_black = others.to_vec();
+            with_black.push(ViewReading {
+                rel_mean_diff: None,
+                rel_mean_diff_sigma: None,
+                ..reading("black", 12, 0.0)
+            });
+            with_black.last_mut().unwrap().panorama_mean = 0.0;
+            let warnings = view_warnings(&with_black);
+            let black: Vec<&String> = warnings.iter().filter(|w| w.contains("'black'")).collect();
+            assert!(
+                black.len() == 1
+                    && black[0].contains("its 12 pure pixels are all 0 in the panorama"),
+                "{warnings:?}"
+            );
+            // Where the model renders it black too, it agrees with its panorama.
+            with_black.last_mut().unwrap().render_mean = 0.0;
+            assert!(!view_warnings(&with_black)
+                .iter()
+                .any(|w| w.contains("'black'")));
         }
         // With one other view there is no median to trust.
         assert!(view_warnings(&readings[2..4]).is_empty());
