@@ -1634,22 +1634,11 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
 /// view has its reading.
 #[test]
 fn check_tells_a_view_whose_exposure_is_off_by_orders_of_magnitude() {
-    let cornell = common::workspace().join("scenes/cornell");
-    let text = std::fs::read_to_string(cornell.join("scene.toml")).unwrap();
-    let absolute = |text: &str| {
-        let at = |name: &str| format!("\"{}", path_str(&cornell.join(name)));
-        text.replace("\"geometry.obj", &at("geometry.obj"))
-            .replace("\"views/", &at("views/"))
-    };
+    let text = cornell_scene_text();
     let check = |text: &str| {
-        let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("scene.toml"), absolute(text)).unwrap();
-        let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
-        let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
-        assert_eq!(run.status.code(), Some(0), "{stderr}");
-        let json = std::fs::read_to_string(dir.path().join("check.json")).unwrap();
-        let report: serde_json::Value = serde_json::from_str(&json).unwrap();
-        (stderr, report)
+        let (code, stderr, report) = check_scene(text);
+        assert_eq!(code, Some(0), "{stderr}");
+        (stderr, report.unwrap())
     };
     let (stderr, report) = check(&text);
     assert!(!stderr.contains("may be off by about"), "{stderr}");
@@ -1669,17 +1658,84 @@ fn check_tells_a_view_whose_exposure_is_off_by_orders_of_magnitude() {
     let black = tempfile::tempdir().unwrap();
     let black_png = black.path().join("px.png");
     image::RgbImage::new(32, 32).save(&black_png).unwrap();
-    let black_px = text.replacen(
-        "\"views/px.exr\"",
-        &format!("\"{}\"", path_str(&black_png)),
-        1,
-    );
+    let black_px = with_image(&text, "px.exr", &black_png);
     let (stderr, _) = check(&black_px);
     assert!(
         stderr.contains("view 'px': its")
             && stderr.contains("pure pixels are all 0 in the panorama, where the first look's diffuse colours render them at"),
         "{stderr}"
     );
+}
+
+/// No surface is brighter than the brightest light (it reflects at most what reaches it):
+/// a hot pixel in cornell's floor view is left out of the fit and named, where before it
+/// put the floor at its bound; and a light declared 100x too dim, which makes a third of
+/// the pure pixels too bright, is refused before any work.
+#[test]
+fn a_pixel_brighter_than_the_lights_is_left_out_and_many_are_refused() {
+    let cornell = common::workspace().join("scenes/cornell");
+    let text = cornell_scene_text();
+    let dir = tempfile::tempdir().unwrap();
+    let mut floor = image::open(cornell.join("views/nz.exr"))
+        .unwrap()
+        .into_rgb32f();
+    floor.put_pixel(20, 15, image::Rgb([1e17; 3]));
+    let hot = dir.path().join("nz.exr");
+    floor.save(&hot).unwrap();
+    let hot_floor = with_image(&text, "nz.exr", &hot);
+    let (code, stderr, _) = check_scene(&hot_floor);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("warning: 1 pure pixel of")
+            && stderr.contains("is brighter than 2x the brightest light's radiance (30.0 in its brightest channel, light 'light')")
+            && stderr.contains("view 'nz' pixel (x 20, y 15) on group 'floor' reads [1e17, 1e17, 1e17]: left out of the fit"),
+        "{stderr}"
+    );
+    let dim_light = text.replace(
+        "radiance = [30.0, 28.0, 24.0]",
+        "radiance = [0.3, 0.28, 0.24]",
+    );
+    assert_ne!(dim_light, text);
+    let (code, stderr, report) = check_scene(&dim_light);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("scene.toml: ")
+            && stderr.contains("are brighter than 2x the brightest light's radiance (0.3")
+            && stderr.contains("a light's radiance declared too low"),
+        "{stderr}"
+    );
+    assert!(report.is_none());
+}
+
+/// cornell's scene.toml with its geometry and images named by absolute paths, so that a
+/// variant of it can be written in any folder.
+fn cornell_scene_text() -> String {
+    let cornell = common::workspace().join("scenes/cornell");
+    let text = std::fs::read_to_string(cornell.join("scene.toml")).unwrap();
+    let at = |name: &str| format!("\"{}", path_str(&cornell.join(name)));
+    text.replace("\"geometry.obj", &at("geometry.obj"))
+        .replace("\"views/", &at("views/"))
+}
+
+/// [`cornell_scene_text`] `text` with the view image `name` (in cornell's views/) replaced
+/// by `image`.
+fn with_image(text: &str, name: &str, image: &Path) -> String {
+    let views = common::workspace().join("scenes/cornell/views");
+    let changed = text.replacen(path_str(&views.join(name)), path_str(image), 1);
+    assert_ne!(changed, text);
+    changed
+}
+
+/// `relume check` of a scene.toml `text` written in a folder of its own: its exit code,
+/// its stderr and its JSON report (`None` where it wrote none).
+fn check_scene(text: &str) -> (Option<i32>, String, Option<serde_json::Value>) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), text).unwrap();
+    let run = relume(dir.path(), &["check", "scene.toml", "--json", "check.json"]);
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    let json = std::fs::read_to_string(dir.path().join("check.json")).ok();
+    let report = json.map(|j| serde_json::from_str(&j).unwrap());
+    (run.status.code(), stderr, report)
 }
 
 /// `relume check` on small scenes: views of 8 pixels are warned of as recover warns after

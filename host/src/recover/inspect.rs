@@ -16,7 +16,7 @@ use super::calibration::{self, LightReading, ViewReading};
 use super::model::GroupModel;
 use super::orientation::{self, OrientationReading};
 use super::pixels::{self, PurePixel};
-use super::{stage1, warnings, Recovery};
+use super::{stage1, too_bright, warnings, Recovery};
 use crate::assemble::{self, MaterialSource, OwnedScene};
 use crate::error::Error;
 use crate::fsutil::OutputSet;
@@ -101,6 +101,18 @@ pub(super) fn inspect(
         labels
     };
     let owned = &input.owned;
+    let names = too_bright::Names {
+        views: &input.view_names,
+        groups: &owned.group_names,
+        lights: &owned.light_names,
+    };
+    let (pure, too_bright) = too_bright::leave_out_too_bright(
+        scene_file,
+        pure,
+        &input.real,
+        &names,
+        &owned.light_radiance,
+    )?;
     let light_readings = calibration::read_lights(
         &light_pixels,
         &input.real,
@@ -109,6 +121,7 @@ pub(super) fn inspect(
         &input.view_names,
     );
     let mut warnings = calibration::calibration_warnings(&light_readings, &owned.light_radiance);
+    warnings.extend(too_bright);
     let orientation_readings =
         orientation::read_orientations(&pure, &input.real, &input.view_names);
     warnings.extend(orientation::orientation_warnings(&orientation_readings));

@@ -41,6 +41,7 @@ mod stage3;
 mod stage4;
 mod stage5;
 mod texture;
+mod too_bright;
 mod uncertainty;
 mod unseen;
 mod warnings;
