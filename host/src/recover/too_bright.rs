@@ -31,8 +31,8 @@ pub const TOO_BRIGHT_SHARE: f64 = 0.01;
 /// The pure pixels `pure` of the panorama `real` with those brighter than the lights allow
 /// left out, and the warning that says so (`None` when there are none). An error where
 /// they are more than [`TOO_BRIGHT_SHARE`] of all. `light_radiance` is every light's
-/// declared radiance, in the order of `light_names`; the scene without a bright light is
-/// left to the test that refuses a scene without light.
+/// declared radiance, in the order of `names.lights`; a scene whose lights are all dark
+/// is left to the test that refuses a scene without light.
 pub fn leave_out_too_bright(
     scene_file: &Path,
     pure: Vec<PurePixel>,
