@@ -41,9 +41,9 @@ pub const MAP_LEVEL_SPREAD: f64 = 0.01;
 /// A group whose recovered model still leaves more relative error than this (bias-only,
 /// under the final scene) is explained by no model of its kind: on the references at 64
 /// px, with their right models, the largest is the living room's statue at 0.10 (0.19 at
-/// 32 px, its lobe missed). Past it lay every case of input that did not match its scene
-/// that was tried on cornell: all its objects in one group (0.37), a view mirrored or
-/// turned upside down (0.31-0.43), a view 10x too bright (0.67-0.91).
+/// 32 px, its lobe missed). Past it lay the groups that input not matching its scene put
+/// wrong on cornell: all its objects in one group (0.37), the groups a view mirrored or
+/// turned upside down sees (0.30-0.43), those of a view 10x too bright (0.67-0.91).
 pub const MISFIT_ERROR: f64 = 0.25;
 
 /// What the warnings look at.
