@@ -222,12 +222,14 @@ const PREVIEW_GROUP_PIXELS: usize = 2048;
 const PREVIEW_SEED: u64 = 0xC4EC_0001;
 
 /// Each view's reading under the preview's colours: its pixels of the preview rendered
-/// again (one render per view, at the preview's samples and seed) against the panorama.
+/// again (one render per view with pixels, at the preview's samples and seed) against the
+/// panorama; and the renders that took.
 fn preview_view_readings(
     rec: &mut Recovery,
     view_names: &[String],
-) -> Result<Vec<ViewReading>, Error> {
+) -> Result<(Vec<ViewReading>, u32), Error> {
     let mut readings = Vec::with_capacity(view_names.len());
+    let mut renders = 0;
     for (v, name) in view_names.iter().enumerate() {
         let pixels: Vec<PurePixel> = rec
             .pure
@@ -237,11 +239,14 @@ fn preview_view_readings(
             .collect();
         let fits = match pixels.is_empty() {
             true => Vec::new(),
-            false => rec.evaluate_pixels(&pixels, PREVIEW_SPP, rec.seed, &|_| true)?,
+            false => {
+                renders += 1;
+                rec.evaluate_pixels(&pixels, PREVIEW_SPP, rec.seed, &|_| true)?
+            }
         };
         readings.push(calibration::read_view_fits(name, &fits));
     }
-    Ok(readings)
+    Ok((readings, renders))
 }
 
 /// The input checks of `relume recover` and a preview of its first stage: each group's
@@ -298,7 +303,7 @@ pub fn check(
         g.preview_colour = colour;
     }
     warnings.extend(preview.warnings);
-    let view_readings = preview_view_readings(&mut rec, &input.view_names)?;
+    let (view_readings, view_renders) = preview_view_readings(&mut rec, &input.view_names)?;
     warnings.extend(calibration::preview_view_warnings(&view_readings));
     for g in groups.iter().filter(|g| g.total() == 0) {
         warnings.push(format!(
@@ -322,7 +327,7 @@ pub fn check(
         few_pixels,
         view_readings,
         preview_spp: PREVIEW_SPP,
-        preview_renders: preview.evaluations + n_views as u32,
+        preview_renders: preview.evaluations + view_renders,
         seconds: start.elapsed().as_secs_f64(),
     };
     if let Some(path) = json {
