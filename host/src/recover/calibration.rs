@@ -31,7 +31,7 @@ pub struct LightReading {
     /// Pixels wholly inside the light, with their four neighbours.
     pub pixels: u32,
     pub declared: [f64; 3],
-    /// The panorama's mean over those pixels (exposure applied).
+    /// The panorama's median over those pixels per channel (exposure applied).
     pub measured: [f64; 3],
     /// `measured / declared` per channel; `null` where the light is declared dark.
     pub ratio: [Option<f64>; 3],
@@ -71,7 +71,9 @@ impl LightReading {
 }
 
 /// One reading per light and view that sees it, lights in scene order, then views.
-/// `pixels` are in view and row order; sums run in that order (no thread-dependent bits).
+/// `pixels` are in view and row order. The reading is the median per channel: a light
+/// holds one radiance, and a hot pixel of the capture inside it (a pixel of 1e17 among
+/// fifty) put the mean, and the calibration warning, off by orders of magnitude.
 pub fn read_lights(
     pixels: &[LightPixel],
     real: &[Image],
@@ -79,27 +81,25 @@ pub fn read_lights(
     light_radiance: &[Vec3],
     view_names: &[String],
 ) -> Vec<LightReading> {
-    // Sums per (light, view), in one pass over the pixels.
+    // Values per (light, view), in one pass over the pixels.
     let n_views = view_names.len();
-    let mut sums = vec![([0.0f64; 3], 0u32); light_names.len() * n_views];
+    let mut values = vec![Vec::<[f32; 3]>::new(); light_names.len() * n_views];
     for p in pixels {
         let image = &real[p.view as usize];
         let value = image.pixels[(p.y * image.width + p.x) as usize];
-        let (sum, count) = &mut sums[p.light as usize * n_views + p.view as usize];
-        for c in 0..3 {
-            sum[c] += value[c] as f64;
-        }
-        *count += 1;
+        values[p.light as usize * n_views + p.view as usize].push(value);
     }
     let mut readings = Vec::new();
     for (l, (name, radiance)) in light_names.iter().zip(light_radiance).enumerate() {
         for (v, view) in view_names.iter().enumerate() {
-            let (sum, count) = sums[l * n_views + v];
-            if count == 0 {
+            let inside = &values[l * n_views + v];
+            if inside.is_empty() {
                 continue;
             }
             let declared = radiance.to_array().map(f64::from);
-            let measured = sum.map(|s| s / count as f64);
+            let measured = std::array::from_fn(|c| {
+                median(inside.iter().map(|value| f64::from(value[c])).collect()).unwrap_or(0.0)
+            });
             let mut ratio = [None; 3];
             for c in 0..3 {
                 if declared[c] > 0.0 {
@@ -109,7 +109,7 @@ pub fn read_lights(
             readings.push(LightReading {
                 light: name.clone(),
                 view: view.clone(),
-                pixels: count,
+                pixels: inside.len() as u32,
                 declared,
                 measured,
                 ratio,
@@ -407,15 +407,18 @@ mod tests {
     }
 
     #[test]
-    fn a_reading_per_light_and_view_with_the_mean_over_its_pixels() {
+    fn a_reading_per_light_and_view_with_the_median_over_its_pixels() {
         let mut first = image(4, 4, [0.1; 3]);
         first.pixels[4 + 1] = [10.0, 20.0, 30.0];
         first.pixels[4 + 2] = [12.0, 22.0, 32.0];
+        // A hot pixel of the capture inside the lamp: the median does not see it.
+        first.pixels[4 + 3] = [1e17, 21.0, 31.0];
         let second = image(4, 4, [24.0, 0.0, 5.0]);
         let readings = read_lights(
             &[
                 pixel(0, 1, 1),
                 pixel(0, 2, 1),
+                pixel(0, 3, 1),
                 pixel(1, 1, 1),
                 pixel(1, 2, 0),
             ],
@@ -430,12 +433,15 @@ mod tests {
             .collect();
         assert_eq!(
             names,
-            [("bulb", "b", 1), ("lamp", "a", 2), ("lamp", "b", 1)]
+            [("bulb", "b", 1), ("lamp", "a", 3), ("lamp", "b", 1)]
         );
         // A dark light has no ratio: it cannot be off by a factor.
         assert_eq!(readings[0].ratio, [None; 3]);
-        assert_eq!(readings[1].measured, [11.0, 21.0, 31.0]);
-        assert_eq!(readings[1].ratio, [Some(1.0), Some(21.0 / 20.0), Some(1.0)]);
+        assert_eq!(readings[1].measured, [12.0, 21.0, 31.0]);
+        assert_eq!(
+            readings[1].ratio,
+            [Some(12.0 / 11.0), Some(21.0 / 20.0), Some(1.0)]
+        );
         assert_eq!(readings[2].ratio[0], Some(24.0 / 11.0));
     }
 
