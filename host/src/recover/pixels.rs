@@ -88,6 +88,28 @@ pub fn spread_subset(pure: &[PurePixel], n_groups: usize, limit: usize) -> Vec<P
         .collect()
 }
 
+/// The pixels of at most `limit` of the `tile` x `tile` tiles that `pixels` fall in,
+/// whole tiles kept evenly over their order (view, tile row, tile column), the pixels in
+/// their order; and the share of the tiles kept (1 when they are no more than `limit`,
+/// and then the pixels are `pixels` itself). For an estimate that clusters by tile: a
+/// sum over the kept tiles over the share estimates the sum over all of them.
+pub fn whole_tiles(pixels: Vec<PurePixel>, tile: u32, limit: usize) -> (Vec<PurePixel>, f64) {
+    let key = |p: &PurePixel| (p.view, p.y / tile, p.x / tile);
+    let tiles: std::collections::BTreeSet<(u32, u32, u32)> = pixels.iter().map(key).collect();
+    if tiles.len() <= limit {
+        return (pixels, 1.0);
+    }
+    let mut pick = EvenPick::new(tiles.len(), limit);
+    let kept: std::collections::BTreeSet<(u32, u32, u32)> =
+        tiles.iter().copied().filter(|_| pick.next()).collect();
+    let share = kept.len() as f64 / tiles.len() as f64;
+    let pixels = pixels
+        .into_iter()
+        .filter(|p| kept.contains(&key(p)))
+        .collect();
+    (pixels, share)
+}
+
 /// Every k-th of `pixels`, from the first, with k the smallest stride that leaves at most
 /// `at_most` (all of them when they are no more).
 pub fn every_kth(pixels: Vec<PurePixel>, at_most: usize) -> Vec<PurePixel> {
@@ -708,6 +730,53 @@ pub fn step_differences(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Whole tiles or none: every tile kept holds all its pixels, the tiles are spread
+    /// over the views and rows, the share is the tiles' (not the pixels'), and a group in
+    /// no more tiles than the limit is kept as it is.
+    #[test]
+    fn a_group_in_many_tiles_keeps_whole_tiles_spread_evenly() {
+        // Two views of 16 x 8 pixels, tiles of 4: 4 x 2 tiles each, 16 in all; the last
+        // column of view 1 left out, so its right tiles hold 12 pixels.
+        let pixels: Vec<PurePixel> = (0..2)
+            .flat_map(|view| {
+                (0..8).flat_map(move |y| {
+                    (0..16)
+                        .filter(move |&x| !(view == 1 && x == 15))
+                        .map(move |x| PurePixel {
+                            view,
+                            x,
+                            y,
+                            group: 3,
+                        })
+                })
+            })
+            .collect();
+        let (same, share) = whole_tiles(pixels.clone(), 4, 16);
+        assert_eq!((same, share), (pixels.clone(), 1.0));
+        let (kept, share) = whole_tiles(pixels.clone(), 4, 6);
+        assert_eq!(share, 6.0 / 16.0);
+        let mut tiles = std::collections::BTreeMap::new();
+        for p in &kept {
+            *tiles.entry((p.view, p.y / 4, p.x / 4)).or_insert(0) += 1;
+        }
+        // Tiles 0, 3, 6, 8, 11 and 14 of 16: both views, both rows, and the short one.
+        let expected = [
+            ((0, 0, 0), 16),
+            ((0, 0, 3), 16),
+            ((0, 1, 2), 16),
+            ((1, 0, 0), 16),
+            ((1, 0, 3), 12),
+            ((1, 1, 2), 16),
+        ];
+        assert_eq!(tiles.into_iter().collect::<Vec<_>>(), expected);
+        // In their order.
+        assert!(kept
+            .windows(2)
+            .all(|w| (w[0].view, w[0].y, w[0].x) < (w[1].view, w[1].y, w[1].x)));
+        let (_, share) = whole_tiles(pixels, 4, 15);
+        assert_eq!(share, 15.0 / 16.0);
+    }
 
     /// On the bundled cornell box, with the floor taken as unseen: every pixel found sees
     /// it over the share given (counted again here ray by ray) and only known groups
