@@ -1319,13 +1319,19 @@ fn living_room_small_fits_picture_2s_lobe_again_with_its_map() {
 /// render, a product of two renders' noises per pixel, falls with the square of the
 /// samples per pixel. On seed 3 that still read 0.036 +- 0.044, and the box stayed a
 /// mirror until an unresolved test could take one more round on the subset
-/// (`fit::UNRESOLVED_MAX_SAMPLES`). (The suite's full-resolution recoveries: about 2
-/// minutes each on 2 cores.)
+/// (`fit::UNRESOLVED_MAX_SAMPLES`). The default suite recovers seed 3, the harder case;
+/// seed 1 is behind `--ignored` below: each 256-px recovery takes about 3 minutes on 2
+/// cores, and the two were 35% of tests/recover.rs's time (643 of 1,860 s of test
+/// threads, on a machine of 6.6-9.7 Mrays/s in `bench rays`).
 #[test]
 fn glossy_at_256_px_decides_its_steel_box_on_a_subset_and_keeps_its_lobe() {
-    for seed in ["1", "3"] {
-        steel_box_at_256_px_keeps_its_lobe(seed);
-    }
+    steel_box_at_256_px_keeps_its_lobe("3");
+}
+
+#[test]
+#[ignore = "a second 256-px recovery, about 3 minutes: cargo test --release --test recover -- --ignored steel_box_lobe_on_seed_1"]
+fn glossy_at_256_px_keeps_its_steel_box_lobe_on_seed_1_too() {
+    steel_box_at_256_px_keeps_its_lobe("1");
 }
 
 fn steel_box_at_256_px_keeps_its_lobe(seed: &str) {
