@@ -40,7 +40,10 @@ const MIN_SAMPLES: u64 = 1 << 17;
 /// and its variances scaled by the share kept (the sandwich's sums are over tiles, so a
 /// share of the tiles estimates them; `pixels::whole_tiles`). 256 clusters fix a standard
 /// error to a few percent, and groups of 100,000 pixels at 256 px per face rendered 1,700
-/// tiles five times over: the stage took 30% of box-diffuse's recovery there.
+/// tiles five times over: the stage took 30% of box-diffuse's recovery there. Stage 5
+/// decides a picture's lobe on this sigma too (`stage5::run`), so a picture in more tiles
+/// is decided on the subset's; no reference picture is (the largest, textured's checker,
+/// 4,500 pixels at 256 px: the same bytes).
 pub const MAX_TILES: usize = 256;
 
 /// One recovered parameter with its standard error.
