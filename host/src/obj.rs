@@ -15,8 +15,9 @@
 //!   unique; see `scene_file::check_objects` across files). An object without faces is left out.
 //! - `v`: 3 finite numbers (6 with a vertex colour, ignored); `vt`: 2 or 3 finite numbers;
 //!   `f`: at least 3 vertices `v`, `v/vt`, `v//vn` or `v/vt/vn`, indices 1-based or negative
-//!   (relative), referring to vertices already read; a face uses texture coordinates on all of
-//!   its vertices or on none.
+//!   (relative), referring to vertices, texture coordinates and normals already read; a face
+//!   uses texture coordinates on all of its vertices or on none.
+//! - A control character other than whitespace (a NUL) is an error: not a separator.
 //! - A line ending in `\` goes on in the next (errors name the line a statement starts
 //!   on); a comment line does not.
 //! - Ignored: comments, `vn` (flat shading), `s`, `mtllib`, `usemtl` (materials come from
@@ -234,10 +235,21 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
     let naming = if has_o { "o" } else { "g" };
     let mut objects: Vec<ObjectInfo> = Vec::new();
     let mut out = String::with_capacity(text.len());
-    let (mut n_v, mut n_vt) = (0usize, 0usize);
+    let (mut n_v, mut n_vt, mut n_vn) = (0usize, 0usize, 0usize);
     for (line_no, raw_line) in &statements {
         let (line_no, raw_line) = (*line_no, raw_line.as_ref());
         let err = |msg: String| Error::at_line(path, line_no, msg);
+        // A NUL or another control character is no separator: `f 5 7\0 6` read as a
+        // face of two vertices, and `o la\0mp` as an object the scene could not find.
+        if let Some(c) = raw_line
+            .chars()
+            .find(|c| c.is_control() && !c.is_whitespace())
+        {
+            return Err(err(format!(
+                "control character U+{:04X} in the line: not OBJ text",
+                c as u32
+            )));
+        }
         let mut tokens = raw_line.split_whitespace();
         let Some(key) = tokens.next() else { continue };
         let args: Vec<&str> = tokens.collect();
@@ -280,7 +292,7 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                 let mut with_uv = 0;
                 let mut face = String::from("f");
                 for a in &args {
-                    let (v, vt) = face_vertex(a, n_v, n_vt)
+                    let (v, vt) = face_vertex(a, n_v, n_vt, n_vn)
                         .map_err(|m| err(format!("face vertex '{a}': {m}")))?;
                     match vt {
                         Some(t) => {
@@ -327,7 +339,8 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                 });
                 out.push_str(&format!("o {name}\n"));
             }
-            "g" | "vn" | "s" | "mtllib" | "usemtl" | "l" | "p" => {}
+            "vn" => n_vn += 1,
+            "g" | "s" | "mtllib" | "usemtl" | "l" | "p" => {}
             other => return Err(err(format!("unknown OBJ statement '{other}'"))),
         }
     }
@@ -347,9 +360,14 @@ fn numbers(args: &[&str], key: &str, err: &dyn Fn(String) -> Error) -> Result<Ve
     Ok(xs)
 }
 
-/// One `v[/vt[/vn]]` reference, as absolute 1-based indices (the normal is checked for
-/// syntax only).
-fn face_vertex(token: &str, n_v: usize, n_vt: usize) -> Result<(usize, Option<usize>), String> {
+/// One `v[/vt[/vn]]` reference, as absolute 1-based indices (the normal is checked to
+/// refer to a `vn` read so far, and then not used: shading is flat).
+fn face_vertex(
+    token: &str,
+    n_v: usize,
+    n_vt: usize,
+    n_vn: usize,
+) -> Result<(usize, Option<usize>), String> {
     let parts: Vec<&str> = token.split('/').collect();
     if parts.len() > 3 {
         return Err("expected v, v/vt, v//vn or v/vt/vn".into());
@@ -360,9 +378,7 @@ fn face_vertex(token: &str, n_v: usize, n_vt: usize) -> Result<(usize, Option<us
         Some(t) => Some(resolve_index(t, n_vt, "texture coordinate")?),
     };
     if let Some(n) = parts.get(2) {
-        if n.parse::<i64>().is_err() {
-            return Err(format!("normal index '{n}' is not an integer"));
-        }
+        resolve_index(n, n_vn, "normal")?;
     }
     Ok((v, vt))
 }
@@ -628,6 +644,22 @@ mod tests {
             &format!("o a\n{QUAD}f 1//z 2 3\n"),
             6,
             &["normal index 'z'"],
+        );
+        // A normal must exist though shading is flat: the file is wrong where it points.
+        bad(
+            &format!("o a\n{QUAD}f 1//1 2//1 3//1\n"),
+            6,
+            &["normal index 1 is out of range (0 defined so far)"],
+        );
+        bad(
+            &format!("o a\n{QUAD}f 1 2 3\x006\n"),
+            6,
+            &["control character U+0000"],
+        );
+        bad(
+            &format!("o a\x00b\n{QUAD}f 1 2 3\n"),
+            1,
+            &["control character U+0000"],
         );
         bad(
             &format!("o a\n{QUAD}f 1/1/1/1 2 3\n"),
