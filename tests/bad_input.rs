@@ -182,6 +182,8 @@ impl Case {
 
 const INPUT: i32 = 3;
 const IO: i32 = 4;
+/// A scene beyond the core's capacities.
+const CAPACITY: i32 = 5;
 
 #[test]
 fn the_tiny_scene_itself_renders() {
@@ -310,6 +312,58 @@ fn a_light_without_area_is_named() {
     Case::new()
         .obj("f 5 7 6", "f 5 5 6")
         .fails(INPUT, &["geo.obj", "light 'lamp'", "no area"]);
+}
+
+/// Rays leave a surface 1e-4 of the scene's size off it: a floor 100,000 wide under a
+/// lamp 0.6 across moved them past the lamp, and the view rendered black with a warning
+/// that blamed the light. Said, with the light and the object that makes the scene large.
+#[test]
+fn a_scene_too_large_for_its_light_is_refused() {
+    Case::new().obj("v 1 1 0\n", "v 1e5 1e5 0\n").fails(
+        INPUT,
+        &[
+            "scene.toml",
+            "spans 100000 units",
+            "light 'lamp' (0.6 across)",
+            "object 'quad' of",
+        ],
+    );
+}
+
+/// A lamp a million units long passes the light's test, but the rays' offset (100 units)
+/// is still far larger than the view's distance to the floor.
+#[test]
+fn a_scene_too_large_for_its_views_is_refused() {
+    Case::new().obj("v 0.5 0.8 1\n", "v 0.5 1e6 1\n").fails(
+        INPUT,
+        &[
+            "scene.toml",
+            "spans 1e6 units",
+            "view 'front' sees the scene",
+        ],
+    );
+}
+
+/// More views than the core's MAX_VIEWS, which a caller on a small target sizes by.
+#[test]
+fn views_beyond_capacity_are_refused() {
+    let view = SCENE
+        .split("[[view]]")
+        .nth(1)
+        .and_then(|rest| rest.split("[[light]]").next())
+        .unwrap()
+        .to_string();
+    let extra: String = (0..relume_core::config::MAX_VIEWS)
+        .map(|i| {
+            format!(
+                "[[view]]{}",
+                view.replace("\"front\"", &format!("\"v{i}\""))
+            )
+        })
+        .collect();
+    Case::new()
+        .scene("[[light]]", &format!("{extra}[[light]]"))
+        .fails(CAPACITY, &["scene.toml", "MAX_VIEWS is 64", "needs 65"]);
 }
 
 #[test]

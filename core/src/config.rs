@@ -13,7 +13,8 @@ pub const MAX_LEAF_TRIANGLES: usize = 4;
 pub const MAX_GROUPS: usize = 1024;
 /// Light sources (each a set of emitting triangles) in one scene.
 pub const MAX_LIGHTS: usize = 256;
-/// Views in one panorama.
+/// Views in one panorama (the host refuses more; the core keeps nothing per view, but a
+/// caller on a small target sizes its buffers by it).
 pub const MAX_VIEWS: usize = 64;
 /// Pixels per side of one view.
 pub const MAX_VIEW_SIDE: u32 = 16384;

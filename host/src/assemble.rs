@@ -7,8 +7,9 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 use relume_core::bvh::{Bvh, BvhBuffers, BvhNode, PackedTriangle};
-use relume_core::geometry::{Surface, Triangle, View};
+use relume_core::geometry::{longest_side, Surface, Triangle, View};
 use relume_core::material::{Kind, Material, SurfaceMaterial, TextureId, TextureInfo, Textures};
+use relume_core::render::RAY_EPSILON;
 use relume_core::scene::{BuiltCounts, BuiltStorage, LightTriangle, Scene, SceneStorage};
 
 use crate::error::Error;
@@ -16,6 +17,7 @@ use crate::images;
 use crate::materials_file::{self, MaterialDesc, MaterialsDesc, Model};
 use crate::obj::{self, ObjObject};
 use crate::scene_file::{self, GroupDesc, GroupKind, SceneDesc};
+use crate::text::significant;
 
 /// Where the materials of the groups come from.
 pub enum MaterialSource<'a> {
@@ -81,6 +83,133 @@ fn refuse_a_light_without_area(object: &ObjObject) -> Result<(), Error> {
     }
 }
 
+/// The largest ray offset a light's size allows, as a share of the light's longest side.
+/// The references' offsets are 0.04-0.36% of their smallest light's (the living room's
+/// desk lamp bulb, 0.14 units in a room of 5).
+const MAX_OFFSET_PER_LIGHT_SIZE: f32 = 0.1;
+
+/// An error when the scene is so large against one of its lights that the rays leaving a
+/// surface start a visible part of that light's size away from it. Secondary rays start
+/// [`RAY_EPSILON`] of the scene's size off the surface (`render::offset_origin`): a ground
+/// plane 100,000 units wide under a lamp 0.6 across moved them 14 units, past the lamp 1
+/// unit above the floor, and the views rendered black with a warning that blamed the
+/// light.
+fn refuse_offsets_larger_than_a_light(
+    desc: &SceneDesc,
+    triangles: &[Triangle],
+    light_names: &[String],
+    objects: &[ObjObject],
+) -> Result<(), Error> {
+    let size = longest_side(triangles);
+    let offset = RAY_EPSILON * size;
+    for (li, name) in light_names.iter().enumerate() {
+        let light = Surface::Light(li as u16);
+        let extent = longest_side(triangles.iter().filter(|t| t.surface == light));
+        if offset <= MAX_OFFSET_PER_LIGHT_SIZE * extent {
+            continue;
+        }
+        // The object that spans the most, most likely the one to leave out or crop.
+        let largest = objects
+            .iter()
+            .filter(|o| !desc.hide.contains(&o.name))
+            .map(|o| (o, object_extent(o)))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let hint = largest
+            .map(|(o, e)| {
+                format!(
+                    " (the largest is object '{}' of {}, {} across)",
+                    o.name,
+                    o.file.display(),
+                    significant(e)
+                )
+            })
+            .unwrap_or_default();
+        return Err(Error::input(
+            &desc.path,
+            format!(
+                "{}: more than {MAX_OFFSET_PER_LIGHT_SIZE} of the size of light '{name}' ({} across), whose light would be lost or misplaced. {CROP}{hint}",
+                offset_said(size),
+                significant(extent.into())
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// What to do about a scene too large for its details.
+const CROP: &str = "Leave out or crop the geometry far from what the views see";
+
+/// The ray offset of a scene of `size`, in words.
+fn offset_said(size: f32) -> String {
+    format!(
+        "the geometry spans {} units (its bounding box's longest side), and rays leaving a surface start {RAY_EPSILON} of that, {} units, off it",
+        significant(size.into()),
+        significant((RAY_EPSILON * size).into())
+    )
+}
+
+/// The largest ray offset against the distance at which a view sees the scene (the
+/// median over a grid of its pixels). The references' are 0.013-0.04% (the living
+/// room's novel view the most).
+const MAX_OFFSET_PER_VIEW_DISTANCE: f32 = 0.01;
+
+/// Pixels per side of the grid whose distances [`refuse_offsets_far_against_the_views`]
+/// reads.
+const DISTANCE_GRID: u32 = 9;
+
+/// An error when the ray offset (see [`refuse_offsets_larger_than_a_light`]) is a visible
+/// part of the distance at which a view sees the scene: shadows and contacts would move
+/// by it, and past an offset as large as the distance everything renders black.
+fn refuse_offsets_far_against_the_views(
+    desc: &SceneDesc,
+    scene: &Scene,
+    views: &[View],
+) -> Result<(), Error> {
+    let offset = RAY_EPSILON * scene.size();
+    for (view, view_desc) in views.iter().zip(&desc.views) {
+        let grid = |n: u32| {
+            (0..DISTANCE_GRID.min(n))
+                .map(move |i| (i as f32 + 0.5) * n as f32 / DISTANCE_GRID.min(n) as f32)
+        };
+        let mut distances: Vec<f32> = grid(view.height)
+            .flat_map(|y| grid(view.width).map(move |x| (x, y)))
+            .filter_map(|(x, y)| scene.intersect(&view.ray(x, y), f32::INFINITY))
+            .map(|hit| hit.t)
+            .collect();
+        if distances.is_empty() {
+            continue; // A view that sees nothing is warned of where it renders black.
+        }
+        distances.sort_by(f32::total_cmp);
+        let distance = distances[distances.len() / 2];
+        if offset > MAX_OFFSET_PER_VIEW_DISTANCE * distance {
+            return Err(Error::input(
+                &desc.path,
+                format!(
+                    "{}: more than {MAX_OFFSET_PER_VIEW_DISTANCE} of the distance at which view '{}' sees the scene ({}, the median over {} of its pixels), so its shadows and contacts would move by it. {CROP}",
+                    offset_said(scene.size()),
+                    view_desc.name,
+                    significant(distance.into()),
+                    distances.len()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The longest side of an object's bounding box, in its file's 64-bit coordinates.
+fn object_extent(object: &ObjObject) -> f64 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in object.triangles.iter().flatten() {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
+}
+
 /// Reads scene.toml and its OBJ files and checks that objects, groups and lights agree.
 pub fn load_scene(scene_path: &Path) -> Result<(SceneDesc, Vec<ObjObject>), Error> {
     let desc = scene_file::load_scene(scene_path)?;
@@ -137,6 +266,17 @@ pub fn assemble(
         ));
     }
 
+    if desc.views.len() > relume_core::config::MAX_VIEWS {
+        return Err(core_err(
+            "views",
+            relume_core::Error::Capacity {
+                what: "MAX_VIEWS",
+                max: relume_core::config::MAX_VIEWS,
+                needed: desc.views.len(),
+            },
+        ));
+    }
+
     let origin = far_scene_centre(
         objects
             .iter()
@@ -177,6 +317,7 @@ pub fn assemble(
         triangles.len(),
     )
     .map_err(|e| core_err("triangles", e))?;
+    refuse_offsets_larger_than_a_light(&desc, &triangles, &light_names, objects)?;
 
     let mut views = Vec::with_capacity(desc.views.len());
     for v in &desc.views {
@@ -515,8 +656,11 @@ impl OwnedScene {
                         light_table: &mut self.light_table,
                     },
                 )
-                .map_err(|e| Error::core(format!("{path}: building the scene"), e))?
-                .built_counts();
+                .map_err(|e| Error::core(format!("{path}: building the scene"), e))
+                .and_then(|scene| {
+                    refuse_offsets_far_against_the_views(&self.desc, &scene, &self.views)?;
+                    Ok(scene.built_counts())
+                })?;
                 self.built = Some(BuiltFor {
                     triangles: self.triangles.clone(),
                     light_radiance: self.light_radiance.clone(),

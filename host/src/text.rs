@@ -8,9 +8,30 @@ pub fn counted(n: impl Into<u64>, noun: &str) -> String {
     format!("{n} {noun}{s}")
 }
 
+/// A number to 4 significant digits, without trailing zeros: "100000", "0.6", "0.0003123",
+/// and "1e15" from a million up (a length in a message, where `{:.4}` gave
+/// "100000.0000").
+pub fn significant(x: f64) -> String {
+    match format!("{x:.3e}").parse::<f64>() {
+        Ok(rounded) if rounded.abs() >= 1e6 => format!("{rounded:e}"),
+        Ok(rounded) => format!("{rounded}"),
+        Err(_) => format!("{x}"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::counted;
+    use super::{counted, significant};
+
+    #[test]
+    fn lengths_are_given_to_four_digits() {
+        assert_eq!(significant(100000.0), "100000");
+        assert_eq!(significant(0.6000000238418579), "0.6");
+        assert_eq!(significant(0.00031234567), "0.0003123");
+        assert_eq!(significant(14.142135), "14.14");
+        assert_eq!(significant(1e15), "1e15");
+        assert_eq!(significant(-1.23456e20), "-1.235e20");
+    }
 
     #[test]
     fn one_is_singular_and_every_other_count_plural() {
