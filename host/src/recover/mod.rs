@@ -859,6 +859,10 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             &rec.models[g],
             &final_fits[g],
         ));
+        warnings.extend(warnings::darker_than_any_material(
+            &names[g],
+            &rec.models[g],
+        ));
     }
     let spp_per_half = final_renders.spp_per_half;
     let renders = final_renders.mean;

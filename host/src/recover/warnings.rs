@@ -2,9 +2,11 @@
 //! `relume bench stability` saw recovery fail (docs/stability.md): a user should know
 //! which parts of the answer the study says not to trust, from the report alone. And one
 //! on the result itself: a diffuse colour held at its bound by a panorama brighter than
-//! the scene's lights can make it ([`brighter_than_lit`]).
+//! the scene's lights can make it ([`brighter_than_lit`]), and a reflectance darker than
+//! any material's ([`darker_than_any_material`]).
 
 use relume_core::fit::{self, GroupFit};
+use relume_core::material::Kind;
 use relume_core::stages::diffuse;
 
 use super::kind;
@@ -209,6 +211,46 @@ pub fn brighter_than_lit(name: &str, model: &GroupModel, fit: &GroupFit) -> Opti
     ))
 }
 
+/// The least reflectance a real material has, in its brightest channel: the blackest
+/// coatings made reflect about 0.04%, black paint and velvet 1-5%; the references'
+/// darkest group 12%.
+pub const MIN_PLAUSIBLE_REFLECTANCE: f64 = 1e-3;
+
+/// A warning when group `name`'s recovered reflectance (diffuse and specular together,
+/// in its brightest channel) is above 0 but below [`MIN_PLAUSIBLE_REFLECTANCE`]: the
+/// panorama is far darker than the scene's lights make anything. A view's exposure or a
+/// light's radiance is the likely culprit; where a view sees a light its reading says so
+/// too (`calibration`), but a panorama whose exposure was 1e-10 and whose views saw no
+/// light gave a floor of colour 5e-11 without a word. (A reflectance of exactly 0 is
+/// warned of where stage 1 finds the group's pixels black.)
+pub fn darker_than_any_material(name: &str, model: &GroupModel) -> Option<String> {
+    let brightest = |c: [f64; 3]| c.into_iter().fold(0.0, f64::max);
+    let reflectance = match *model {
+        GroupModel::Diffuse { color } | GroupModel::Mirror { color } => brightest(color),
+        GroupModel::Isotropic {
+            kind,
+            color,
+            specularity,
+            ..
+        }
+        | GroupModel::Anisotropic {
+            kind,
+            color,
+            specularity,
+            ..
+        } => match kind {
+            Kind::Plastic => brightest(color) * (1.0 - specularity) + specularity,
+            Kind::Metal => brightest(color),
+        },
+        GroupModel::Textured { .. } | GroupModel::Unseen { .. } => return None,
+    };
+    (reflectance > 0.0 && reflectance < MIN_PLAUSIBLE_REFLECTANCE).then(|| {
+        format!(
+            "group '{name}': its recovered reflectance is at most {reflectance:.2e} in any channel, below MIN_PLAUSIBLE_REFLECTANCE {MIN_PLAUSIBLE_REFLECTANCE} (the blackest coatings reflect about 0.04%, black paint 1-5%): the panorama is far darker than the scene's lights can make it; a view's exposure is likely too low, or a light's radiance too high"
+        )
+    })
+}
+
 /// For a diffuse `model` whose colour is at [`diffuse::MAX_DIFFUSE_REFLECTANCE`] in some
 /// channel where the panorama is brighter than its render `fit` by more than
 /// [`BRIGHTER_THAN_LIT`]: the channel where it is most so, and the panorama over the render.
@@ -253,7 +295,6 @@ fn unestablished_specularity(report: &GroupReport) -> Option<(f64, f64)> {
 mod tests {
     use super::*;
     use crate::recover::{ComparisonReport, Effort};
-    use relume_core::material::Kind;
 
     /// A one-pixel fit whose panorama is `ratio` times the render in red.
     fn fit_with_red_ratio(ratio: f64) -> GroupFit {
@@ -263,6 +304,33 @@ mod tests {
             sum_rendered: [1.0, 0.5, 0.5],
             ..GroupFit::default()
         }
+    }
+
+    #[test]
+    fn a_reflectance_darker_than_any_material_is_named() {
+        let diffuse = |c: f64| GroupModel::Diffuse {
+            color: [c, c / 2.0, 0.0],
+        };
+        let w = darker_than_any_material("floor", &diffuse(5e-11)).unwrap();
+        assert!(w.contains("group 'floor'") && w.contains("5.00e-11"), "{w}");
+        // Black is said elsewhere; the darkest real materials pass.
+        assert_eq!(darker_than_any_material("floor", &diffuse(0.0)), None);
+        assert_eq!(
+            darker_than_any_material("floor", &diffuse(MIN_PLAUSIBLE_REFLECTANCE)),
+            None
+        );
+        // A plastic's white lobe counts; a metal's colour is its whole reflectance.
+        let lobe = |kind, specularity| GroupModel::Isotropic {
+            kind,
+            color: [1e-4; 3],
+            specularity,
+            roughness: 0.1,
+        };
+        assert_eq!(
+            darker_than_any_material("box", &lobe(Kind::Plastic, 0.05)),
+            None
+        );
+        assert!(darker_than_any_material("box", &lobe(Kind::Metal, 0.9)).is_some());
     }
 
     #[test]
