@@ -458,7 +458,10 @@ fn check_and_scale(
             };
             if !scaled.is_finite() {
                 let header_note = header.map_or(String::new(), |h| {
-                    format!(" divided by the header's EXPOSURE and COLORCORR, {}", h[c])
+                    format!(
+                        " divided by the header's EXPOSURE and COLORCORR, {}",
+                        crate::text::significant(h[c])
+                    )
                 });
                 return Err(Error::at_pixel(
                     path,
@@ -1124,7 +1127,7 @@ mod tests {
         hdr_with_header(&p, "EXPOSURE=1e-40\n", &stored);
         let e = read_image(&p, 1.0).unwrap_err().to_string();
         assert!(
-            e.contains("a.hdr: pixel (x 0, y 0): channel R value 1 times exposure 1 divided by the header's EXPOSURE and COLORCORR, 0.0000")
+            e.contains("a.hdr: pixel (x 0, y 0): channel R value 1 times exposure 1 divided by the header's EXPOSURE and COLORCORR, 1e-40 overflows")
                 && e.contains("overflows"),
             "{e}"
         );

@@ -9,11 +9,13 @@ pub fn counted(n: impl Into<u64>, noun: &str) -> String {
 }
 
 /// A number to 4 significant digits, without trailing zeros: "100000", "0.6", "0.0003123",
-/// and "1e15" from a million up (a length in a message, where `{:.4}` gave
-/// "100000.0000").
+/// and with an exponent from a million up and below 1e-4: "1e15", "1e-300" (a number in
+/// a message, where `{:.4}` gave "100000.0000" and `{}` 300 zeros).
 pub fn significant(x: f64) -> String {
     match format!("{x:.3e}").parse::<f64>() {
-        Ok(rounded) if rounded.abs() >= 1e6 => format!("{rounded:e}"),
+        Ok(rounded) if rounded.abs() >= 1e6 || (rounded != 0.0 && rounded.abs() < 1e-4) => {
+            format!("{rounded:e}")
+        }
         Ok(rounded) => format!("{rounded}"),
         Err(_) => format!("{x}"),
     }
@@ -31,6 +33,8 @@ mod tests {
         assert_eq!(significant(14.142135), "14.14");
         assert_eq!(significant(1e15), "1e15");
         assert_eq!(significant(-1.23456e20), "-1.235e20");
+        assert_eq!(significant(1e-300), "1e-300");
+        assert_eq!(significant(0.0), "0");
     }
 
     #[test]
