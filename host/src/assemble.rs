@@ -199,15 +199,22 @@ fn refuse_offsets_far_against_the_views(
 
 /// The longest side of an object's bounding box, in its file's 64-bit coordinates.
 fn object_extent(object: &ObjObject) -> f64 {
+    let (lo, hi) = bounds(std::iter::once(object));
+    (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
+}
+
+/// The objects' bounding box `(lo, hi)` in their files' 64-bit coordinates (inverted,
+/// infinite, without vertices).
+fn bounds<'a>(objects: impl Iterator<Item = &'a ObjObject>) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
-    for p in object.triangles.iter().flatten() {
+    for p in objects.flat_map(|o| o.triangles.iter().flatten()) {
         for k in 0..3 {
             lo[k] = lo[k].min(p[k]);
             hi[k] = hi[k].max(p[k]);
         }
     }
-    (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
+    (lo, hi)
 }
 
 /// Reads scene.toml and its OBJ files and checks that objects, groups and lights agree.
@@ -384,14 +391,7 @@ pub fn assemble(
 /// rounded to 32 only after the move, and the views move with them: what is rendered does
 /// not change, only where the arithmetic happens.
 fn far_scene_centre<'a>(objects: impl Iterator<Item = &'a ObjObject>) -> [f64; 3] {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in objects.flat_map(|o| o.triangles.iter().flatten()) {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
+    let (lo, hi) = bounds(objects);
     let centre: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
     let size = (0..3)
         .map(|k| hi[k] - lo[k])
