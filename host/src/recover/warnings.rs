@@ -6,7 +6,6 @@
 //! any material's ([`darker_than_any_material`]).
 
 use relume_core::fit::{self, GroupFit};
-use relume_core::material::Kind;
 use relume_core::stages::diffuse;
 
 use super::kind;
@@ -224,26 +223,14 @@ pub const MIN_PLAUSIBLE_REFLECTANCE: f64 = 1e-3;
 /// light gave a floor of colour 5e-11 without a word. (A reflectance of exactly 0 is
 /// warned of where stage 1 finds the group's pixels black.)
 pub fn darker_than_any_material(name: &str, model: &GroupModel) -> Option<String> {
-    let brightest = |c: [f64; 3]| c.into_iter().fold(0.0, f64::max);
-    let reflectance = match *model {
-        GroupModel::Diffuse { color } | GroupModel::Mirror { color } => brightest(color),
-        GroupModel::Isotropic {
-            kind,
-            color,
-            specularity,
-            ..
-        }
-        | GroupModel::Anisotropic {
-            kind,
-            color,
-            specularity,
-            ..
-        } => match kind {
-            Kind::Plastic => brightest(color) * (1.0 - specularity) + specularity,
-            Kind::Metal => brightest(color),
-        },
-        GroupModel::Textured { .. } | GroupModel::Unseen { .. } => return None,
-    };
+    if matches!(
+        model,
+        GroupModel::Textured { .. } | GroupModel::Unseen { .. }
+    ) {
+        return None; // A map's texels, or nothing recovered.
+    }
+    let (rho_d, rho_s) = model.reflectances();
+    let reflectance = (0..3).map(|c| rho_d[c] + rho_s[c]).fold(0.0, f64::max);
     (reflectance > 0.0 && reflectance < MIN_PLAUSIBLE_REFLECTANCE).then(|| {
         format!(
             "group '{name}': its recovered reflectance is at most {reflectance:.2e} in any channel, below MIN_PLAUSIBLE_REFLECTANCE {MIN_PLAUSIBLE_REFLECTANCE} (the blackest coatings reflect about 0.04%, black paint 1-5%): the panorama is far darker than the scene's lights can make it; a view's exposure is likely too low, or a light's radiance too high"
@@ -295,6 +282,7 @@ fn unestablished_specularity(report: &GroupReport) -> Option<(f64, f64)> {
 mod tests {
     use super::*;
     use crate::recover::{ComparisonReport, Effort};
+    use relume_core::material::Kind;
 
     /// A one-pixel fit whose panorama is `ratio` times the render in red.
     fn fit_with_red_ratio(ratio: f64) -> GroupFit {
