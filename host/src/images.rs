@@ -19,6 +19,7 @@ use relume_core::math;
 
 use crate::error::Error;
 use crate::fsutil::OutputSet;
+use crate::text;
 
 /// A linear RGB image, row-major, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
@@ -49,6 +50,16 @@ pub fn read_image_sized(
     exposure: f32,
     size_fits: impl FnOnce(u32, u32) -> Result<(), Error>,
 ) -> Result<Image, Error> {
+    read_image_and_header(path, exposure, size_fits).map(|(image, _)| image)
+}
+
+/// [`read_image_sized`], and what the file's header divided its stored values by, per
+/// channel (a Radiance picture's `EXPOSURE` and `COLORCORR`, [`hdr_header_scale`]).
+fn read_image_and_header(
+    path: &Path,
+    exposure: f32,
+    size_fits: impl FnOnce(u32, u32) -> Result<(), Error>,
+) -> Result<(Image, Option<[f64; 3]>), Error> {
     if !(exposure.is_finite() && exposure > 0.0) {
         return Err(Error::input(
             path,
@@ -129,7 +140,7 @@ pub fn read_image_sized(
         pixels,
     };
     check_and_scale(path, &mut image, exposure, header_scale.as_ref())?;
-    Ok(image)
+    Ok((image, header_scale))
 }
 
 /// A reader that notes when the file ended under a read (a read of 0 bytes): a decoder that
@@ -375,7 +386,18 @@ fn reject_transparent(path: &Path, decoded: &DynamicImage) -> Result<(), Error> 
 
 /// [`read_image`], and the size must be the view's `[width, height]`.
 pub fn read_view_image(path: &Path, exposure: f32, expected: [u32; 2]) -> Result<Image, Error> {
-    let image = read_image_sized(path, exposure, |width, height| {
+    read_view_image_and_header(path, exposure, expected).map(|(image, _)| image)
+}
+
+/// [`read_view_image`], and what the file's header divided its stored values by, per
+/// channel (`None` without `EXPOSURE` or `COLORCORR` lines): a warning that blames the
+/// view's exposure names it, since a header's factor is applied without a word.
+pub fn read_view_image_and_header(
+    path: &Path,
+    exposure: f32,
+    expected: [u32; 2],
+) -> Result<(Image, Option<[f64; 3]>), Error> {
+    let (image, header) = read_image_and_header(path, exposure, |width, height| {
         if [width, height] == expected {
             return Ok(());
         }
@@ -392,10 +414,31 @@ pub fn read_view_image(path: &Path, exposure: f32, expected: [u32; 2]) -> Result
         &image,
         |v| v > MAX_RADIANCE,
         &format!(
-            "after exposure {exposure} is above the largest radiance relume computes with, {MAX_RADIANCE:e} (is the exposure right?)"
+            "after exposure {exposure}{} is above the largest radiance relume computes with, {MAX_RADIANCE:e} (is the exposure right?)",
+            header_note(header)
         ),
     )?;
-    Ok(image)
+    Ok((image, header))
+}
+
+/// What a header's divisor ([`read_view_image_and_header`]) did to an image, for
+/// messages about its scale: "" without one, else ", its header's EXPOSURE and COLORCORR
+/// dividing its stored values by 1e300" (per channel where they differ).
+pub fn header_note(divisor: Option<[f64; 3]>) -> String {
+    let Some(d) = divisor else {
+        return String::new();
+    };
+    let by = if d[0] == d[1] && d[1] == d[2] {
+        text::significant(d[0])
+    } else {
+        format!(
+            "{}, {} and {} (R, G, B)",
+            text::significant(d[0]),
+            text::significant(d[1]),
+            text::significant(d[2])
+        )
+    };
+    format!(", its header's EXPOSURE and COLORCORR dividing its stored values by {by}")
 }
 
 fn png_to_linear(decoded: DynamicImage) -> Vec<[f32; 3]> {
@@ -1095,6 +1138,32 @@ mod tests {
         let first_line_end = bytes.iter().position(|&b| b == b'\n').unwrap() + 1;
         bytes.splice(first_line_end..first_line_end, lines.bytes());
         std::fs::write(path, bytes).unwrap();
+    }
+
+    /// The divisor a view's header applied comes back with the image, for the warnings
+    /// that blame the view's exposure; none without such lines or for other formats.
+    #[test]
+    fn a_views_header_divisor_is_returned_and_told() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.hdr");
+        let stored = [[1.0, 0.5, 2.0], [0.0, 0.25, 8.0]];
+        hdr_with_header(&p, "EXPOSURE=1e300\nEXPOSURE=10\n", &stored);
+        let (image, divisor) = read_view_image_and_header(&p, 1.0, [2, 1]).unwrap();
+        assert_eq!(divisor, Some([1e301; 3]));
+        assert_eq!(image.pixels, vec![[0.0; 3]; 2]);
+        assert_eq!(
+            header_note(divisor),
+            ", its header's EXPOSURE and COLORCORR dividing its stored values by 1e301"
+        );
+        hdr_with_header(&p, "COLORCORR=1 2 0.5\n", &stored);
+        let (_, divisor) = read_view_image_and_header(&p, 1.0, [2, 1]).unwrap();
+        assert_eq!(
+            header_note(divisor),
+            ", its header's EXPOSURE and COLORCORR dividing its stored values by 1, 2 and 0.5 (R, G, B)"
+        );
+        hdr_with_header(&p, "SOFTWARE=test\n", &stored);
+        assert_eq!(read_view_image_and_header(&p, 1.0, [2, 1]).unwrap().1, None);
+        assert_eq!(header_note(None), "");
     }
 
     #[test]

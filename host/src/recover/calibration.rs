@@ -14,7 +14,7 @@ use relume_core::fit::GroupFit;
 use serde::Serialize;
 
 use super::pixels::{LightPixel, PurePixel};
-use crate::images::Image;
+use crate::images::{self, Image};
 use crate::text::counted;
 
 /// The largest relative difference, in any channel, between a light's pixels and its
@@ -287,11 +287,36 @@ pub fn read_view_fits(view: &str, fits: &[GroupFit]) -> ViewReading {
     ViewReading::from_sums(view, pixels, real, rendered)
 }
 
+/// What each view's image header divided its stored values by
+/// ([`images::read_view_image_and_header`]), in the views' order: the warnings that blame a
+/// view's exposure name it, since a header's `EXPOSURE` is applied without a word (an
+/// `EXPOSURE=1e300` read as a black view).
+#[derive(Clone, Copy)]
+pub struct ImageHeaders<'a> {
+    pub views: &'a [String],
+    pub divisors: &'a [Option<[f64; 3]>],
+}
+
+impl ImageHeaders<'_> {
+    /// No view's header scales it.
+    #[cfg(test)]
+    pub const NONE: ImageHeaders<'static> = ImageHeaders {
+        views: &[],
+        divisors: &[],
+    };
+
+    /// [`images::header_note`] for the view named `view`.
+    fn note(&self, view: &str) -> String {
+        let divisor = self.views.iter().position(|v| v == view);
+        images::header_note(divisor.and_then(|i| self.divisors.get(i).copied().flatten()))
+    }
+}
+
 /// A warning for each view whose mean residual lies more than [`VIEW_AGREEMENT`], and
 /// more than [`VIEW_SIGMAS`] of its standard errors, from the median of the other views'
 /// (views of at least [`MIN_VIEW_PIXELS`]; at least two others to take a median of); and
 /// for each view, of any size, off the others by more than [`VIEW_GROSS_FACTOR`].
-pub fn view_warnings(readings: &[ViewReading]) -> Vec<String> {
+pub fn view_warnings(readings: &[ViewReading], headers: ImageHeaders) -> Vec<String> {
     let mut warnings = Vec::new();
     for (r, diff, typical) in against_the_others(readings, MIN_VIEW_PIXELS) {
         let sigma = r.rel_mean_diff_sigma.unwrap_or(f64::INFINITY);
@@ -301,24 +326,29 @@ pub fn view_warnings(readings: &[ViewReading]) -> Vec<String> {
             continue;
         }
         warnings.push(format!(
-            "view '{}': the recovered model renders its {} pure pixels {:+.1}% (+- {:.1}%) off the panorama, where the other views' median is {:+.1}%: its exposure may be off by about {:.3}x (partly absorbed by the groups only it sees)",
+            "view '{}': the recovered model renders its {} pure pixels {:+.1}% (+- {:.1}%) off the panorama, where the other views' median is {:+.1}%: its exposure may be off by about {:.3}x{} (partly absorbed by the groups only it sees)",
             r.view,
             r.pure_pixels,
             100.0 * diff,
             100.0 * sigma,
             100.0 * typical,
-            view_factor(diff, typical)
+            view_factor(diff, typical),
+            headers.note(&r.view)
         ));
     }
-    warnings.extend(gross_view_warnings(readings, "the recovered model renders"));
+    warnings.extend(gross_view_warnings(
+        readings,
+        headers,
+        "the recovered model renders",
+    ));
     warnings
 }
 
 /// The gross part of [`view_warnings`] for `relume check`, whose readings are of stage 1's
 /// preview: every group diffuse at a few samples, too rough for the 2% test (a glossy
 /// group's highlight in one view moves its mean), not for a factor of 2.
-pub fn preview_view_warnings(readings: &[ViewReading]) -> Vec<String> {
-    gross_view_warnings(readings, "the first look's diffuse colours render")
+pub fn preview_view_warnings(readings: &[ViewReading], headers: ImageHeaders) -> Vec<String> {
+    gross_view_warnings(readings, headers, "the first look's diffuse colours render")
 }
 
 /// The factor by which a view's exposure may be off: the panorama over the render, against
@@ -354,7 +384,11 @@ fn against_the_others(readings: &[ViewReading], min_pixels: u32) -> Vec<(&ViewRe
 /// `subject` renders lies more than [`VIEW_GROSS_FACTOR`] from the median of every other
 /// view's (at least two others): told in ratios, which percentages would hide (a view
 /// whose exposure was given as 1e-30 read +4e31%).
-fn gross_view_warnings(readings: &[ViewReading], subject: &str) -> Vec<String> {
+fn gross_view_warnings(
+    readings: &[ViewReading],
+    headers: ImageHeaders,
+    subject: &str,
+) -> Vec<String> {
     // A view black in the panorama has no ratio to compare (a division by its 0), and is
     // the grossest case of all: an image left black or an exposure mistyped.
     let mut warnings: Vec<String> = readings
@@ -362,10 +396,11 @@ fn gross_view_warnings(readings: &[ViewReading], subject: &str) -> Vec<String> {
         .filter(|r| r.pure_pixels > 0 && r.panorama_mean == 0.0 && r.render_mean > 0.0)
         .map(|r| {
             format!(
-                "view '{}': its {} are all 0 in the panorama, where {subject} them at {:.3e} on average: its image may be black or its exposure off (the groups only it sees are recovered black)",
+                "view '{}': its {} are all 0 in the panorama, where {subject} them at {:.3e} on average: its image may be black or its exposure off{} (the groups only it sees are recovered black)",
                 r.view,
                 counted(r.pure_pixels, "pure pixel"),
-                r.render_mean
+                r.render_mean,
+                headers.note(&r.view)
             )
         })
         .collect();
@@ -375,11 +410,12 @@ fn gross_view_warnings(readings: &[ViewReading], subject: &str) -> Vec<String> {
             continue;
         }
         warnings.push(format!(
-            "view '{}': {subject} its {} {:.3e}x the panorama, where the other views' median is {:.3}x: its exposure or image may be off by about {factor:.3e}x (more than VIEW_GROSS_FACTOR {VIEW_GROSS_FACTOR} either way; partly absorbed by the groups only it sees)",
+            "view '{}': {subject} its {} {:.3e}x the panorama, where the other views' median is {:.3}x: its exposure or image may be off by about {factor:.3e}x{} (more than VIEW_GROSS_FACTOR {VIEW_GROSS_FACTOR} either way; partly absorbed by the groups only it sees)",
             r.view,
             counted(r.pure_pixels, "pure pixel"),
             1.0 + diff,
-            1.0 + typical
+            1.0 + typical,
+            headers.note(&r.view)
         ));
     }
     warnings
@@ -522,13 +558,13 @@ mod tests {
             reading("nx", 4000, 0.008),
             reading("py", 4000, -0.004),
         ];
-        assert!(view_warnings(&agreeing).is_empty());
+        assert!(view_warnings(&agreeing, ImageHeaders::NONE).is_empty());
         // One view 5% too bright in the panorama: its render reads 3% under it.
         let mut readings = agreeing.to_vec();
         readings.push(reading("pz", 4000, -0.03 + 0.003));
         // A view of few pixels is neither warned of nor part of the others' median.
         readings.push(reading("nz", MIN_VIEW_PIXELS - 1, 0.5));
-        let warnings = view_warnings(&readings);
+        let warnings = view_warnings(&readings, ImageHeaders::NONE);
         assert_eq!(warnings.len(), 1, "{warnings:?}");
         assert!(
             warnings[0].starts_with("view 'pz'")
@@ -558,7 +594,7 @@ mod tests {
         ];
         for (name, pixels, diff, says) in gross {
             readings.push(reading(name, pixels, diff));
-            let warnings = view_warnings(&readings);
+            let warnings = view_warnings(&readings, ImageHeaders::NONE);
             assert_eq!(warnings.len(), 2, "{warnings:?}");
             let w = &warnings[1];
             assert!(
@@ -580,24 +616,38 @@ mod tests {
                 ..reading("black", 12, 0.0)
             });
             with_black.last_mut().unwrap().panorama_mean = 0.0;
-            let warnings = view_warnings(&with_black);
+            let warnings = view_warnings(&with_black, ImageHeaders::NONE);
             let black: Vec<&String> = warnings.iter().filter(|w| w.contains("'black'")).collect();
             assert!(
                 black.len() == 1
                     && black[0].contains("its 12 pure pixels are all 0 in the panorama"),
                 "{warnings:?}"
             );
+            // A header that divided the view's values is named where it is blamed.
+            let names: Vec<String> = with_black.iter().map(|r| r.view.clone()).collect();
+            let mut divisors = vec![None; names.len()];
+            *divisors.last_mut().unwrap() = Some([1e300; 3]);
+            let headers = ImageHeaders {
+                views: &names,
+                divisors: &divisors,
+            };
+            let told = view_warnings(&with_black, headers);
+            let note = "its exposure off, its header's EXPOSURE and COLORCORR dividing its stored values by 1e300 (";
+            for w in &told {
+                assert_eq!(w.contains(note), w.contains("'black'"), "{told:?}");
+            }
+            assert_eq!(told.len(), warnings.len(), "{told:?}");
             // Where the model renders it black too, it agrees with its panorama.
             with_black.last_mut().unwrap().render_mean = 0.0;
-            assert!(!view_warnings(&with_black)
+            assert!(!view_warnings(&with_black, ImageHeaders::NONE)
                 .iter()
                 .any(|w| w.contains("'black'")));
         }
         // With one other view there is no median to trust.
-        assert!(view_warnings(&readings[2..4]).is_empty());
+        assert!(view_warnings(&readings[2..4], ImageHeaders::NONE).is_empty());
         // Nor is a difference within three of the view's standard errors a finding.
         readings[3].rel_mean_diff_sigma = Some(0.011);
-        assert!(view_warnings(&readings).is_empty());
+        assert!(view_warnings(&readings, ImageHeaders::NONE).is_empty());
     }
 
     #[test]

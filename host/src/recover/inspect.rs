@@ -32,6 +32,9 @@ pub(super) struct Input {
     /// output may replace.
     pub inputs: Vec<(PathBuf, String)>,
     pub view_names: Vec<String>,
+    /// What each view's image header divided its stored values by (see
+    /// [`calibration::ImageHeaders`]).
+    pub header_divisors: Vec<Option<[f64; 3]>>,
     pub kinds: Vec<GroupKind>,
     /// Whether every object of a group has texture coordinates, as a diffuse map needs.
     pub mapped: Vec<bool>,
@@ -41,9 +44,12 @@ pub(super) struct Input {
 pub(super) fn read(scene: &Path) -> Result<Input, Error> {
     let (desc, objects) = assemble::load_scene(scene)?;
     let mut real = Vec::with_capacity(desc.views.len());
+    let mut header_divisors = Vec::with_capacity(desc.views.len());
     for (vi, v) in desc.views.iter().enumerate() {
         let path = desc.view_image(vi, "recover needs the panorama")?;
-        real.push(images::read_view_image(path, v.exposure, v.size)?);
+        let (image, divisor) = images::read_view_image_and_header(path, v.exposure, v.size)?;
+        real.push(image);
+        header_divisors.push(divisor);
     }
     let inputs = desc.input_files();
     let view_names: Vec<String> = desc.views.iter().map(|v| v.name.clone()).collect();
@@ -59,6 +65,7 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         real,
         inputs,
         view_names,
+        header_divisors,
         kinds,
         mapped,
     })
@@ -304,7 +311,13 @@ pub fn check(
     }
     warnings.extend(preview.warnings);
     let (view_readings, view_renders) = preview_view_readings(&mut rec, &input.view_names)?;
-    warnings.extend(calibration::preview_view_warnings(&view_readings));
+    warnings.extend(calibration::preview_view_warnings(
+        &view_readings,
+        calibration::ImageHeaders {
+            views: &input.view_names,
+            divisors: &input.header_divisors,
+        },
+    ));
     for g in groups.iter().filter(|g| g.total() == 0) {
         warnings.push(format!(
             "group '{}': no pure pixel in any view; recover will not recover its material",

@@ -696,6 +696,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         owned,
         real,
         view_names,
+        header_divisors,
         kinds,
         mapped,
         ..
@@ -867,7 +868,13 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let spp_per_half = final_renders.spp_per_half;
     let renders = final_renders.mean;
     let view_readings = calibration::read_views(&rec.pure, &rec.real, &renders, &view_names);
-    warnings.extend(calibration::view_warnings(&view_readings));
+    warnings.extend(calibration::view_warnings(
+        &view_readings,
+        calibration::ImageHeaders {
+            views: &view_names,
+            divisors: &header_divisors,
+        },
+    ));
 
     // The paper's own texture feature, on the final render's difference image: reported
     // beside the statistic stage 3 decides on, since on our references it does not
