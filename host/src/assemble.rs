@@ -31,7 +31,9 @@ pub enum MaterialSource<'a> {
 /// A scene with all of its buffers, ready to lend to the core.
 pub struct OwnedScene {
     pub desc: SceneDesc,
-    pub triangles: Vec<Triangle>,
+    /// Fixed once assembled (read with [`OwnedScene::triangles`]): the BVH and the light
+    /// table are built for them once, whatever the materials do.
+    triangles: Vec<Triangle>,
     /// Group names, indexed by `Surface::Group`.
     pub group_names: Vec<String>,
     /// Light object names, indexed by `Surface::Light`.
@@ -41,21 +43,15 @@ pub struct OwnedScene {
     /// relative to ([`far_scene_centre`]): zero unless the scene lies far from its origin.
     pub origin: [f64; 3],
     pub materials: Vec<SurfaceMaterial>,
-    pub light_radiance: Vec<Vec3>,
+    /// Fixed once assembled, as the triangles are ([`OwnedScene::light_radiance`]).
+    light_radiance: Vec<Vec3>,
     pub texture_infos: Vec<TextureInfo>,
     pub texels: Vec<Vec3>,
     bvh_nodes: Vec<BvhNode>,
     bvh_packed: Vec<PackedTriangle>,
     light_table: Vec<LightTriangle>,
-    /// The geometry and lights the buffers were last built for.
-    built: Option<BuiltFor>,
-}
-
-/// What [`OwnedScene::build`] last built its BVH and light table for.
-struct BuiltFor {
-    triangles: Vec<Triangle>,
-    light_radiance: Vec<Vec3>,
-    counts: BuiltCounts,
+    /// What the first build filled in the buffers; every later build reuses it.
+    built: Option<BuiltCounts>,
 }
 
 /// An error when every face of the light `object` is degenerate: a light of no area
@@ -626,21 +622,26 @@ fn resolve_materials(
 }
 
 impl OwnedScene {
-    /// Lends the buffers to the core and builds the scene (BVH, light table). Recovery
-    /// builds the scene for every evaluation with new materials only: the BVH and the
-    /// light table are built again only when the triangles or the lights changed since
-    /// the last build (the same tables either way, so the same bytes out).
+    /// The scene's triangles, fixed once assembled.
+    pub fn triangles(&self) -> &[Triangle] {
+        &self.triangles
+    }
+
+    /// Each light's radiance, fixed once assembled.
+    pub fn light_radiance(&self) -> &[Vec3] {
+        &self.light_radiance
+    }
+
+    /// Lends the buffers to the core and builds the scene. Recovery builds the scene for
+    /// every evaluation with new materials only, so the BVH and the light table are built
+    /// on the first call alone: the triangles and lights cannot change after assembly.
+    /// (They were compared with a copy at every call, which on a scene of 600,000
+    /// triangles took 3.6% of a recovery's CPU time on one thread, docs/renderer-vs-radiance.md.)
     pub fn build(&mut self) -> Result<Scene<'_>, Error> {
         let path = self.desc.path.display().to_string();
-        let reusable = self
-            .built
-            .as_ref()
-            .filter(|b| b.triangles == self.triangles && b.light_radiance == self.light_radiance)
-            .map(|b| b.counts);
-        let counts = match reusable {
+        let counts = match self.built {
             Some(counts) => counts,
             None => {
-                self.built = None;
                 let textures = Textures::new(&self.texture_infos, &self.texels)
                     .map_err(|e| Error::core(format!("{path}: textures"), e))?;
                 let counts = Scene::build(
@@ -661,11 +662,7 @@ impl OwnedScene {
                     refuse_offsets_far_against_the_views(&self.desc, &scene, &self.views)?;
                     Ok(scene.built_counts())
                 })?;
-                self.built = Some(BuiltFor {
-                    triangles: self.triangles.clone(),
-                    light_radiance: self.light_radiance.clone(),
-                    counts,
-                });
+                self.built = Some(counts);
                 counts
             }
         };

@@ -35,7 +35,7 @@ use crate::error::Error;
 pub fn tangent_basis(rec: &Recovery, g: usize) -> Option<(Vec3, Vec3)> {
     let largest = rec
         .owned
-        .triangles
+        .triangles()
         .iter()
         .filter(|t| t.surface == Surface::Group(g as u16))
         .max_by(|a, b| a.area().total_cmp(&b.area()))?;

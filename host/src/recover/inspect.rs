@@ -118,16 +118,16 @@ pub(super) fn inspect(
         pure,
         &input.real,
         &names,
-        &owned.light_radiance,
+        owned.light_radiance(),
     )?;
     let light_readings = calibration::read_lights(
         &light_pixels,
         &input.real,
         &owned.light_names,
-        &owned.light_radiance,
+        owned.light_radiance(),
         &input.view_names,
     );
-    let mut warnings = calibration::calibration_warnings(&light_readings, &owned.light_radiance);
+    let mut warnings = calibration::calibration_warnings(&light_readings, owned.light_radiance());
     warnings.extend(too_bright);
     let orientation_readings =
         orientation::read_orientations(&pure, &input.real, &input.view_names);

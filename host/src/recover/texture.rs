@@ -520,7 +520,7 @@ pub struct UvAffine {
 pub fn uv_affine(rec: &Recovery, g: usize) -> Option<UvAffine> {
     let triangles: Vec<_> = rec
         .owned
-        .triangles
+        .triangles()
         .iter()
         .filter(|t| t.surface == Surface::Group(g as u16))
         .collect();
