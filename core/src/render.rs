@@ -578,7 +578,7 @@ pub(crate) mod tests {
     use crate::geometry::Triangle;
     use crate::material::{Material, SurfaceMaterial, Textures};
     use crate::math::Vec2;
-    use crate::scene::{BuiltCounts, BuiltStorage, LightTriangle, SceneStorage};
+    use crate::scene::{BuiltCounts, BuiltStorage, GroupPlane, LightTriangle, SceneStorage};
     use std::vec;
     use std::vec::Vec;
 
@@ -641,6 +641,7 @@ pub(crate) mod tests {
         nodes: Vec<BvhNode>,
         packed: Vec<PackedTriangle>,
         lights: Vec<LightTriangle>,
+        planes: Vec<GroupPlane>,
     }
 
     impl LentStorage {
@@ -650,6 +651,7 @@ pub(crate) mod tests {
                 nodes: vec![BvhNode::default(); n_nodes],
                 packed: vec![PackedTriangle::default(); n_packed],
                 lights: vec![LightTriangle::default(); triangles],
+                planes: Vec::new(),
             }
         }
 
@@ -660,6 +662,7 @@ pub(crate) mod tests {
             materials: &'a [SurfaceMaterial],
             radiance: &'a [Vec3],
         ) -> Scene<'a> {
+            self.planes = vec![GroupPlane::default(); materials.len()];
             Scene::build(
                 triangles,
                 materials,
@@ -671,6 +674,7 @@ pub(crate) mod tests {
                         packed: &mut self.packed,
                     },
                     light_table: &mut self.lights,
+                    group_planes: &mut self.planes,
                 },
             )
             .unwrap()
@@ -1138,6 +1142,7 @@ pub(crate) mod tests {
                     nodes: &s.nodes,
                     packed: &s.packed,
                     light_table: &s.lights,
+                    group_planes: &s.planes,
                     counts,
                 },
             )
@@ -1152,9 +1157,10 @@ pub(crate) mod tests {
             nodes: &reused_storage.nodes,
             packed: &reused_storage.packed,
             light_table: &reused_storage.lights,
+            group_planes: &reused_storage.planes,
             counts: BuiltCounts {
                 nodes: reused_storage.nodes.len() + 1,
-                lights: counts.lights,
+                ..counts
             },
         };
         assert!(Scene::from_built(

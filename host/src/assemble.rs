@@ -10,7 +10,9 @@ use relume_core::bvh::{Bvh, BvhBuffers, BvhNode, PackedTriangle};
 use relume_core::geometry::{longest_side, Surface, Triangle, View};
 use relume_core::material::{Kind, Material, SurfaceMaterial, TextureId, TextureInfo, Textures};
 use relume_core::render::RAY_EPSILON;
-use relume_core::scene::{BuiltCounts, BuiltStorage, LightTriangle, Scene, SceneStorage};
+use relume_core::scene::{
+    BuiltCounts, BuiltStorage, GroupPlane, LightTriangle, Scene, SceneStorage,
+};
 
 use crate::error::Error;
 use crate::images;
@@ -50,6 +52,7 @@ pub struct OwnedScene {
     bvh_nodes: Vec<BvhNode>,
     bvh_packed: Vec<PackedTriangle>,
     light_table: Vec<LightTriangle>,
+    group_planes: Vec<GroupPlane>,
     /// What the first build filled in the buffers; every later build reuses it.
     built: Option<BuiltCounts>,
 }
@@ -359,6 +362,7 @@ pub fn assemble(
         .iter()
         .filter(|t| matches!(t.surface, Surface::Light(_)))
         .count();
+    let group_count = materials.len();
     Ok(OwnedScene {
         desc,
         triangles,
@@ -373,6 +377,7 @@ pub fn assemble(
         bvh_nodes: vec![BvhNode::default(); n_nodes],
         bvh_packed: vec![PackedTriangle::default(); n_packed],
         light_table: vec![LightTriangle::default(); n_light_tris],
+        group_planes: vec![GroupPlane::default(); group_count],
         built: None,
     })
 }
@@ -655,6 +660,7 @@ impl OwnedScene {
                             packed: &mut self.bvh_packed,
                         },
                         light_table: &mut self.light_table,
+                        group_planes: &mut self.group_planes,
                     },
                 )
                 .map_err(|e| Error::core(format!("{path}: building the scene"), e))
@@ -677,6 +683,7 @@ impl OwnedScene {
                 nodes: &self.bvh_nodes,
                 packed: &self.bvh_packed,
                 light_table: &self.light_table,
+                group_planes: &self.group_planes,
                 counts,
             },
         )

@@ -13,7 +13,7 @@ use relume_core::geometry::{Surface, Triangle, View};
 use relume_core::material::{Kind, Material, SurfaceMaterial, Textures};
 use relume_core::math::{Vec2, Vec3};
 use relume_core::render::{render_pixel, RenderSettings};
-use relume_core::scene::{LightTriangle, Scene, SceneStorage};
+use relume_core::scene::{GroupPlane, LightTriangle, Scene, SceneStorage};
 use relume_core::stages::{diffuse, isotropic};
 use relume_core::transport::{
     self, IncidentSample, LobePoint, INCIDENT_PER_SAMPLE, MAX_INCIDENT_PER_SAMPLE,
@@ -342,6 +342,7 @@ pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
     let mut nodes = [BvhNode::default(); 8];
     let mut packed = [PackedTriangle::default(); 4];
     let mut light_table = [LightTriangle::default(); 2];
+    let mut group_planes = [GroupPlane::default(); 1];
     if n_nodes > nodes.len() {
         Line::new("canary: BVH buffer too small").print();
         return 1;
@@ -358,6 +359,7 @@ pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
                 packed: &mut packed,
             },
             light_table: &mut light_table,
+            group_planes: &mut group_planes,
         },
     ) {
         Ok(s) => s,
