@@ -58,6 +58,13 @@ def split(tri, k):
     return [t for part in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca)) for t in split(part, k - 1)]
 
 
+def corner(r, t, n):
+    """A face corner at relative index r: v, v/vt, v//vn or v/vt/vn."""
+    if n is not None:
+        return '%d/%s/%d' % (r, r if t is not None else '', r)
+    return '%d/%d' % (r, r) if t is not None else str(r)
+
+
 def write(path, body, k):
     count = 0
     with open(path, 'w') as w:
@@ -74,11 +81,7 @@ def write(path, body, k):
                         if n is not None:
                             w.write('vn %.9g %.9g %.9g\n' % n)
                     # Each corner's own v (vt, vn) were just written: relative indices.
-                    corners = []
-                    for j, (_, t, n) in enumerate(tri):
-                        r = str(j - 3)
-                        corners.append(r + ('/' + (r if t is not None else '') if t is not None or n is not None else '') + ('/' + r if n is not None else ''))
-                    w.write('f ' + ' '.join(corners) + '\n')
+                    w.write('f ' + ' '.join(corner(j - 3, t, n) for j, (_, t, n) in enumerate(tri)) + '\n')
                     count += 1
     return count
 
