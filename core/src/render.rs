@@ -1106,6 +1106,64 @@ pub(crate) mod tests {
         );
     }
 
+    /// A group made a mirror over storage built while it was diffuse is sampled through
+    /// as a planar mirror, and renders exactly as a scene built afresh with the mirror:
+    /// the groups' planes are found at build for every group, whatever its material.
+    #[test]
+    fn a_mirror_given_over_built_storage_renders_as_a_fresh_build() {
+        let parts = TileBesideAMirror::new(diffuse(0.5)[0].material, false);
+        let settings = RenderSettings {
+            seed: 11,
+            ..RenderSettings::default()
+        };
+        let tile_radiance = |scene: &Scene| -> std::vec::Vec<Vec3> {
+            (0..400)
+                .map(|k| {
+                    let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+                    let ray = Ray::new(v(0.0, 0.0, 0.5), v(0.01, -0.02, -1.0).normalize());
+                    radiance(scene, ray, &mut sampler, &settings)
+                })
+                .collect()
+        };
+        let mut fresh_storage = parts.storage();
+        let fresh = parts.scene(&mut fresh_storage);
+        assert_eq!(fresh.mirror_planes().as_slice().len(), 1);
+        let expected = tile_radiance(&fresh);
+
+        let mut as_diffuse = [parts.materials[0], parts.materials[0]];
+        as_diffuse[1].material = Material::Diffuse {
+            rho_d: Vec3::splat(0.8),
+        };
+        let mut reused_storage = parts.storage();
+        let as_built = reused_storage.build(&parts.triangles, &as_diffuse, &parts.light_radiance);
+        assert!(as_built.mirror_planes().as_slice().is_empty());
+        assert_ne!(
+            tile_radiance(&as_built),
+            expected,
+            "the mirror must be in view"
+        );
+        let counts = as_built.built_counts();
+        let reused = Scene::from_built(
+            &parts.triangles,
+            &parts.materials,
+            &parts.light_radiance,
+            Textures::default(),
+            BuiltStorage {
+                nodes: &reused_storage.nodes,
+                packed: &reused_storage.packed,
+                light_table: &reused_storage.lights,
+                group_planes: &reused_storage.planes,
+                counts,
+            },
+        )
+        .unwrap();
+        assert_eq!(
+            reused.mirror_planes().as_slice(),
+            fresh.mirror_planes().as_slice()
+        );
+        assert_eq!(tile_radiance(&reused), expected);
+    }
+
     /// A scene given new materials over its built storage renders exactly as one built
     /// afresh with them (recovery builds the BVH once and swaps materials).
     #[test]
