@@ -532,6 +532,51 @@ mod tests {
         }
     }
 
+    /// A mirror as a scanned mesh gives it, a tilted quad far from the origin split into
+    /// 512 small triangles, is still one plane, and bending one of its corners by a
+    /// hundredth of its size is not.
+    #[test]
+    fn a_finely_split_mirror_is_one_plane() {
+        fn split(t: [Vec3; 3], k: u32, out: &mut std::vec::Vec<Triangle>) {
+            if k == 0 {
+                out.push(Triangle {
+                    v: t,
+                    uv: [Vec2::ZERO; 3],
+                    surface: Surface::Group(0),
+                });
+                return;
+            }
+            let [a, b, c] = t;
+            let (ab, bc, ca) = ((a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5);
+            for part in [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]] {
+                split(part, k - 1, out);
+            }
+        }
+        let origin = Vec3::new(40.0, -25.0, 3.0);
+        let (u, w) = (Vec3::new(0.8, 0.6, 0.0), Vec3::new(-0.36, 0.48, 0.8));
+        let corners = [origin, origin + u, origin + u + w, origin + w];
+        let mirror_of = |corners: [Vec3; 4]| {
+            let mut triangles = std::vec::Vec::new();
+            split([corners[0], corners[1], corners[2]], 4, &mut triangles);
+            split([corners[0], corners[2], corners[3]], 4, &mut triangles);
+            let size = longest_side(&triangles).max(10.0);
+            let mut planes = [GroupPlane::default(); 1];
+            GroupPlane::find_all(&triangles, size, &mut planes).unwrap();
+            let mirror = [material(Material::Mirror {
+                rho: Vec3::splat(0.9),
+            })];
+            (triangles.len(), MirrorPlanes::find(&mirror, &planes, size))
+        };
+        let (n, flat) = mirror_of(corners);
+        assert_eq!(n, 512);
+        assert_eq!(flat.as_slice().len(), 1);
+        let normal = u.cross(w).normalize();
+        assert!(math::abs(flat.as_slice()[0].normal.dot(normal)) > 1.0 - 1e-6);
+        let mut bent = corners;
+        bent[3] += normal * 0.01;
+        assert!(mirror_of(bent).1.as_slice().is_empty());
+    }
+
     /// Only mirrors whose triangles share a plane are sampled through: a flat mirror
     /// (its triangles wound either way, a degenerate one beside them), not a bent one,
     /// not a black one, and not a flat group of another material.
