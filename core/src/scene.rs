@@ -300,7 +300,7 @@ fn check_named(
 /// recovery's CPU time, a chain of dependent loads that mostly missed the cache.
 #[derive(Clone, Copy, Debug)]
 struct LightGuide {
-    /// `starts[j]`: the entries whose cdf is at most `j / LIGHT_GUIDE_BUCKETS`.
+    /// `starts[j]`: how many entries have a cdf of at most `j / LIGHT_GUIDE_BUCKETS`.
     starts: [u32; LIGHT_GUIDE_BUCKETS + 1],
 }
 
