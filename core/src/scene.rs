@@ -324,14 +324,15 @@ impl LightGuide {
     /// most `u` and none from `starts[j + 1]` on does.
     #[inline]
     fn pick(&self, table: &[LightTriangle], u: f32) -> usize {
+        let at_most_u = |e: &LightTriangle| e.cdf <= u;
         if !(0.0..1.0).contains(&u) {
-            return table.partition_point(|e| e.cdf <= u);
+            return table.partition_point(at_most_u);
         }
         let j = ((u * LIGHT_GUIDE_BUCKETS as f32) as usize).min(LIGHT_GUIDE_BUCKETS - 1);
         let (lo, hi) = (self.starts[j] as usize, self.starts[j + 1] as usize);
         match table.get(lo..hi) {
-            Some(bucket) => lo + bucket.partition_point(|e| e.cdf <= u),
-            None => table.partition_point(|e| e.cdf <= u),
+            Some(bucket) => lo + bucket.partition_point(at_most_u),
+            None => table.partition_point(at_most_u),
         }
     }
 }
@@ -583,7 +584,7 @@ mod tests {
     fn the_light_guide_picks_what_a_search_of_the_whole_table_picks() {
         let mut sampler = crate::rng::Sampler::for_pixel_sample(3, 0, 0, 0);
         for n in [1usize, 2, 3, 7, 100, 5000] {
-            let mut powers: std::vec::Vec<f32> = (0..n)
+            let powers: std::vec::Vec<f32> = (0..n)
                 .map(|i| {
                     let u = sampler.next_f32();
                     // Uneven: a few entries hold most of the power, some share a cdf.
@@ -597,7 +598,7 @@ mod tests {
             let total: f64 = powers.iter().map(|&p| p as f64).sum();
             let mut running = 0.0f64;
             let mut table: std::vec::Vec<LightTriangle> = powers
-                .iter_mut()
+                .iter()
                 .map(|p| {
                     running += *p as f64;
                     LightTriangle {
