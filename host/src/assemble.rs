@@ -101,9 +101,20 @@ fn refuse_offsets_larger_than_a_light(
 ) -> Result<(), Error> {
     let size = longest_side(triangles);
     let offset = RAY_EPSILON * size;
-    for (li, name) in light_names.iter().enumerate() {
-        let light = Surface::Light(li as u16);
-        let extent = longest_side(triangles.iter().filter(|t| t.surface == light));
+    // Each light's bounds in one pass (a pass per light was lights x triangles).
+    let mut light_bounds =
+        vec![(Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)); light_names.len()];
+    for t in triangles {
+        if let Surface::Light(l) = t.surface {
+            if let Some((lo, hi)) = light_bounds.get_mut(l as usize) {
+                let (a, b) = t.bounds();
+                (*lo, *hi) = (lo.min(a), hi.max(b));
+            }
+        }
+    }
+    for (name, (lo, hi)) in light_names.iter().zip(light_bounds) {
+        // As `longest_side` measures it: 0 for a light of no triangles.
+        let extent = (hi - lo).max_element().max(0.0);
         if offset <= MAX_OFFSET_PER_LIGHT_SIZE * extent {
             continue;
         }
