@@ -1365,4 +1365,16 @@ fn steel_box_at_256_px_keeps_its_lobe(seed: &str) {
         let row = rows.iter().find(|r| r.group == diffuse).unwrap();
         assert!(row.class_ok, "seed {seed}: {row:?}");
     }
+    // A wall's test renders no more than a decision's cap (DECISION_MAX_SAMPLES per
+    // model) on its subset of 1023 of its 112,446 pixels: 1026 spp, where its size alone
+    // asked 3518 and took 4.5 s a test.
+    let wall = group_report(&out, "walls_warm");
+    assert_eq!(wall["pure_pixels"], 112_446);
+    let tested = comparison(&wall, |c| c["stage"] == "2 isotropic");
+    let spp = tested["samples_per_pixel"].as_u64().unwrap();
+    assert!(spp * 1023 <= (1 << 20) + 1023, "seed {seed}: {tested:?}");
+    assert!(
+        tested["z"].as_f64().unwrap() < 0.0,
+        "seed {seed}: {tested:?}"
+    );
 }

@@ -383,7 +383,8 @@ pub fn gain_significance(pixels: u32) -> f64 {
 /// many times the samples per pixel, at most [`DECISION_MAX_ROUNDS`] more times and while
 /// the pixels measured times the samples stay within [`DECISION_MAX_SAMPLES`] per model:
 /// small groups and weak lobes get the samples they need, large groups are not rendered
-/// for minutes. The next measurement is fresh (new seeds) and decides alone, so looking
+/// for minutes. A large group's first measurement keeps to that cap too (the host's
+/// `Recovery::decision_pixels`). The next measurement is fresh (new seeds) and decides alone, so looking
 /// again does not raise the false-positive rate above one look's.
 pub const DECISION_SPP_GROWTH: u32 = 4;
 pub const DECISION_MAX_ROUNDS: u32 = 3;
@@ -410,8 +411,8 @@ pub fn next_decision_spp(spp: u32, pixels: usize, cap: u64) -> Option<u32> {
 /// decided on at most 1024 of its pixels (the host's `Recovery::decision_pixels`), so a
 /// round costs at most this much whatever the group's size: every group of up to 512
 /// pixels gets all its rounds, one of up to 1024 two more, one of a few thousand one more,
-/// and the largest (walls and floors at 256 px per face, past it in their first
-/// measurement) none. At 2^19, glossy's steel box at 256 px (6472 pixels, measured on 925)
+/// and the largest (walls and floors at 256 px per face, whose first measurement is held
+/// to [`DECISION_MAX_SAMPLES`] too) none. At 2^19, glossy's steel box at 256 px (6472 pixels, measured on 925)
 /// read its lobe against a perfect mirror as 0.036 +- 0.044 on seed 3 and was left a mirror;
 /// one more round keeps its lobe.
 pub const UNRESOLVED_MAX_SAMPLES: u64 = 1 << 20;

@@ -202,6 +202,9 @@ struct Ladder {
     group_spp: u32,
     /// The first round's best, when a second round was taken.
     first_round: Option<Rung>,
+    /// The samples per pixel of a first round that would have had a second but for the
+    /// cap on a measurement's samples.
+    second_round_capped: Option<u32>,
     evaluations: u32,
 }
 
@@ -234,10 +237,20 @@ fn best_rung(
     let mut evaluations = 0;
     let mut first_round = None;
     let mut chosen_at = group_spp;
-    if let Some(again) = second_round(&measured) {
+    let mut capped = false;
+    // A round held by the cap of `Recovery::decision_pixels` to much the same samples
+    // would be a second chance, not a better measurement (`fit::DECISION_MIN_GROWTH`).
+    let grown = group_spp.saturating_mul(SECOND_ROUND_GROWTH);
+    let second = second_round(&measured).filter(|_| {
+        let (_, grown_spp) = rec.decision_pixels(g, grown);
+        capped = (grown_spp as u64) < meter.spp as u64 * fit::DECISION_MIN_GROWTH as u64;
+        !capped
+    });
+    let first_spp = meter.spp;
+    if let Some(again) = second {
         evaluations += meter.finish(rec);
         first_round = best;
-        chosen_at = group_spp.saturating_mul(SECOND_ROUND_GROWTH);
+        chosen_at = grown;
         meter = RungMeter::new(rec, g, kind, diffuse, chosen_at, seed ^ 0x2ED0_0000)?;
         measured.retain(|r| !again.iter().any(|a| a.roughness == r.roughness));
         let mut second = Vec::with_capacity(again.len());
@@ -262,6 +275,7 @@ fn best_rung(
         measured,
         group_spp: chosen_at,
         first_round,
+        second_round_capped: capped.then_some(first_spp),
         evaluations,
     })
 }
@@ -438,12 +452,17 @@ pub fn second_look(
 ) -> Result<SecondLook, Error> {
     let ladder = best_rung(rec, g, cache, kind, diffuse, ladder_spp(rec, g, spp))?;
     let (measured, mut evaluations) = (&ladder.measured, ladder.evaluations);
-    let rounds = ladder.first_round.map_or(String::new(), |first| {
-        format!(
+    let rounds = match (ladder.first_round, ladder.second_round_capped) {
+        (Some(first), _) => format!(
             " (none gained at its lower bound at {} spp, the best there roughness {:.4} at {:.5} +- {:.5}, so the SECOND_ROUND_RUNGS {SECOND_ROUND_RUNGS} of most gain were measured again at SECOND_ROUND_GROWTH {SECOND_ROUND_GROWTH}x)",
             first.spp, first.roughness, first.squared_gain, first.squared_gain_sigma
-        )
-    });
+        ),
+        (None, Some(spp)) => format!(
+            " (none gained at its lower bound at {spp} spp, and no second round: SECOND_ROUND_GROWTH {SECOND_ROUND_GROWTH}x would pass DECISION_MAX_SAMPLES {} per model)",
+            fit::DECISION_MAX_SAMPLES
+        ),
+        (None, None) => String::new(),
+    };
     let Some(rung) = ladder.best.filter(|r| r.squared_gain > 0.0) else {
         let proposal = format!(
             "stage 2 ladder: the proposal removes {:.4} +- {:.4} (z {:.1}), short of the test{rounds}",
