@@ -237,17 +237,15 @@ fn best_rung(
     let mut evaluations = 0;
     let mut first_round = None;
     let mut chosen_at = group_spp;
-    let mut capped = false;
     // A round held by the cap of `Recovery::decision_pixels` to much the same samples
     // would be a second chance, not a better measurement (`fit::DECISION_MIN_GROWTH`).
     let grown = group_spp.saturating_mul(SECOND_ROUND_GROWTH);
-    let second = second_round(&measured).filter(|_| {
-        let (_, grown_spp) = rec.decision_pixels(g, grown);
-        capped = (grown_spp as u64) < meter.spp as u64 * fit::DECISION_MIN_GROWTH as u64;
-        !capped
-    });
+    let (_, grown_spp) = rec.decision_pixels(g, grown);
+    let room = grown_spp as u64 >= meter.spp as u64 * fit::DECISION_MIN_GROWTH as u64;
+    let wanted = second_round(&measured);
+    let capped = wanted.is_some() && !room;
     let first_spp = meter.spp;
-    if let Some(again) = second {
+    if let Some(again) = wanted.filter(|_| room) {
         evaluations += meter.finish(rec);
         first_round = best;
         chosen_at = grown;
