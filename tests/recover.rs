@@ -1372,7 +1372,10 @@ fn steel_box_at_256_px_keeps_its_lobe(seed: &str) {
     assert_eq!(wall["pure_pixels"], 112_446);
     let tested = comparison(&wall, |c| c["stage"] == "2 isotropic");
     let spp = tested["samples_per_pixel"].as_u64().unwrap();
-    assert!(spp * 1023 <= (1 << 20) + 1023, "seed {seed}: {tested:?}");
+    let cap = report_json(&out)["thresholds"]["DECISION_MAX_SAMPLES"]
+        .as_u64()
+        .unwrap();
+    assert!(spp * 1023 <= cap + 1023, "seed {seed}: {tested:?}");
     assert!(
         tested["z"].as_f64().unwrap() < 0.0,
         "seed {seed}: {tested:?}"

@@ -384,8 +384,8 @@ pub fn gain_significance(pixels: u32) -> f64 {
 /// the pixels measured times the samples stay within [`DECISION_MAX_SAMPLES`] per model:
 /// small groups and weak lobes get the samples they need, large groups are not rendered
 /// for minutes. A large group's first measurement keeps to that cap too (the host's
-/// `Recovery::decision_pixels`). The next measurement is fresh (new seeds) and decides alone, so looking
-/// again does not raise the false-positive rate above one look's.
+/// `Recovery::decision_pixels`). The next measurement is fresh (new seeds) and decides
+/// alone, so looking again does not raise the false-positive rate above one look's.
 pub const DECISION_SPP_GROWTH: u32 = 4;
 pub const DECISION_MAX_ROUNDS: u32 = 3;
 pub const DECISION_MAX_SAMPLES: u64 = 1 << 20;
@@ -412,9 +412,9 @@ pub fn next_decision_spp(spp: u32, pixels: usize, cap: u64) -> Option<u32> {
 /// round costs at most this much whatever the group's size: every group of up to 512
 /// pixels gets all its rounds, one of up to 1024 two more, one of a few thousand one more,
 /// and the largest (walls and floors at 256 px per face, whose first measurement is held
-/// to [`DECISION_MAX_SAMPLES`] too) none. At 2^19, glossy's steel box at 256 px (6472 pixels, measured on 925)
-/// read its lobe against a perfect mirror as 0.036 +- 0.044 on seed 3 and was left a mirror;
-/// one more round keeps its lobe.
+/// to [`DECISION_MAX_SAMPLES`] too) none. At 2^19, glossy's steel box at 256 px (6472
+/// pixels, measured on 925) read its lobe against a perfect mirror as 0.036 +- 0.044 on
+/// seed 3 and was left a mirror; one more round keeps its lobe.
 pub const UNRESOLVED_MAX_SAMPLES: u64 = 1 << 20;
 /// A fitted isotropic metal whose specular part is above this fraction of its reflectance,
 /// with a roughness at most [`MIRROR_MAX_ROUGHNESS`], is tested as a mirror (the paper's 90%).
