@@ -1380,4 +1380,31 @@ fn steel_box_at_256_px_keeps_its_lobe(seed: &str) {
         tested["z"].as_f64().unwrap() < 0.0,
         "seed {seed}: {tested:?}"
     );
+    // The floor (85,604 pixels) comes on to stage 4's gate on seeds 1 and 3: its colour
+    // is levelled and its error measured on its subset within the same cap, where its
+    // size alone asked 64 spp on every pixel, twice (8 of the stage's 8 s).
+    let floor = group_report(&out, "floor");
+    let levelled = decisions(&floor)
+        .into_iter()
+        .find(|d| d.starts_with("stage 4") && d.contains("levelled by a render at"))
+        .unwrap_or_else(|| panic!("seed {seed}: no stage-4 gate in {floor:?}"));
+    let (spp, subset) = levelled_on(levelled);
+    assert!(subset <= 1024, "seed {seed}: {levelled}");
+    assert!(spp * subset <= cap + subset, "seed {seed}: {levelled}");
+}
+
+/// The samples per pixel and the pixels of a stage-4 levelling on a subset, from its
+/// decision: "levelled by a render at {spp} spp on {subset} of its {all} pixels".
+fn levelled_on(decision: &str) -> (u64, u64) {
+    let after = |text: &str, marker: &str| -> u64 {
+        let start = text.find(marker).unwrap_or_else(|| panic!("{text}")) + marker.len();
+        let digits: String = text[start..]
+            .chars()
+            .take_while(char::is_ascii_digit)
+            .collect();
+        digits.parse().unwrap_or_else(|_| panic!("{text}"))
+    };
+    let spp = after(decision, "levelled by a render at ");
+    let subset = after(decision, " spp on ");
+    (spp, subset)
 }

@@ -304,7 +304,34 @@ impl Recovery {
         seed: u64,
     ) -> Result<Option<fit::ErrorEstimate>, Error> {
         let of_g = pixels::of_group(&self.pure, g);
-        Ok(error_estimate_of(&self.paired_terms(&of_g, spp, seed)?))
+        self.error_estimate_on(&of_g, spp, seed)
+    }
+
+    /// [`Recovery::error_estimate`] on `pixels` of one group.
+    fn error_estimate_on(
+        &mut self,
+        pixels: &[PurePixel],
+        spp: u32,
+        seed: u64,
+    ) -> Result<Option<fit::ErrorEstimate>, Error> {
+        Ok(error_estimate_of(&self.paired_terms(pixels, spp, seed)?))
+    }
+
+    /// The pixels a measurement of group `g`'s mean colour or error renders for `spp`
+    /// samples on each of its pixels, and their samples per pixel: all of them (`None`)
+    /// for a group of at most `refine::MAX_SEARCH_PIXELS`, else its decision subset with
+    /// as many samples in all within `fit::DECISION_MAX_SAMPLES`
+    /// ([`Recovery::decision_pixels`]). A mean needs samples, not pixels: stage 4's
+    /// gate rendered every pixel of a wall at 64 spp, twice (glossy's floor at 256 px, 7.4
+    /// of the stage's 8.2 s; at 512 px the living room's ceiling, walls and accent wall).
+    fn mean_pixels(&self, g: usize, spp: u32) -> (Option<Vec<PurePixel>>, u32) {
+        let all = pixels::of_group(&self.pure, g).len();
+        let (subset, concentrated) = self.decision_pixels(g, spp);
+        if subset.len() < all {
+            (Some(subset), concentrated)
+        } else {
+            (None, spp)
+        }
     }
 
     /// The pixel samples in all of group `g`'s transport cache at `base_spp` (see

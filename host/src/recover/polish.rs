@@ -12,6 +12,7 @@ use relume_core::material::Kind;
 use relume_core::stages::diffuse;
 
 use super::model::GroupModel;
+use super::pixels::PurePixel;
 use super::report::Laps;
 use super::{
     min_samples_spp, mirror_test, GroupReport, Recovery, StageReport, POLISH_MIN_SAMPLES,
@@ -167,6 +168,23 @@ pub(super) fn colour_step(
     key: u64,
 ) -> Result<([f64; 3], f64), Error> {
     let fit = rec.evaluate(spp, rec.seed ^ key ^ g as u64, &|h| h as usize == g)?[g];
+    Ok(diffuse::update(color, &fit))
+}
+
+/// [`colour_step`] from a render of `pixels` of group `g` alone (a subset of its pure
+/// pixels), or of all of them where `None`.
+pub(super) fn colour_step_on(
+    rec: &mut Recovery,
+    g: usize,
+    color: [f64; 3],
+    (pixels, spp): (Option<&[PurePixel]>, u32),
+    key: u64,
+) -> Result<([f64; 3], f64), Error> {
+    let Some(pixels) = pixels else {
+        return colour_step(rec, g, color, spp, key);
+    };
+    let seed = rec.seed ^ key ^ g as u64;
+    let fit = rec.evaluate_pixels(pixels, spp, seed, &|h| h as usize == g)?[g];
     Ok(diffuse::update(color, &fit))
 }
 

@@ -12,6 +12,7 @@ use relume_core::render::RenderSettings;
 
 use super::kind::{self, KindFit};
 use super::model::GroupModel;
+use super::pixels::PurePixel;
 use super::refine::RACE_SIGNIFICANCE;
 use super::report::Laps;
 use super::{
@@ -67,26 +68,46 @@ const GATE_KEY: u64 = 0x6A7E_0004;
 /// Group `g`'s `color` under `model` (the group's model for the render, restored after)
 /// levelled by one colour-polish step (`polish::colour_step` at `polish::group_spp` for
 /// the loop's `verify_spp` and the group's `pixels`, at least `POLISH_MIN_SAMPLES`
-/// samples): the new colour, the step's samples per pixel, and
-/// what the report says of it.
+/// samples; a large group's on its subset with those samples in all, within
+/// `fit::DECISION_MAX_SAMPLES`, `Recovery::mean_pixels`): the new colour, the pixels and
+/// samples per pixel the step rendered, and what the report says of it.
 fn levelled_colour(
     rec: &mut Recovery,
     g: usize,
     model: GroupModel,
     color: [f64; 3],
     (verify_spp, pixels): (u32, u32),
-) -> Result<([f64; 3], u32, String), Error> {
-    let spp = polish::group_spp(verify_spp, pixels);
+) -> Result<Levelled, Error> {
+    let (subset, spp) = rec.mean_pixels(g, polish::group_spp(verify_spp, pixels));
     let found = rec.models[g];
     rec.models[g] = model;
-    let step = polish::colour_step(rec, g, color, spp, LEVEL_KEY);
+    let step = polish::colour_step_on(rec, g, color, (subset.as_deref(), spp), LEVEL_KEY);
     rec.models[g] = found;
     let (levelled, change) = step?;
+    let on = match &subset {
+        Some(subset) => format!(" on {} of its {pixels} pixels", subset.len()),
+        None => String::new(),
+    };
     let said = format!(
-        "levelled by a render at {spp} spp (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
+        "levelled by a render at {spp} spp{on} (at least POLISH_MIN_SAMPLES {POLISH_MIN_SAMPLES} samples): largest change {:.2}%",
         100.0 * change
     );
-    Ok((levelled, spp, said))
+    Ok(Levelled {
+        color: levelled,
+        subset,
+        spp,
+        said,
+    })
+}
+
+/// A colour levelled by [`levelled_colour`].
+struct Levelled {
+    color: [f64; 3],
+    /// The pixels its render took (`None`: all the group's) and their samples per pixel.
+    subset: Option<Vec<PurePixel>>,
+    spp: u32,
+    /// What the report says of it.
+    said: String,
 }
 
 /// Whether a group that stage 2 left diffuse goes on to this stage's search, and its
@@ -108,10 +129,19 @@ fn diffuse_goes_on(
     verify_spp: u32,
 ) -> Result<([f64; 3], bool, u32), Error> {
     let stage2 = rec.models[g];
-    let (levelled, spp, levelling) =
-        levelled_colour(rec, g, stage2, color, (verify_spp, report.pure_pixels))?;
+    let Levelled {
+        color: levelled,
+        subset,
+        spp,
+        said: levelling,
+    } = levelled_colour(rec, g, stage2, color, (verify_spp, report.pure_pixels))?;
     rec.models[g] = GroupModel::Diffuse { color: levelled };
-    let now = rec.error_estimate(g, spp, rec.decision_seed() ^ GATE_KEY);
+    // On the pixels and samples the colour was levelled on.
+    let seed = rec.decision_seed() ^ GATE_KEY;
+    let now = match &subset {
+        Some(subset) => rec.error_estimate_on(subset, spp, seed),
+        None => rec.error_estimate(g, spp, seed),
+    };
     rec.models[g] = stage2;
     let Some(now) = now? else {
         report.decisions.push(format!(
@@ -430,7 +460,11 @@ pub(super) fn run(
                 specularity,
                 roughness,
             };
-            let (levelled, _, levelling) = levelled_colour(
+            let Levelled {
+                color: levelled,
+                said: levelling,
+                ..
+            } = levelled_colour(
                 rec,
                 g,
                 metal(color),
