@@ -553,26 +553,8 @@ fn resolve_materials(
                     ));
                 }
                 // Its size is weighed against the texels left before it is decoded.
-                let texels_before = texels.len();
-                let image = images::read_image_sized(map, 1.0, |width, height| {
-                    let needed = texels_before.saturating_add(width as usize * height as usize);
-                    if needed <= relume_core::config::MAX_TEXELS {
-                        return Ok(());
-                    }
-                    Err(Error::core(
-                        format!(
-                            "{}:{}: group '{}': diffuse_map {} is {width}x{height}",
-                            file.path.display(),
-                            m.line,
-                            m.group,
-                            map.display()
-                        ),
-                        relume_core::Error::Capacity {
-                            what: "config::MAX_TEXELS (the texels of all maps)",
-                            max: relume_core::config::MAX_TEXELS,
-                            needed,
-                        },
-                    ))
+                let image = images::read_map(map, texels.len(), || {
+                    format!("{}:{}: group '{}'", file.path.display(), m.line, m.group)
                 })?;
                 // A map holds diffuse reflectances, which `color` bounds by 1 as well.
                 images::reject_value(

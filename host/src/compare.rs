@@ -573,9 +573,14 @@ fn area_average(image: &Image, width: u32, height: u32) -> Image {
 /// area-averaged to the recovered map's size (the ceiling of any map of that size: a map
 /// has about one texel per pixel that sees it, and finer detail of the truth is not in
 /// the views), and its level ([`map_level_err`]). None for an empty recovered map.
-fn set_map_measures(row: &mut MaterialRow, truth: &Path, recovered: &Path) -> Result<(), Error> {
-    let t = images::read_image(truth, 1.0)?;
-    let r = images::read_image(recovered, 1.0)?;
+/// `given_at` names each map's file and line, for a map too large to read.
+fn set_map_measures(
+    row: &mut MaterialRow,
+    (truth, truth_at): (&Path, String),
+    (recovered, recovered_at): (&Path, String),
+) -> Result<(), Error> {
+    let t = images::read_map(truth, 0, || truth_at)?;
+    let r = images::read_map(recovered, 0, || recovered_at)?;
     if r.pixels.is_empty() {
         return Ok(());
     }
@@ -662,7 +667,10 @@ fn materials_rows(t: &MaterialsDesc, m: &MaterialsDesc) -> Result<Vec<MaterialRo
                 row.direction_err_deg = Some(angle_between_axes_deg(a, b));
             }
             if let (Some(a), Some(b)) = (&rm.diffuse_map, &tm.diffuse_map) {
-                set_map_measures(&mut row, b, a)?;
+                let at = |file: &MaterialsDesc, m: &MaterialDesc| {
+                    format!("{}:{}: group '{}'", file.path.display(), m.line, m.group)
+                };
+                set_map_measures(&mut row, (b, at(t, tm)), (a, at(m, rm)))?;
             }
         }
         rows.push(row);

@@ -37,6 +37,14 @@ pub const PREVIEW_TARGET: f32 = 0.9;
 
 const CHANNELS: [&str; 3] = ["R", "G", "B"];
 
+/// The most pixels relume decodes from one image, whatever asks for it: 2^28, a 16K x 16K
+/// square or a 23K x 11.5K capture (3 GB as float RGB, and as much again while decoding).
+/// The decoder's own limit is off (a view is as large as its scene says), so without this
+/// a header claiming 200000 x 100000 pixels (a corrupt or hand-made file) was allocated as
+/// it said, 240 GB, and the process aborted. Each caller's own bound on the size (a view's,
+/// the maps' `config::MAX_TEXELS`) is asked first.
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 28;
+
 /// Reads an image as linear radiance times `exposure`.
 pub fn read_image(path: &Path, exposure: f32) -> Result<Image, Error> {
     read_image_sized(path, exposure, |_, _| Ok(()))
@@ -51,6 +59,34 @@ pub fn read_image_sized(
     size_fits: impl FnOnce(u32, u32) -> Result<(), Error>,
 ) -> Result<Image, Error> {
     read_image_and_header(path, exposure, size_fits).map(|(image, _)| image)
+}
+
+/// A diffuse map (reflectances, exposure 1), refused before it is decoded where, after
+/// `texels_before` texels of other maps, it would pass `config::MAX_TEXELS`, the texels of
+/// all maps a scene holds; `given_at` says where it was named, for that message.
+pub fn read_map(
+    path: &Path,
+    texels_before: usize,
+    given_at: impl FnOnce() -> String,
+) -> Result<Image, Error> {
+    read_image_sized(path, 1.0, |width, height| {
+        let needed = texels_before.saturating_add(width as usize * height as usize);
+        if needed <= relume_core::config::MAX_TEXELS {
+            return Ok(());
+        }
+        Err(Error::core(
+            format!(
+                "{}: diffuse_map {} is {width}x{height}",
+                given_at(),
+                path.display()
+            ),
+            relume_core::Error::Capacity {
+                what: "config::MAX_TEXELS (the texels of all maps)",
+                max: relume_core::config::MAX_TEXELS,
+                needed,
+            },
+        ))
+    })
 }
 
 /// [`read_image_sized`], and what the file's header divided its stored values by, per
@@ -128,6 +164,17 @@ fn read_image_and_header(
         ));
     }
     size_fits(width, height)?;
+    let pixels = width as u64 * height as u64;
+    if pixels > MAX_IMAGE_PIXELS {
+        return Err(Error::core(
+            format!("{}: image is {width}x{height}", path.display()),
+            relume_core::Error::Capacity {
+                what: "images::MAX_IMAGE_PIXELS (the pixels of one image)",
+                max: MAX_IMAGE_PIXELS as usize,
+                needed: pixels.min(usize::MAX as u64) as usize,
+            },
+        ));
+    }
     let decoded = DynamicImage::from_decoder(decoder).map_err(unreadable)?;
     reject_transparent(path, &decoded)?;
     let pixels = match format {
@@ -794,6 +841,40 @@ mod tests {
         read_image(path, 1.0)
             .expect_err("the image should be refused")
             .to_string()
+    }
+
+    /// A header that claims more pixels than any image relume reads is refused before a
+    /// byte of them is allocated (a 200000 x 100000 Radiance picture of 400 bytes aborted
+    /// `panorama split` asking for 240 GB), and a map past the maps' capacity names where
+    /// it was given; both are the capacity's error (exit 5).
+    #[test]
+    fn a_header_claiming_too_many_pixels_is_refused_before_decoding() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("huge.hdr");
+        let mut bytes = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 200000\n".to_vec();
+        bytes.extend([0u8; 400]);
+        std::fs::write(&p, bytes).unwrap();
+        let e = read_image(&p, 1.0).unwrap_err();
+        assert_eq!(e.exit_code(), 5, "{e}");
+        let said = e.to_string();
+        assert!(
+            said.contains("huge.hdr: image is 200000x100000") && said.contains("MAX_IMAGE_PIXELS"),
+            "{said}"
+        );
+        let e = read_map(&p, 0, || "m.toml:7: group 'g'".into()).unwrap_err();
+        assert_eq!(e.exit_code(), 5, "{e}");
+        let said = e.to_string();
+        assert!(
+            said.contains("m.toml:7: group 'g': diffuse_map")
+                && said.contains("is 200000x100000")
+                && said.contains("MAX_TEXELS"),
+            "{said}"
+        );
+        // Within both, the same file is read as far as its pixels, which it lacks.
+        let mut bytes = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 4\n".to_vec();
+        bytes.extend([0u8; 3]);
+        std::fs::write(&p, bytes).unwrap();
+        assert_eq!(read_image(&p, 1.0).unwrap_err().exit_code(), 3);
     }
 
     #[test]
