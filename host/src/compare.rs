@@ -157,7 +157,8 @@ impl ViewImages<'_> {
         }
     }
 
-    fn read(&self, desc: &ViewDesc, scene_path: &Path) -> Result<images::Image, Error> {
+    /// The image of view `desc` of the scene at `scene_path`, checked as every view is.
+    pub(crate) fn read(&self, desc: &ViewDesc, scene_path: &Path) -> Result<images::Image, Error> {
         match self {
             ViewImages::Folder(dir) => {
                 images::read_view_image(&dir.join(format!("{}.exr", desc.name)), 1.0, desc.size)

@@ -19,18 +19,23 @@ const ROWS_PER_BAND: usize = 4;
 /// 1000, 7 s on 4000 and over a minute on 100000).
 pub const MAX_THREADS: usize = 1024;
 
+/// Whether `--threads` asks for a count [`thread_pool`] starts: at least 1, at most
+/// [`MAX_THREADS`].
+pub fn check_threads(threads: Option<usize>) -> Result<(), Error> {
+    match threads {
+        Some(0) => Err(Error::Usage("--threads must be at least 1".into())),
+        Some(n) if n > MAX_THREADS => Err(Error::Usage(format!(
+            "--threads {n} is more than {MAX_THREADS}: each thread takes work in fixed bands, and thousands of threads spend their time starting and waiting"
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// A pool of `threads` workers (all cores when `None`).
 pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, Error> {
+    check_threads(threads)?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
-        if n == 0 {
-            return Err(Error::Usage("--threads must be at least 1".into()));
-        }
-        if n > MAX_THREADS {
-            return Err(Error::Usage(format!(
-                "--threads {n} is more than {MAX_THREADS}: each thread takes work in fixed bands, and thousands of threads spend their time starting and waiting"
-            )));
-        }
         builder = builder.num_threads(n);
     }
     builder

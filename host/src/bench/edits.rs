@@ -21,6 +21,7 @@ use crate::compare::{self, Groups, ViewImages, ViewsReport};
 use crate::error::Error;
 use crate::fsutil::{self, OutputSet};
 use crate::materials_file::{self, MaterialsDesc};
+use crate::parallel;
 use crate::render_cmd::{self, RenderArgs};
 use crate::scene_file;
 
@@ -131,6 +132,8 @@ pub fn run(args: &EditsArgs) -> Result<Vec<EditOutcome>, Error> {
         )));
     }
     let set = prepare(args)?;
+    // Before the folder is made: a bad --threads left it behind, empty.
+    parallel::check_threads(args.threads)?;
     fsutil::create_dir(&args.out)?;
     let mut outcomes = Vec::new();
     for scene in &args.edits {
@@ -284,8 +287,11 @@ fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
             let files: Vec<MaterialsDesc> = files.iter().cloned().chain(added.clone()).collect();
             assemble::load_and_assemble(scene, MaterialSource::Files(&files))?;
         }
-        for vi in 0..desc.views.len() {
+        // Read whole, as the judging reads them: a reference that exists but is empty,
+        // cut short or holds a NaN was met only after the renders before it.
+        for (vi, view) in desc.views.iter().enumerate() {
             desc.view_image(vi, "an edit's views are its reference")?;
+            ViewImages::Scene.read(view, scene)?;
         }
         let name = edit_name(scene);
         for arm in ["recovered", "truth"] {
@@ -453,5 +459,44 @@ mod tests {
         assert!(e.contains("would replace a materials file"), "{e}");
         assert!(!dir.path().join("out/same").exists(), "nothing rendered");
         assert_eq!(std::fs::read_to_string(&inside).unwrap(), text);
+    }
+
+    /// A later edit's reference image that exists but is no image (or a bad --threads)
+    /// is refused before the first render, and leaves no folder: the first edit's
+    /// renders were left behind, with no table.
+    #[test]
+    fn a_later_edits_bad_reference_or_threads_is_refused_before_any_render() {
+        let dir = tempfile::tempdir().unwrap();
+        let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+        let first = cornell_edit(dir.path(), "first");
+        let second = cornell_edit(dir.path(), "second");
+        let empty = dir.path().join("second/empty.exr");
+        std::fs::write(&empty, b"").unwrap();
+        let nz = format!("{:?}", cornell.join("views/nz.exr").display().to_string());
+        let text = std::fs::read_to_string(&second).unwrap();
+        assert!(text.contains(&nz), "{text}");
+        std::fs::write(&second, text.replace(&nz, "\"empty.exr\"")).unwrap();
+        let out = dir.path().join("out");
+        let args = |edits: Vec<PathBuf>, threads| EditsArgs {
+            edits,
+            recovered: vec![cornell.join("materials.toml")],
+            truth: cornell.join("materials.toml"),
+            out: out.clone(),
+            spp: 1,
+            seed: 1,
+            threads,
+        };
+        let e = run(&args(vec![first.clone(), second], Some(1)))
+            .err()
+            .unwrap();
+        assert_eq!(e.exit_code(), 3, "{e}");
+        assert!(
+            e.to_string().contains("empty.exr: the file is empty"),
+            "{e}"
+        );
+        assert!(!out.exists(), "nothing rendered");
+        let e = run(&args(vec![first], Some(0))).err().unwrap();
+        assert_eq!(e.exit_code(), 2, "{e}");
+        assert!(!out.exists(), "no folder made");
     }
 }
