@@ -1596,6 +1596,104 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
     assert_eq!(common::files_in(&dir.path().join("out")).len(), 7);
 }
 
+/// `relume panorama split`'s capture and template are checked as the scene they make
+/// will be: a texel past the largest radiance is refused naming the capture's pixel (not
+/// the face it would land in, when `check` read it), a capture all 0 is warned of, a
+/// template whose OBJ is bad is refused before a face is written, and a position beyond
+/// 32-bit floats is a usage error. A split without a template into the folder of one with
+/// it removes that run's scene.toml, which would have read the new faces at the old size.
+#[test]
+fn a_splits_capture_and_template_are_checked_and_no_earlier_scene_is_left() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = |name: &str, value: f32| {
+        let path = dir.path().join(name);
+        let mut pixels = vec![[0.5; 3]; 32 * 16];
+        // One texel of `value`, at column 5 of the last row.
+        pixels[15 * 32 + 5] = [value; 3];
+        relume::images::write_exr(
+            &path,
+            &relume::images::Image {
+                width: 32,
+                height: 16,
+                pixels,
+            },
+        )
+        .unwrap();
+        path
+    };
+    let split = |image: &Path, extra: &[&str]| {
+        let mut args = vec!["panorama", "split", path_str(image), "--out", "out"];
+        args.extend_from_slice(extra);
+        let run = relume(dir.path(), &args);
+        (
+            run.status.code(),
+            String::from_utf8_lossy(&run.stderr).to_string(),
+        )
+    };
+    let at = ["--position", "1.5,0.9,1.3", "--size", "4"];
+    let (code, stderr) = split(&image("bright.exr", 1e30), &at);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("bright.exr: pixel (x 5, y 15): channel R value 1e30")
+            && stderr.contains("above the largest radiance relume computes with, 1e18"),
+        "{stderr}"
+    );
+    let (code, stderr) = split(&image("good.exr", 0.5), &["--position", "1e39,0,0"]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("out of range for 32-bit floats"),
+        "{stderr}"
+    );
+    common::copy_cornell(&dir.path().join("room"));
+    let obj = dir.path().join("room/geometry.obj");
+    let mut text = std::fs::read_to_string(&obj).unwrap();
+    text.push_str("f 1 2 99999\n");
+    std::fs::write(dir.path().join("room/broken.obj"), text).unwrap();
+    let scene = std::fs::read_to_string(dir.path().join("room/scene.toml")).unwrap();
+    std::fs::write(
+        dir.path().join("room/broken.toml"),
+        scene.replace("\"geometry.obj\"", "\"broken.obj\""),
+    )
+    .unwrap();
+    let (code, stderr) = split(&image("good.exr", 0.5), &["--scene", "room/broken.toml"]);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(stderr.contains("broken.obj:"), "{stderr}");
+    assert!(!dir.path().join("out").exists(), "nothing written");
+    // A split with the template, then one without it into the same folder.
+    let good = image("good.exr", 0.5);
+    let (code, stderr) = split(&good, &["--scene", "room/scene.toml", "--size", "8"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(dir.path().join("out/scene.toml").is_file());
+    let (code, stderr) = split(&good, &at);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        !dir.path().join("out/scene.toml").exists(),
+        "the earlier scene"
+    );
+    let (code, stderr) = split(&image("one-zero.exr", 0.0), &at);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        !stderr.contains("every texel is 0"),
+        "one texel of 0 is no black capture"
+    );
+    let black = dir.path().join("all-black.exr");
+    relume::images::write_exr(
+        &black,
+        &relume::images::Image {
+            width: 32,
+            height: 16,
+            pixels: vec![[0.0; 3]; 32 * 16],
+        },
+    )
+    .unwrap();
+    let (code, stderr) = split(&black, &at);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("all-black.exr: every texel is 0: the faces are black"),
+        "{stderr}"
+    );
+}
+
 /// `relume panorama join`'s bad input: views at two positions (the insertion example's
 /// new viewpoint beside the cube) and a view image missing are refused naming them; views
 /// that leave a direction unseen (the cube without its floor face) name the direction.

@@ -195,14 +195,12 @@ impl BudgetOverrides {
 
 /// "X,Y,Z" as three finite numbers.
 fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
-    let v = parse_position(s)?.map(|x| x as f32);
-    match v.iter().all(|x| x.is_finite()) {
-        true => Ok(v),
-        false => Err(format!("'{s}' is out of range for 32-bit floats")),
-    }
+    parse_position(s).map(|v| v.map(|x| x as f32))
 }
 
-/// X,Y,Z kept in 64 bits, as a scene file's view positions are.
+/// X,Y,Z kept in 64 bits, as a scene file's view positions are, within 32-bit floats'
+/// range, in which views are made (a --position of 1e39 was refused after the capture was
+/// read, as a capacity of the core).
 fn parse_position(s: &str) -> Result<[f64; 3], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let numbers: Vec<f64> = parts
@@ -210,7 +208,10 @@ fn parse_position(s: &str) -> Result<[f64; 3], String> {
         .filter_map(|p| p.parse::<f64>().ok().filter(|v| v.is_finite()))
         .collect();
     match numbers[..] {
-        [x, y, z] if parts.len() == 3 => Ok([x, y, z]),
+        [x, y, z] if parts.len() == 3 => match numbers.iter().all(|&v| (v as f32).is_finite()) {
+            true => Ok([x, y, z]),
+            false => Err(format!("'{s}' is out of range for 32-bit floats")),
+        },
         _ => Err(format!("expected three finite numbers X,Y,Z, got '{s}'")),
     }
 }

@@ -444,7 +444,7 @@ pub fn read_view_image_and_header(
     exposure: f32,
     expected: [u32; 2],
 ) -> Result<(Image, Option<[f64; 3]>), Error> {
-    let (image, header) = read_image_and_header(path, exposure, |width, height| {
+    read_radiance_sized(path, exposure, |width, height| {
         if [width, height] == expected {
             return Ok(());
         }
@@ -455,13 +455,25 @@ pub fn read_view_image_and_header(
                 expected[0], expected[1]
             ),
         ))
-    })?;
+    })
+}
+
+/// [`read_image_sized`] of radiance (a view, a 360-degree capture): no value above
+/// [`MAX_RADIANCE`] after exposure, and what the file's header divided its stored values
+/// by, per channel (`None` without `EXPOSURE` or `COLORCORR` lines).
+pub fn read_radiance_sized(
+    path: &Path,
+    exposure: f32,
+    size_fits: impl FnOnce(u32, u32) -> Result<(), Error>,
+) -> Result<(Image, Option<[f64; 3]>), Error> {
+    let (image, header) = read_image_and_header(path, exposure, size_fits)?;
     reject_value(
         path,
         &image,
         |v| v > MAX_RADIANCE,
         &format!(
-            "after exposure {exposure}{} is above the largest radiance relume computes with, {MAX_RADIANCE:e} (is the exposure right?)",
+            "after exposure {}{} is above the largest radiance relume computes with, {MAX_RADIANCE:e} (is the exposure right?)",
+            value_text(exposure),
             header_note(header)
         ),
     )?;
@@ -600,11 +612,21 @@ pub fn reject_value(
                 path,
                 (i % w) as u32,
                 (i / w) as u32,
-                format!("channel {} value {} {why}", CHANNELS[c], p[c]),
+                format!("channel {} value {} {why}", CHANNELS[c], value_text(p[c])),
             ));
         }
     }
     Ok(())
+}
+
+/// A pixel's value in a message, exactly, with an exponent from a million up (a texel of
+/// 1e30 was given in 31 digits).
+fn value_text(v: f32) -> String {
+    if v.abs() >= 1e6 {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// A data image (EXR, HDR) is written only when every value is finite: relume reads no
@@ -930,9 +952,7 @@ mod tests {
         let e = read_view_image(&big, 1e18, [2, 1]).unwrap_err().to_string();
         assert!(
             e.contains("big.exr: pixel (x 1, y 0)")
-                && e.contains(
-                    "channel B value 2000000000000000000 after exposure 1000000000000000000"
-                )
+                && e.contains("channel B value 2e18 after exposure 1e18")
                 && e.contains("above the largest radiance relume computes with, 1e18"),
             "{e}"
         );

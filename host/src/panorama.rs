@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use relume_core::geometry::View;
 use relume_core::math::{self, Vec3};
 
+use crate::assemble::{self, MaterialSource};
 use crate::downsample;
 use crate::error::Error;
 use crate::fsutil::OutputSet;
@@ -401,10 +402,16 @@ fn equirect_from_views(
 /// nothing.
 pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
     let frame = Frame::new(args.forward, args.up)?;
+    // The template checked as `check` would check it (its OBJ, groups and lights), less
+    // its views' images, which the faces replace: else the scene written was refused only
+    // when it was used.
     let template = args
         .scene
         .as_ref()
-        .map(|scene| scene_file::load_scene(scene))
+        .map(|scene| {
+            assemble::load_and_assemble(scene, MaterialSource::GeometryOnly)?;
+            scene_file::load_scene(scene)
+        })
         .transpose()?;
     let position = match (args.position, &template) {
         (Some(p), _) if p.iter().all(|x| x.is_finite()) => p,
@@ -416,7 +423,7 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
             ))
         }
     };
-    let image = images::read_image_sized(&args.image, 1.0, |w, h| {
+    let (image, divisor) = images::read_radiance_sized(&args.image, 1.0, |w, h| {
         if w == 2 * h {
             Ok(())
         } else {
@@ -436,6 +443,13 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
         )));
     }
     let mut warnings = Vec::new();
+    if image.pixels.iter().all(|p| *p == [0.0; 3]) {
+        warnings.push(format!(
+            "{}: every texel is 0{}: the faces are black",
+            args.image.display(),
+            images::header_note(divisor)
+        ));
+    }
     let texels = image.width as f64 / (4.0 * size as f64);
     if texels < MIN_TEXELS_PER_PIXEL {
         let largest = (image.width as f64 / (4.0 * MIN_TEXELS_PER_PIXEL)).floor();
@@ -488,6 +502,11 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
     );
     let tables = downsample::view_tables(&views_toml, &relative)?;
     set.add(&views_toml, format!("{header}{tables}").as_bytes())?;
+    // An earlier run's scene, which this one does not write again, would be read with
+    // these faces (of another size, position or frame).
+    if template.is_none() && scene_toml.is_file() {
+        set.remove_on_commit(&scene_toml)?;
+    }
     if let Some(mut desc) = template {
         // The template's own views give way to the faces; its paths and the faces' are
         // made absolute, as a derived scene's are (`bench downsample`).
