@@ -1287,12 +1287,12 @@ fn uncertainty_of_a_report_that_does_not_fit_the_truth() {
             "{expected}: {stderr}"
         );
     }
-    // The well-formed report is read.
-    std::fs::write(
-        &report,
-        format!("{{\"groups\": [{}]}}", group("floor", "color_r", "0.01")),
-    )
-    .unwrap();
+    // The well-formed report is read: every parameter of the model.
+    let whole = group("floor", "color_r", "0.01").replace(
+        "}]",
+        r#"}, {"parameter": "color_g", "value": 0.5, "sigma": 0.01}, {"parameter": "color_b", "value": 0.5, "sigma": 0.01}]"#,
+    );
+    std::fs::write(&report, format!("{{\"groups\": [{whole}]}}")).unwrap();
     let (code, stderr) = compare_uncertainty(&case, &report);
     assert_eq!(code, Some(0), "{stderr}");
     // A copy of it under another name would be pooled as a second run.

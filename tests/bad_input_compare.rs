@@ -37,7 +37,7 @@ impl Case {
         }
         std::fs::write(
             dir.path().join("rep.json"),
-            r#"{"groups": [{"group": "floor", "model": "diffuse", "uncertainty": [{"parameter": "color_r", "value": 0.5, "sigma": 0.01}]}]}"#,
+            r#"{"groups": [{"group": "floor", "model": "diffuse", "uncertainty": [{"parameter": "color_r", "value": 0.5, "sigma": 0.01}, {"parameter": "color_g", "value": 0.5, "sigma": 0.01}, {"parameter": "color_b", "value": 0.5, "sigma": 0.01}]}]}"#,
         )
         .unwrap();
         write_rays(
@@ -447,6 +447,41 @@ fn compare_uncertainty_refuses_a_report_given_twice() {
     }
     let run = case.run(&["compare", "uncertainty", "c/materials.toml", "rep.json"]);
     assert!(run.status.success());
+}
+
+/// A report that gives a group's parameters in part was judged on those left (a colour
+/// channel alone read "100% within 1 sigma"), and one that gives none for any group
+/// recovered in its class printed percentages of nothing: both refused, naming the file.
+#[test]
+fn compare_uncertainty_refuses_parameters_in_part_and_nothing_to_judge() {
+    let case = Case::new();
+    std::fs::write(
+        case.path("part.json"),
+        r#"{"groups": [{"group": "sphere", "model": "isotropic", "uncertainty": [{"parameter": "color_r", "value": 0.9, "sigma": 0.01}]}]}"#,
+    )
+    .unwrap();
+    let run = case.run(&["compare", "uncertainty", "c/materials.toml", "part.json"]);
+    fails(
+        &run,
+        INPUT,
+        &[
+            "part.json",
+            "group 'sphere': model 'isotropic' has no uncertainty for color_g, color_b, specularity, roughness",
+        ],
+    );
+    assert!(run.stdout.is_empty());
+    std::fs::write(
+        case.path("none.json"),
+        r#"{"groups": [{"group": "floor", "model": "diffuse", "uncertainty": []}, {"group": "sphere", "model": "diffuse", "uncertainty": [{"parameter": "color_r", "value": 0.9, "sigma": 0.01}, {"parameter": "color_g", "value": 0.9, "sigma": 0.01}, {"parameter": "color_b", "value": 0.9, "sigma": 0.01}]}]}"#,
+    )
+    .unwrap();
+    let run = case.run(&["compare", "uncertainty", "c/materials.toml", "none.json"]);
+    fails(
+        &run,
+        INPUT,
+        &["none.json: gives no uncertainty for a group recovered in its true class"],
+    );
+    assert!(run.stdout.is_empty());
 }
 
 /// `--repeats 0` printed figures of no timed run; a ray whose direction is not of unit

@@ -129,16 +129,16 @@ pub fn coverage_rows(truth: &Path, report: &Path) -> Result<Vec<CoverageRow>, Er
     )?;
     let by_group: BTreeMap<&str, &MaterialDesc> =
         t.materials.iter().map(|d| (d.group.as_str(), d)).collect();
-    let mut rows = Vec::new();
+    // One edited by hand would count a group twice.
     let mut seen = BTreeSet::new();
+    if let Some(g) = r.groups.iter().find(|g| !seen.insert(g.group.as_str())) {
+        return Err(Error::input(
+            report,
+            format!("group '{}' appears twice", g.group),
+        ));
+    }
+    let mut rows = Vec::new();
     for g in &r.groups {
-        // One edited by hand would count a group twice.
-        if !seen.insert(g.group.as_str()) {
-            return Err(Error::input(
-                report,
-                format!("group '{}' appears twice", g.group),
-            ));
-        }
         let Some(tm) = by_group.get(g.group.as_str()) else {
             continue; // not reached: every group is in the truth (checked above)
         };
@@ -159,6 +159,26 @@ pub fn coverage_rows(truth: &Path, report: &Path) -> Result<Vec<CoverageRow>, Er
             if let Some(why) = implausible(model, p, &g.uncertainty[..i]) {
                 return Err(Error::input(report, format!("group '{}': {why}", g.group)));
             }
+        }
+        // A recovery gives every parameter of the model or none (too few pixels): one
+        // given in part would be judged on the parameters left (a colour alone read
+        // "100% within 1 sigma").
+        let missing: Vec<&str> = PARAMETERS
+            .iter()
+            .filter(|(_, key)| model.is_some_and(|m| m.requires(key)))
+            .map(|(name, _)| *name)
+            .filter(|name| !g.uncertainty.iter().any(|p| p.parameter == *name))
+            .collect();
+        if !g.uncertainty.is_empty() && !missing.is_empty() {
+            return Err(Error::input(
+                report,
+                format!(
+                    "group '{}': model '{}' has no uncertainty for {} (a recovery gives every parameter of its model, or none)",
+                    g.group,
+                    g.model,
+                    missing.join(", ")
+                ),
+            ));
         }
         if tm.model.name() != g.model {
             continue;
@@ -247,6 +267,17 @@ pub fn compare_uncertainty(
     let mut rows = Vec::new();
     for report in reports {
         rows.extend(coverage_rows(truth, report)?);
+    }
+    // Percentages of nothing ("0 parameters ...: 0% within 1 sigma") are no finding.
+    if let (true, Some(first)) = (rows.is_empty(), reports.first()) {
+        let also = match reports.len() {
+            1 => String::new(),
+            n => format!(" (nor do the other {} reports)", n - 1),
+        };
+        return Err(Error::input(
+            first,
+            format!("gives no uncertainty for a group recovered in its true class{also}: nothing to judge"),
+        ));
     }
     let several = reports.len() > 1;
     let mut last_report = None;
