@@ -484,10 +484,11 @@ fn compare_uncertainty_refuses_parameters_in_part_and_nothing_to_judge() {
     assert!(run.stdout.is_empty());
 }
 
-/// `--repeats 0` printed figures of no timed run; a ray whose direction is not of unit
-/// length (the format's) gave distances that cannot agree with the reference's.
+/// `--repeats 0` printed figures of no timed run, and so did a ray file of no ray ("0.000
+/// Mrays/s"); a ray whose direction is not of unit length (the format's) gave distances
+/// that cannot agree with the reference's.
 #[test]
-fn bench_rays_refuses_no_repeats_and_directions_that_are_not_unit() {
+fn bench_rays_refuses_no_repeats_no_rays_and_directions_that_are_not_unit() {
     let case = Case::new();
     let run = case.run(&[
         "bench",
@@ -510,6 +511,10 @@ fn bench_rays_refuses_no_repeats_and_directions_that_are_not_unit() {
         INPUT,
         &["long.rays: ray 2 has a direction of length 5, not 1"],
     );
+    assert!(run.stdout.is_empty());
+    write_rays(&case.path("none.rays"), &[]);
+    let run = case.run(&["bench", "rays", "c/scene.toml", "--rays", "none.rays"]);
+    fails(&run, INPUT, &["none.rays: holds no ray (its count is 0)"]);
     assert!(run.stdout.is_empty());
     let run = case.run(&[
         "bench",
@@ -664,8 +669,8 @@ fn compare_views_says_where_the_reference_is_zero_instead_of_printing_nan() {
 /// taken out: flat renders 10% bright read +10% (their errors agree), a B2 10% dark against
 /// them -10% (under the noise); a group whose reference is 0 has none, as it has no RMS;
 /// the JSON has it beside the RMS, and leaves it out without B2. B's own folder given as
-/// B2 (which would read the RMS as the misfit) and a B2 missing a view's image are refused,
-/// naming them.
+/// B2 (which would read the RMS as the misfit), A's (a misfit of 0) and a B2 missing a
+/// view's image are refused, naming them.
 #[test]
 fn compare_views_with_an_independent_render_gives_the_misfit() {
     let dir = tempfile::tempdir().unwrap();
@@ -741,6 +746,13 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
 
     let run = views(&["--independent", "./B/"]);
     fails(&run, USAGE, &["--independent ./B/ is B's folder"]);
+    // A's folder read a misfit of exactly 0 on every row.
+    let run = views(&["--independent", "A"]);
+    fails(
+        &run,
+        USAGE,
+        &["--independent A is A's, the reference folder"],
+    );
 
     std::fs::remove_file(dir.path().join("dark/b.exr")).unwrap();
     // A file that cannot be read is an I/O error (4), as for A's and B's images.

@@ -144,12 +144,16 @@ fn a_missing_truth_is_an_error_naming_the_file() {
             "no_such_group",
         ],
     );
+    // A flag's value that names nothing is a usage error (2), as `render --view` is.
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(3), "{stderr}");
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains("scene.toml") && stderr.contains("no_such_group"),
+        stderr.contains("scene.toml")
+            && stderr.contains("no_such_group")
+            && stderr.contains("its groups: floor"),
         "{stderr}"
     );
+    assert!(!tmp.path().join("out").exists());
 }
 
 /// Writes an edit of the bundled scene into `dir/<name>/scene.toml`: its geometry plus

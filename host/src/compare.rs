@@ -348,12 +348,15 @@ pub fn compare_views(
     json: Option<&Path>,
     threads: Option<usize>,
 ) -> Result<(), Error> {
-    // B's own render as its independent one would give its whole RMS as the misfit.
-    if let Some(dir_b2) = dir_b2.filter(|b2| fsutil::same_file(b2, dir_b)) {
-        return Err(Error::Usage(format!(
-            "--independent {} is B's folder: the misfit needs a render of B's materials on another seed",
-            dir_b2.display()
-        )));
+    // B's own render as its independent one would give its whole RMS as the misfit, and
+    // A's a misfit of exactly 0 on every row.
+    for (other, whose) in [(dir_b, "B's"), (dir_a, "A's, the reference")] {
+        if let Some(dir_b2) = dir_b2.filter(|b2| fsutil::same_file(b2, other)) {
+            return Err(Error::Usage(format!(
+                "--independent {} is {whose} folder: the misfit needs a render of B's materials on another seed",
+                dir_b2.display()
+            )));
+        }
     }
     let desc = scene_file::load_scene(scene)?;
     let mut inputs = desc.input_files();

@@ -100,6 +100,13 @@ fn f32_at(b: &[u8], i: usize) -> f32 {
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>, Error> {
     let bytes = fsutil::read_bytes(path)?;
     let (count, body) = records(path, &bytes, 24)?;
+    // No ray timed gave "0.000 Mrays/s" as a figure.
+    if count == 0 {
+        return Err(Error::input(
+            path,
+            "holds no ray (its count is 0): nothing to trace",
+        ));
+    }
     let mut rays = Vec::with_capacity(count);
     for (i, r) in body.chunks_exact(24).enumerate() {
         let v: [f32; 6] = core::array::from_fn(|k| f32_at(r, 4 * k));

@@ -159,11 +159,14 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
         return Err(Error::input(&args.scene, "has no view to recover from"));
     }
     if let Some(g) = &args.group {
+        // A flag's value that names nothing, as `render --view` is: a usage error.
         if !desc.groups.iter().any(|d| &d.name == g) {
-            return Err(Error::input(
-                &args.scene,
-                format!("--group names '{g}', which the scene does not have"),
-            ));
+            let names: Vec<&str> = desc.groups.iter().map(|d| d.name.as_str()).collect();
+            return Err(Error::Usage(format!(
+                "--group names '{g}', which {} does not have (its groups: {})",
+                args.scene.display(),
+                names.join(", ")
+            )));
         }
     }
     check_truth_of(&desc, &truth)?;
