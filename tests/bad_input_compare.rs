@@ -449,6 +449,55 @@ fn compare_uncertainty_refuses_a_report_given_twice() {
     assert!(run.status.success());
 }
 
+/// A `--json` that names a folder is refused before the work, as a file over an input is:
+/// the whole table was printed, and the run failed only when the JSON was written.
+#[test]
+fn a_json_that_names_a_folder_is_refused_before_the_work() {
+    let case = Case::new();
+    std::fs::create_dir(case.path("D")).unwrap();
+    for args in [
+        &[
+            "compare",
+            "materials",
+            "c/materials.toml",
+            "other.toml",
+            "--json",
+            "D",
+        ][..],
+        &[
+            "compare",
+            "uncertainty",
+            "c/materials.toml",
+            "rep.json",
+            "--json",
+            "D",
+        ],
+        &[
+            "compare",
+            "views",
+            "c/scene.toml",
+            "c/views",
+            "B",
+            "--json",
+            "D",
+        ],
+        &["check", "c/scene.toml", "--json", "D"],
+        &[
+            "bench",
+            "rays",
+            "c/scene.toml",
+            "--rays",
+            "x.rays",
+            "--json",
+            "D",
+        ],
+    ] {
+        let run = case.run(args);
+        fails(&run, 4, &["D: a folder is in the way of this output file"]);
+        assert!(run.stdout.is_empty(), "{args:?}");
+    }
+}
+
 /// A report that gives a group's parameters in part was judged on those left (a colour
 /// channel alone read "100% within 1 sigma"), and one that gives none for any group
 /// recovered in its class printed percentages of nothing: both refused, naming the file.

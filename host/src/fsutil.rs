@@ -148,6 +148,14 @@ impl OutputSet {
     /// write, so that it fails at once rather than at the end.
     pub fn check_target(&self, path: &Path) -> Result<(), Error> {
         refuse_file_in_the_way(folder_of(path))?;
+        // As the commit would find it, but before the work (a `--json` naming a folder
+        // was refused after the whole comparison or bench).
+        if std::fs::symlink_metadata(path).is_ok_and(|m| m.is_dir()) {
+            return Err(Error::io(
+                path,
+                std::io::Error::other("a folder is in the way of this output file"),
+            ));
+        }
         let Some(target) = resolved(path) else {
             return Ok(()); // a folder not made yet holds no input
         };
@@ -457,11 +465,21 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let (a, b) = (dir.path().join("a.txt"), dir.path().join("b.txt"));
         std::fs::write(&a, "old a").unwrap();
-        // A folder where b.txt should go: found at the commit, before a.txt is replaced.
+        // A folder where b.txt should go: found when b.txt is added (as a command checks
+        // its targets before its work), and at the commit where it appeared since, in
+        // either case before a.txt is replaced.
         std::fs::create_dir(&b).unwrap();
         let mut set = OutputSet::default();
         set.add(&a, b"new a").unwrap();
+        let e = set.add(&b, b"new b").unwrap_err().to_string();
+        assert!(e.contains("b.txt") && e.contains("folder"), "{e}");
+        drop(set);
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
+        std::fs::remove_dir(&b).unwrap();
+        let mut set = OutputSet::default();
+        set.add(&a, b"new a").unwrap();
         set.add(&b, b"new b").unwrap();
+        std::fs::create_dir(&b).unwrap();
         let e = set.commit().unwrap_err().to_string();
         assert!(e.contains("b.txt") && e.contains("folder"), "{e}");
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
