@@ -449,6 +449,33 @@ fn compare_uncertainty_refuses_a_report_given_twice() {
     assert!(run.status.success());
 }
 
+/// A file given where a folder of view images goes is bad input saying so (it was "Not a
+/// directory" of a path made up of both), for `compare views` and `panorama join`.
+#[test]
+fn a_file_where_a_folder_of_views_goes_is_named() {
+    let case = Case::new();
+    for args in [
+        &["compare", "views", "c/scene.toml", "c/views/px.exr", "B"][..],
+        &["compare", "views", "c/scene.toml", "c/views", "B/px.exr"],
+        &[
+            "panorama",
+            "join",
+            "c/scene.toml",
+            "B/px.exr",
+            "--out",
+            "j.exr",
+        ],
+    ] {
+        let run = case.run(args);
+        fails(
+            &run,
+            INPUT,
+            &["px.exr: is a file, not a folder of <view>.exr images"],
+        );
+        assert!(!case.path("j.exr").exists());
+    }
+}
+
 /// A `--json` that names a folder is refused before the work, as a file over an input is:
 /// the whole table was printed, and the run failed only when the JSON was written.
 #[test]
@@ -808,7 +835,7 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
     fails(
         &views(&["--independent", "dark"]),
         4,
-        &["dark/b.exr", "No such file"],
+        &["dark/b.exr: no image of view 'b' in dark"],
     );
 }
 

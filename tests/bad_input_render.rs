@@ -335,6 +335,21 @@ fn errors_about_a_view_name_its_line() {
     );
 }
 
+/// `bench downsample` checks the scene's geometry as `check` would: a face naming a vertex
+/// past those defined was written into the derived scene, refused only when it was used.
+#[test]
+fn a_downsample_of_a_scene_whose_obj_is_bad_is_refused() {
+    let case = Case::new();
+    let obj = std::fs::read_to_string(case.path("geometry.obj")).unwrap();
+    std::fs::write(case.path("geometry.obj"), format!("{obj}f 1 2 99999\n")).unwrap();
+    case.fails(
+        &DOWNSAMPLE,
+        INPUT,
+        &["geometry.obj:", "vertex index 99999 is out of range"],
+    );
+    assert!(!case.path("half").exists());
+}
+
 /// `--view` naming no view of the scene says which views it has.
 #[test]
 fn a_view_flag_naming_no_view_lists_the_views() {

@@ -160,9 +160,7 @@ impl ViewImages<'_> {
     /// The image of view `desc` of the scene at `scene_path`, checked as every view is.
     pub(crate) fn read(&self, desc: &ViewDesc, scene_path: &Path) -> Result<images::Image, Error> {
         match self {
-            ViewImages::Folder(dir) => {
-                images::read_view_image(&dir.join(format!("{}.exr", desc.name)), 1.0, desc.size)
-            }
+            ViewImages::Folder(dir) => images::read_folder_view_image(dir, &desc.name, desc.size),
             ViewImages::Scene => {
                 let path = desc.image.as_ref().ok_or_else(|| {
                     Error::input(scene_path, format!("view '{}' names no image", desc.name))

@@ -7,6 +7,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use crate::assemble::{self, MaterialSource};
 use crate::error::Error;
 use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
@@ -137,6 +138,9 @@ pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<(), Error> {
     if factor == 0 {
         return Err(Error::Usage("--factor must be at least 1".into()));
     }
+    // Its geometry checked as `check` would, else the scene written was refused only when
+    // it was used.
+    assemble::load_and_assemble(scene, MaterialSource::GeometryOnly)?;
     let desc = scene_file::load_scene(scene)?;
     write_derived_scene(scene, desc, factor, out, "downsample", |_, _| {}).map(|_| ())
 }

@@ -431,6 +431,30 @@ fn reject_transparent(path: &Path, decoded: &DynamicImage) -> Result<(), Error> 
     }
 }
 
+/// The image of view `name` in `dir`, a folder of `<view>.exr` as `relume render` writes
+/// them (exposure 1), of the view's `size`. A `dir` that is a file is bad input, and a
+/// missing image names its view ("rA/px.exr/px.exr: Not a directory", "miss/nz.exr: No
+/// such file" were all that was said).
+pub fn read_folder_view_image(dir: &Path, name: &str, size: [u32; 2]) -> Result<Image, Error> {
+    if dir.is_file() {
+        return Err(Error::input(
+            dir,
+            "is a file, not a folder of <view>.exr images (as `relume render --out` writes)",
+        ));
+    }
+    let path = dir.join(format!("{name}.exr"));
+    if !path.exists() && dir.is_dir() {
+        return Err(Error::io(
+            &path,
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                format!("no image of view '{name}' in {}", dir.display()),
+            ),
+        ));
+    }
+    read_view_image(&path, 1.0, size)
+}
+
 /// [`read_image`], and the size must be the view's `[width, height]`.
 pub fn read_view_image(path: &Path, exposure: f32, expected: [u32; 2]) -> Result<Image, Error> {
     read_view_image_and_header(path, exposure, expected).map(|(image, _)| image)
