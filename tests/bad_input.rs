@@ -1819,10 +1819,11 @@ fn check_tells_a_view_whose_exposure_is_off_by_orders_of_magnitude() {
     );
 }
 
-/// No surface is brighter than the brightest light (it reflects at most what reaches it):
-/// a hot pixel in cornell's floor view is left out of the fit and named, where before it
-/// put the floor at its bound; and a light declared 100x too dim, which makes a third of
-/// the pure pixels too bright, is refused before any work.
+/// No surface is brighter in a channel than the lights are there (it reflects at most
+/// what reaches it): a hot pixel in cornell's floor view is left out of the fit and named,
+/// where before it put the floor at its bound; a light declared 100x too dim, which makes
+/// a third of the pure pixels too bright, is refused before any work; and a light declared
+/// without blue is warned of.
 #[test]
 fn a_pixel_brighter_than_the_lights_is_left_out_and_many_are_refused() {
     let cornell = common::workspace().join("scenes/cornell");
@@ -1839,7 +1840,7 @@ fn a_pixel_brighter_than_the_lights_is_left_out_and_many_are_refused() {
     assert_eq!(code, Some(0), "{stderr}");
     assert!(
         stderr.contains("warning: 1 pure pixel of")
-            && stderr.contains("is brighter than 2x the brightest light's radiance (30.0 in its brightest channel, light 'light')")
+            && stderr.contains("is brighter in channel R than 2x the lights' radiance there (30.0, light 'light')")
             && stderr.contains("view 'nz' pixel (x 20, y 15) on group 'floor' reads [1e17, 1e17, 1e17]: left out of the fit"),
         "{stderr}"
     );
@@ -1852,11 +1853,25 @@ fn a_pixel_brighter_than_the_lights_is_left_out_and_many_are_refused() {
     assert_eq!(code, Some(INPUT), "{stderr}");
     assert!(
         stderr.contains("scene.toml: ")
-            && stderr.contains("are brighter than 2x the brightest light's radiance (0.3")
+            && stderr.contains("than 2x the lights' radiance there (0.")
             && stderr.contains("a light's radiance declared too low"),
         "{stderr}"
     );
     assert!(report.is_none());
+    // A light declared without blue over a capture lit in blue: every colour's blue was
+    // left at its start without a word. Its brightest surfaces are past the floor of the
+    // missing channel, and the channel itself is warned of.
+    let no_blue = text.replace(
+        "radiance = [30.0, 28.0, 24.0]",
+        "radiance = [30.0, 28.0, 0.0]",
+    );
+    let (code, stderr, _) = check_scene(&no_blue);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("no light of the scene emits in channel B: no reflectance can be measured in it, and every recovered colour keeps its start, 0.5, there")
+            && stderr.contains("are brighter in channel B than 2x the lights' radiance there (no light emits there, at least CHANNEL_FLOOR 0.01 of their brightest channel)"),
+        "{stderr}"
+    );
 }
 
 /// cornell's scene.toml with its geometry and images named by absolute paths, so that a

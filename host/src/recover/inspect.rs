@@ -128,6 +128,10 @@ pub(super) fn inspect(
         &input.view_names,
     );
     let mut warnings = calibration::calibration_warnings(&light_readings, owned.light_radiance());
+    warnings.extend(too_bright::unlit_channel_warnings(
+        owned.light_radiance(),
+        super::START_COLOR,
+    ));
     warnings.extend(too_bright);
     let orientation_readings =
         orientation::read_orientations(&pure, &input.real, &input.view_names);
@@ -295,7 +299,12 @@ pub fn check(
     }
     let mut rec = Recovery {
         views: input.owned.views.clone(),
-        models: vec![GroupModel::Diffuse { color: [0.5; 3] }; groups.len()],
+        models: vec![
+            GroupModel::Diffuse {
+                color: [super::START_COLOR; 3]
+            };
+            groups.len()
+        ],
         owned: input.owned,
         real: input.real,
         // A group's mean over a few thousand pixels is as good a first reading as over all.

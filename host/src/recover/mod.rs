@@ -573,6 +573,10 @@ fn fit_ward_by(mut fit_at: impl FnMut(f64) -> WardFit) -> (WardFit, f64, u32) {
     (fit, alpha, evaluations)
 }
 
+/// Every group's diffuse colour before stage 1's first step, in each channel. A channel
+/// no light of the scene emits in keeps it (`too_bright::unlit_channel_warnings`).
+pub(super) const START_COLOR: f64 = 0.5;
+
 /// Stage 5 renders the irradiance at this many times the final render's samples, and at
 /// least [`MAP_MIN_SPP`]: a map takes the render's noise into its texels (T = I / E, pixel
 /// by pixel), where the final render averages it away; textured groups are small, so this
@@ -777,7 +781,12 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         views,
         real,
         pure,
-        models: vec![GroupModel::Diffuse { color: [0.5; 3] }; n_groups],
+        models: vec![
+            GroupModel::Diffuse {
+                color: [START_COLOR; 3]
+            };
+            n_groups
+        ],
         maps: Vec::new(),
         pool,
         seed: args.seed,

@@ -17,11 +17,18 @@ use crate::error::Error;
 use crate::images::Image;
 use crate::text::counted;
 
-/// A pure pixel brighter, in some channel, than this times the brightest channel of any
-/// light's declared radiance is not a surface of the scene: the margin allows for a
-/// capture's noise and a calibration a few percent off (the living room's mirror reads
-/// 0.90x its light).
+/// A pure pixel brighter, in some channel, than this times that channel of every light's
+/// declared radiance is not a surface of the scene (its reflectance is at most 1 in every
+/// channel): the margin allows for a capture's noise and a calibration a few percent off
+/// (the living room's mirror reads 0.90x its light).
 pub const BRIGHTER_THAN_THE_LIGHTS: f32 = 2.0;
+
+/// A channel's bound is at least this share of the lights' brightest channel: a light
+/// declared without blue, in a capture whose blue is noise or a black level, is not
+/// refused for it. (The bound was the brightest channel for all three, and a light
+/// declared [30, 28, 0] over a capture lit in blue left every colour's blue at its
+/// starting 0.5 without a word: no light of the scene reached it.)
+pub const CHANNEL_FLOOR: f32 = 0.01;
 
 /// Up to this share of the pure pixels such pixels are left out of the fit with a warning
 /// (a hot pixel, a small glint of a source the scene lacks); beyond it the panorama is
@@ -40,15 +47,17 @@ pub fn leave_out_too_bright(
     names: &Names,
     light_radiance: &[Vec3],
 ) -> Result<(Vec<PurePixel>, Option<String>), Error> {
-    let Some((brightest, light)) = brightest_light(light_radiance) else {
+    let Some(brightest) = brightest_per_channel(light_radiance) else {
         return Ok((pure, None));
     };
-    let bound = BRIGHTER_THAN_THE_LIGHTS * brightest;
+    let overall = brightest.iter().map(|b| b.0).fold(0.0, f32::max);
+    let bound = brightest.map(|(b, _)| BRIGHTER_THAN_THE_LIGHTS * b.max(CHANNEL_FLOOR * overall));
     let value = |p: &PurePixel| {
         let image = &real[p.view as usize];
         image.pixels[(p.y * image.width + p.x) as usize]
     };
-    let too_bright = |p: &PurePixel| value(p).iter().any(|&c| c > bound);
+    let past = |v: [f32; 3]| (0..3).find(|&c| v[c] > bound[c]);
+    let too_bright = |p: &PurePixel| past(value(p)).is_some();
     let (bright, kept): (Vec<PurePixel>, Vec<PurePixel>) = pure.into_iter().partition(too_bright);
     let Some(first) = bright.first() else {
         return Ok((kept, None));
@@ -56,12 +65,22 @@ pub fn leave_out_too_bright(
     let total = bright.len() + kept.len();
     let share = bright.len() as f64 / total as f64;
     let v = value(first);
+    let c = past(v).unwrap_or(0);
+    let (level, light) = brightest[c];
+    let there = match level > 0.0 {
+        true => format!("{level:?}, light '{}'", names.lights[light]),
+        false => "no light emits there".into(),
+    };
+    let floor = match level < CHANNEL_FLOOR * overall {
+        true => format!(", at least CHANNEL_FLOOR {CHANNEL_FLOOR} of their brightest channel"),
+        false => String::new(),
+    };
     let what = format!(
-        "{} of {total} ({:.2}%) {} brighter than {BRIGHTER_THAN_THE_LIGHTS}x the brightest light's radiance ({brightest:?} in its brightest channel, light '{}'), which no surface of the scene can be: a surface reflects at most the light that reaches it. The first: view '{}' pixel (x {}, y {}) on group '{}' reads [{:?}, {:?}, {:?}]",
+        "{} of {total} ({:.2}%) {} brighter in channel {} than {BRIGHTER_THAN_THE_LIGHTS}x the lights' radiance there ({there}{floor}), which no surface of the scene can be: a surface reflects at most the light that reaches it. The first: view '{}' pixel (x {}, y {}) on group '{}' reads [{:?}, {:?}, {:?}]",
         counted(bright.len() as u64, "pure pixel"),
         100.0 * share,
         if bright.len() == 1 { "is" } else { "are" },
-        names.lights[light],
+        ["R", "G", "B"][c],
         names.views[first.view as usize],
         first.x,
         first.y,
@@ -89,14 +108,35 @@ pub struct Names<'a> {
     pub lights: &'a [String],
 }
 
-/// The brightest channel of any light's radiance and that light's index; `None` when
-/// every light is dark.
-fn brightest_light(light_radiance: &[Vec3]) -> Option<(f32, usize)> {
-    let (i, r) = light_radiance
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1.max_element().total_cmp(&b.1.max_element()))?;
-    (r.max_element() > 0.0).then_some((r.max_element(), i))
+/// Per channel, the brightest light's radiance there and that light's index (the first
+/// of equals); `None` when every light is dark.
+fn brightest_per_channel(light_radiance: &[Vec3]) -> Option<[(f32, usize); 3]> {
+    let mut brightest = [(0.0f32, 0usize); 3];
+    for (i, r) in light_radiance.iter().enumerate() {
+        for (c, b) in brightest.iter_mut().enumerate() {
+            if r[c] > b.0 {
+                *b = (r[c], i);
+            }
+        }
+    }
+    brightest.iter().any(|b| b.0 > 0.0).then_some(brightest)
+}
+
+/// A warning for each channel in which no light of the scene emits while another does:
+/// no reflectance can be measured there, and every colour keeps its start in it.
+pub fn unlit_channel_warnings(light_radiance: &[Vec3], start: f64) -> Vec<String> {
+    let Some(brightest) = brightest_per_channel(light_radiance) else {
+        return Vec::new();
+    };
+    (0..3)
+        .filter(|&c| brightest[c].0 <= 0.0)
+        .map(|c| {
+            format!(
+                "no light of the scene emits in channel {}: no reflectance can be measured in it, and every recovered colour keeps its start, {start}, there (is a light's radiance declared right?)",
+                ["R", "G", "B"][c]
+            )
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -153,7 +193,7 @@ mod tests {
         assert!(!kept.contains(&pixel(13, 1)) && kept.contains(&pixel(7, 1)));
         let warning = warning.unwrap();
         assert!(
-            warning.starts_with("1 pure pixel of 200 (0.50%) is brighter than 2x the brightest light's radiance (10.0 in its brightest channel, light 'lamp')")
+            warning.starts_with("1 pure pixel of 200 (0.50%) is brighter in channel G than 2x the lights' radiance there (10.0, light 'lamp')")
                 && warning.contains("view 'front' pixel (x 13, y 0) on group 'wall' reads [0.3, 1e17, 0.3]")
                 && warning.contains("left out of the fit"),
             "{warning}"
@@ -174,6 +214,30 @@ mod tests {
                 && message.contains("a light the scene lacks"),
             "{message}"
         );
+        // Each channel against its own lights: a light without blue (the other off)
+        // leaves a pixel blue at 0.5 too bright, where the floor of 1% of the brightest
+        // channel (0.1, bound 0.2) would pass a capture's noise of 0.15.
+        let yellow = [Vec3::ZERO, Vec3::new(4.0, 10.0, 0.0)];
+        let (pure, mut real) = case(200, &[]);
+        for p in real[0].pixels.iter_mut() {
+            p[2] = 0.0;
+        }
+        real[0].pixels[5] = [0.3, 0.3, 0.15];
+        let (kept, warning) =
+            leave_out_too_bright(file, pure.clone(), &real, &names, &yellow).unwrap();
+        assert_eq!((kept, warning), (pure.clone(), None));
+        let message = leave_out_too_bright(file, pure, &case(200, &[]).1, &names, &yellow)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.contains("200 pure pixels of 200 (100.00%) are brighter in channel B than 2x the lights' radiance there (no light emits there, at least CHANNEL_FLOOR 0.01 of their brightest channel)"),
+            "{message}"
+        );
+        assert_eq!(
+            unlit_channel_warnings(&yellow, 0.5),
+            ["no light of the scene emits in channel B: no reflectance can be measured in it, and every recovered colour keeps its start, 0.5, there (is a light's radiance declared right?)"]
+        );
+        assert!(unlit_channel_warnings(&lights, 0.5).is_empty());
         // Every light dark: no bound (a scene without light is refused elsewhere).
         let (pure, real) = case(200, &[(13, 1e17)]);
         let dark = [Vec3::ZERO];
