@@ -267,7 +267,8 @@ fn scene_duplicate_group() {
 }
 
 /// View and group names name output files and RADIANCE primitives: a path or a space in
-/// one would write outside `--out` or break materials.rad.
+/// one would write outside `--out` or break materials.rad, and a group named `void` would
+/// have no material there.
 #[test]
 fn scene_names_that_are_not_identifiers() {
     Case::new()
@@ -279,6 +280,19 @@ fn scene_names_that_are_not_identifiers() {
     Case::new()
         .scene("name = \"floor\"", "name = \"my floor\"")
         .fails(INPUT, &["scene.toml:20", "group name \"my floor\""]);
+    // A group's name is its material's modifier in materials.rad, where `void` is none.
+    Case::new()
+        .scene("name = \"floor\"", "name = \"void\"")
+        .fails(
+            INPUT,
+            &[
+                "scene.toml:20",
+                "group name \"void\" is RADIANCE's word for no material",
+            ],
+        );
+    Case::new()
+        .materials("group = \"floor\"", "group = \"void\"")
+        .fails(INPUT, &["m.toml", "group \"void\" is RADIANCE's word"]);
     // A name too long for the files it names (a recovery failed writing its map at the
     // end), and a materials file's group that no scene could have, told briefly.
     let long = "f".repeat(201);

@@ -432,7 +432,7 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
         let line = file.line_of(header.start);
         let m = m.get_ref();
         // A group's name in the scene is an identifier, so one that is not names no group.
-        let group = file.identifier(&m.group, "group")?;
+        let group = file.group_identifier(&m.group, "group")?;
         if let Some(first) = lines.get(&group) {
             return Err(file.at(
                 m.group.span(),

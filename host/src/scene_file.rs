@@ -325,7 +325,7 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
     let mut group_lines: HashMap<String, usize> = HashMap::new();
     for g in &raw.groups {
         let g = g.get_ref();
-        let name = file.identifier(&g.name, "group name")?;
+        let name = file.group_identifier(&g.name, "group name")?;
         if let Some(first) = group_lines.get(&name) {
             return Err(file.at(
                 g.name.span(),
@@ -819,6 +819,20 @@ pub mod toml_src {
                     format!(
                         "{what} {name:?} may hold only ASCII letters, digits, '_', '-' and '.', and must not start with '.' or '-': it names output files and RADIANCE primitives"
                     ),
+                ));
+            }
+            Ok(name)
+        }
+
+        /// [`TomlFile::identifier`] for a group, whose name is also its material's RADIANCE
+        /// modifier in materials.rad: `void` there means no material at all, and a group so
+        /// named rendered with none.
+        pub fn group_identifier(&self, s: &Spanned<String>, what: &str) -> Result<String, Error> {
+            let name = self.identifier(s, what)?;
+            if name == "void" {
+                return Err(self.at(
+                    s.span(),
+                    format!("{what} \"void\" is RADIANCE's word for no material: the group's material in materials.rad would be none"),
                 ));
             }
             Ok(name)
