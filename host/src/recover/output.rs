@@ -203,8 +203,9 @@ pub(super) fn write_all(
             }
         }
     }
-    // An earlier recovery's map of a group this one did not map is no output of this run.
-    for path in stale_maps(&set, out, names) {
+    // An earlier recovery's map of a group this one did not map, and its renders of views
+    // this scene lacks (an earlier run of another scene), are no outputs of this run.
+    for path in stale_outputs(&set, out) {
         set.remove_on_commit(&path)?;
     }
     let materials_path = out.join(MATERIALS_TOML);
@@ -275,15 +276,36 @@ fn add_unseen_stand_ins(
     set.add(path, text.as_bytes())
 }
 
-/// The files of `out/textures` named for one of the scene's groups (`<group>.exr`,
-/// `.hdr`, `.cal`) that `set` does not write: an earlier recovery's maps, which the
-/// materials of this one do not name. Files of other names are left alone.
-fn stale_maps(set: &OutputSet, out: &Path, group_names: &[String]) -> Vec<PathBuf> {
-    group_names
-        .iter()
-        .flat_map(|name| map_files(out, name))
-        .filter(|path| !set.stages(path) && path.is_file())
-        .collect()
+/// The files of `out/views`, `out/errors` (`.exr`, `.png`) and `out/textures` (`.exr`,
+/// `.hdr`, `.cal`) that `set` does not write: an earlier recovery's renders of views this
+/// scene lacks and maps this recovery did not make, which its materials do not name.
+/// Files of other kinds, and the run's inputs, are left alone.
+fn stale_outputs(set: &OutputSet, out: &Path) -> Vec<PathBuf> {
+    let written = [
+        (VIEWS_DIR, &["exr", "png"][..]),
+        (ERRORS_DIR, &["exr", "png"]),
+        (TEXTURES_DIR, &["exr", "hdr", "cal"]),
+    ];
+    let mut stale = Vec::new();
+    for (dir, extensions) in written {
+        let Ok(entries) = std::fs::read_dir(out.join(dir)) else {
+            continue;
+        };
+        let mut found: Vec<PathBuf> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| {
+                p.extension()
+                    .and_then(|e| e.to_str())
+                    .is_some_and(|e| extensions.contains(&e))
+            })
+            // An input of this run (a panorama kept there under other names) stays.
+            .filter(|p| p.is_file() && !set.stages(p) && set.check_target(p).is_ok())
+            .collect();
+        found.sort();
+        stale.extend(found);
+    }
+    stale
 }
 
 /// The files a recovery into `out` writes for a mapped group `name`: its map, and its
@@ -344,31 +366,53 @@ fn add_radiance_picture(
 mod tests {
     use super::*;
 
-    /// Of an earlier run's maps, those this run does not write again are stale; a file of
-    /// another name in the folder is not the recovery's to remove.
+    /// Of an earlier run's outputs, those this run does not write again are stale: maps
+    /// of groups it did not map, of this scene or another's, and the renders and error
+    /// images of views it lacks (a recovery of another scene into the same folder left
+    /// them beside this one's). A file of another kind in those folders, and an input of
+    /// the run, are not the recovery's to remove.
     #[test]
-    fn an_earlier_runs_maps_that_this_run_does_not_write_are_stale() {
+    fn an_earlier_runs_outputs_that_this_run_does_not_write_are_stale() {
         let dir = tempfile::tempdir().unwrap();
-        let textures = dir.path().join(TEXTURES_DIR);
-        std::fs::create_dir(&textures).unwrap();
-        for file in [
-            "picture.exr",
-            "picture.hdr",
-            "picture.cal",
-            "wall.exr",
-            "notes.txt",
-        ] {
-            std::fs::write(textures.join(file), b"earlier run").unwrap();
+        let files = [
+            "textures/picture.exr",
+            "textures/picture.hdr",
+            "textures/picture.cal",
+            "textures/statue.exr",
+            "textures/wall.exr",
+            "textures/notes.txt",
+            "views/px.exr",
+            "views/px.png",
+            "views/lamp.exr",
+            "views/lamp.png",
+            "views/pano_nz.exr",
+            "errors/lamp.exr",
+            "errors/lamp.png",
+        ];
+        for file in files {
+            let path = dir.path().join(file);
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            std::fs::write(path, b"earlier run").unwrap();
         }
-        let mut set = OutputSet::default();
-        set.add(&textures.join("wall.exr"), b"this run").unwrap();
-        let names = ["wall", "picture", "floor"].map(String::from);
-        let mut stale = stale_maps(&set, dir.path(), &names);
-        stale.sort();
-        let expected: Vec<PathBuf> = ["picture.cal", "picture.exr", "picture.hdr"]
-            .iter()
-            .map(|f| textures.join(f))
-            .collect();
+        let panorama = dir.path().join("views/pano_nz.exr");
+        let mut set = OutputSet::keeping(vec![(panorama, "the panorama".into())]);
+        for file in ["textures/wall.exr", "views/px.exr", "views/px.png"] {
+            set.add(&dir.path().join(file), b"this run").unwrap();
+        }
+        let stale = stale_outputs(&set, dir.path());
+        let expected: Vec<PathBuf> = [
+            "views/lamp.exr",
+            "views/lamp.png",
+            "errors/lamp.exr",
+            "errors/lamp.png",
+            "textures/picture.cal",
+            "textures/picture.exr",
+            "textures/picture.hdr",
+            "textures/statue.exr",
+        ]
+        .iter()
+        .map(|f| dir.path().join(f))
+        .collect();
         assert_eq!(stale, expected);
     }
 }
