@@ -3,7 +3,7 @@
 //! file given twice, a diffuse map that is a folder, `hide` naming a group, an object
 //! defined again in an extra OBJ, `--view` naming no view, a name TOML must escape in a
 //! downsampled scene, an edit's own materials file given as `--truth`, and a lobe's kind
-//! missing where scene.toml says "auto" or against what it says. Each is refused
+//! missing where scene.toml says "auto" or against what it says, a lamp hidden. Each is refused
 //! with its exit code and a message that names the file (and line) and what is wrong,
 //! never a panic, and leaves no output; the downsampled scene is one that can be read back.
 
@@ -348,6 +348,38 @@ fn a_downsample_of_a_scene_whose_obj_is_bad_is_refused() {
         &["geometry.obj:", "vertex index 99999 is out of range"],
     );
     assert!(!case.path("half").exists());
+}
+
+/// A lamp hidden (`hide` removes any object) is a light of no surface: it emits nothing,
+/// and a scene lit by it alone is refused as unlit, naming a hidden light among the
+/// causes. It was refused as a scene too large for a light "0 across", which sent the
+/// user to crop the geometry.
+#[test]
+fn a_hidden_light_is_a_light_switched_off() {
+    let case = Case::new();
+    case.edit("scene.toml", "hide = []", "hide = [\"light\"]");
+    let stderr = case.fails(
+        &["check", "scene.toml"],
+        INPUT,
+        &[
+            "scene.toml: no light of the scene reaches what its views see",
+            "a light hidden",
+        ],
+    );
+    assert!(!stderr.contains("across"), "{stderr}");
+    let run = case.run(&[
+        "render",
+        "scene.toml",
+        "--materials",
+        "materials.toml",
+        "--out",
+        "r",
+        "--spp",
+        "1",
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(stderr.contains("every pixel is black"), "{stderr}");
 }
 
 /// `--view` naming no view of the scene says which views it has.

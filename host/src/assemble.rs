@@ -113,7 +113,12 @@ fn refuse_offsets_larger_than_a_light(
         }
     }
     for (name, (lo, hi)) in light_names.iter().zip(light_bounds) {
-        // As `longest_side` measures it: 0 for a light of no triangles.
+        // A light of no triangles (all hidden: `hide` removes a lamp as it removes any
+        // object) emits nothing, and no offset can miss it; measured as 0 across, it was
+        // refused as a scene too large for it.
+        if !(lo.x <= hi.x) {
+            continue;
+        }
         let extent = (hi - lo).max_element().max(0.0);
         if offset <= MAX_OFFSET_PER_LIGHT_SIZE * extent {
             continue;
