@@ -116,7 +116,7 @@ fn refuse_offsets_larger_than_a_light(
         // A light of no triangles (all hidden: `hide` removes a lamp as it removes any
         // object) emits nothing, and no offset can miss it; measured as 0 across, it was
         // refused as a scene too large for it.
-        if !(lo.x <= hi.x) {
+        if lo.x > hi.x {
             continue;
         }
         let extent = (hi - lo).max_element().max(0.0);
