@@ -55,7 +55,7 @@ impl LightReading {
         let ratios: Vec<String> = self
             .ratio
             .iter()
-            .map(|q| q.map_or("-".into(), |q| format!("{q:.3}")))
+            .map(|q| q.map_or("-".into(), factor_text))
             .collect();
         ratios.join(" ")
     }
@@ -119,6 +119,16 @@ pub fn read_lights(
     readings
 }
 
+/// A factor to three decimals, with an exponent where that would hide it or run to dozens
+/// of digits (a light declared at 1e-30 read "23999999923894154511256926552064.000x").
+fn factor_text(f: f64) -> String {
+    if (1e-3..1e6).contains(&f.abs()) || f == 0.0 {
+        format!("{f:.3}")
+    } else {
+        format!("{f:.3e}")
+    }
+}
+
 /// A light declared dark (radiance 0) whose pixels read more than this fraction of the
 /// brightest light's radiance: far brighter than a lamp's glass or shade lit by the room
 /// (the references' groups read 0.2-1.5% of their lamp's radiance on average), so most
@@ -151,6 +161,21 @@ pub fn calibration_warnings(readings: &[LightReading], light_radiance: &[Vec3]) 
             }
             continue;
         };
+        // A channel declared dark in a light that is not: its ratio is undefined, and the
+        // reading said "-" there without a word ([30, 28, 0] over a lamp read 24 in blue).
+        for c in 0..3 {
+            if r.declared[c] == 0.0 && r.measured[c] > DARK_LIGHT_LIT * brightest {
+                warnings.push(format!(
+                    "light '{}' is declared 0 in channel {} but reads {} there in view '{}' over {} pixels wholly inside it, {:.0}% of the brightest light's radiance: is its radiance declared right?",
+                    r.light,
+                    ["R", "G", "B"][c],
+                    crate::text::significant(r.measured[c]),
+                    r.view,
+                    r.pixels,
+                    100.0 * r.measured[c] / brightest
+                ));
+            }
+        }
         if (worst - 1.0).abs() <= CALIBRATION_TOLERANCE {
             continue;
         }
@@ -161,8 +186,9 @@ pub fn calibration_warnings(readings: &[LightReading], light_radiance: &[Vec3]) 
             false => "",
         };
         warnings.push(format!(
-            "light '{}' reads {worst:.3}x its declared radiance in view '{}' (R G B {} over {} pixels wholly inside it): the view's exposure or the light's radiance is off by that factor, and every recovered reflectance with it; where calibration was off by 10%, diffuse reflectances came out 5-6% off and a class changed (docs/stability.md){clipped}",
+            "light '{}' reads {}x its declared radiance in view '{}' (R G B {} over {} pixels wholly inside it): the view's exposure or the light's radiance is off by that factor, and every recovered reflectance with it; where calibration was off by 10%, diffuse reflectances came out 5-6% off and a class changed (docs/stability.md){clipped}",
             r.light,
+            factor_text(worst),
             r.view,
             r.ratios_text(),
             r.pixels
@@ -681,5 +707,30 @@ mod tests {
         );
         // With no light declared bright there is nothing to measure against.
         assert!(calibration_warnings(&[dark(lit)], &[Vec3::ZERO]).is_empty());
+    }
+
+    /// A light declared dark in one channel that reads bright there is told (its ratio is
+    /// undefined, and the reading said "-"); one dim there, as a lamp's glass may be, is
+    /// not. A factor past what three decimals show takes an exponent.
+    #[test]
+    fn a_channel_declared_dark_that_reads_bright_is_told() {
+        let yellow = |measured: [f64; 3]| LightReading {
+            light: "light".into(),
+            view: "pz".into(),
+            pixels: 64,
+            declared: [30.0, 28.0, 0.0],
+            measured,
+            ratio: [Some(measured[0] / 30.0), Some(measured[1] / 28.0), None],
+        };
+        let lights = [Vec3::new(30.0, 28.0, 0.0)];
+        let warnings = calibration_warnings(&[yellow([30.0, 28.0, 24.0])], &lights);
+        assert_eq!(
+            warnings,
+            ["light 'light' is declared 0 in channel B but reads 24 there in view 'pz' over 64 pixels wholly inside it, 80% of the brightest light's radiance: is its radiance declared right?"]
+        );
+        assert!(calibration_warnings(&[yellow([30.0, 28.0, 0.5])], &lights).is_empty());
+        assert_eq!(factor_text(0.978), "0.978");
+        assert_eq!(factor_text(2.4e31), "2.400e31");
+        assert_eq!(factor_text(1e-7), "1.000e-7");
     }
 }
