@@ -1833,6 +1833,52 @@ fn check_tells_a_view_whose_exposure_is_off_by_orders_of_magnitude() {
     );
 }
 
+/// A PNG view's pixels at its largest code are clipped: their radiance is at least that.
+/// Cornell's floor face written as an 8-bit PNG at a gain that clips its brightest pixels
+/// is told, with their count; at a gain that clips none, nothing is said.
+#[test]
+fn a_png_views_clipped_pixels_are_told() {
+    let cornell = common::workspace().join("scenes/cornell");
+    let text = cornell_scene_text();
+    let floor = image::open(cornell.join("views/nz.exr"))
+        .unwrap()
+        .into_rgb32f();
+    let dir = tempfile::tempdir().unwrap();
+    let as_png = |gain: f32| {
+        let png = dir.path().join(format!("nz-{gain}.png"));
+        let encoded = image::RgbImage::from_fn(floor.width(), floor.height(), |x, y| {
+            let p = floor.get_pixel(x, y).0;
+            let code = |v: f32| {
+                (relume::images::linear_to_srgb((v * gain).min(1.0)) * 255.0).round() as u8
+            };
+            image::Rgb(p.map(code))
+        });
+        encoded.save(&png).unwrap();
+        // The exposure that takes the codes back to radiance.
+        let scene = with_image(&text, "nz.exr", &png);
+        let at = scene.find(path_str(&png)).unwrap();
+        let exposure = at + scene[at..].find("exposure = 1.0").unwrap();
+        format!(
+            "{}exposure = {}{}",
+            &scene[..exposure],
+            1.0 / gain,
+            &scene[exposure + "exposure = 1.0".len()..]
+        )
+    };
+    let brightest = floor.pixels().flat_map(|p| p.0).fold(0.0f32, f32::max);
+    let (code, stderr, _) = check_scene(&as_png(0.5 / brightest));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("clipped"), "{stderr}");
+    let (code, stderr, _) = check_scene(&as_png(4.0 / brightest));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("view 'nz': ")
+            && stderr
+                .contains("pure pixels are at its PNG's largest value in some channel (clipped)"),
+        "{stderr}"
+    );
+}
+
 /// No surface is brighter in a channel than the lights are there (it reflects at most
 /// what reaches it): a hot pixel in cornell's floor view is left out of the fit and named,
 /// where before it put the floor at its bound; a light declared 100x too dim, which makes

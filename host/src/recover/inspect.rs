@@ -35,6 +35,9 @@ pub(super) struct Input {
     /// What each view's image header divided its stored values by (see
     /// [`calibration::ImageHeaders`]).
     pub header_divisors: Vec<Option<[f64; 3]>>,
+    /// The value a PNG view's pixels are clipped at (its largest code times the view's
+    /// exposure); `None` for a high-dynamic-range image.
+    pub clipped_at: Vec<Option<f32>>,
     pub kinds: Vec<GroupKind>,
     /// Whether every object of a group has texture coordinates, as a diffuse map needs.
     pub mapped: Vec<bool>,
@@ -45,11 +48,18 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
     let (desc, objects) = assemble::load_scene(scene)?;
     let mut real = Vec::with_capacity(desc.views.len());
     let mut header_divisors = Vec::with_capacity(desc.views.len());
+    let mut clipped_at = Vec::with_capacity(desc.views.len());
     for (vi, v) in desc.views.iter().enumerate() {
         let path = desc.view_image(vi, "recover needs the panorama")?;
         let (image, divisor) = images::read_view_image_and_header(path, v.exposure, v.size)?;
         real.push(image);
         header_divisors.push(divisor);
+        // A PNG's largest code reads as 1 before the exposure, exactly (the sRGB curve's
+        // end), and holds every radiance from there up.
+        let png = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+        clipped_at.push(png.then_some(v.exposure));
     }
     let inputs = desc.input_files();
     let view_names: Vec<String> = desc.views.iter().map(|v| v.name.clone()).collect();
@@ -66,9 +76,47 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         inputs,
         view_names,
         header_divisors,
+        clipped_at,
         kinds,
         mapped,
     })
+}
+
+/// A PNG view's pure pixels clipped at its largest code are at least that bright, not
+/// that: counted per view, and told where there are any. (A capture's 6 pixels at 65535
+/// were taken as radiance without a word.)
+fn clipped_warnings(
+    pure: &[PurePixel],
+    real: &[Image],
+    clipped_at: &[Option<f32>],
+    view_names: &[String],
+) -> Vec<String> {
+    let mut clipped = vec![0u32; real.len()];
+    let mut seen = vec![0u32; real.len()];
+    for p in pure {
+        let v = p.view as usize;
+        seen[v] += 1;
+        if let Some(level) = clipped_at[v] {
+            let image = &real[v];
+            if image.pixels[(p.y * image.width + p.x) as usize]
+                .iter()
+                .any(|&c| c >= level)
+            {
+                clipped[v] += 1;
+            }
+        }
+    }
+    (0..real.len())
+        .filter(|&v| clipped[v] > 0)
+        .map(|v| {
+            format!(
+                "view '{}': {} of {} pure pixels are at its PNG's largest value in some channel (clipped): their radiance is at least that, and the colours fitted to them come out dark; a high-dynamic-range capture (.exr, .hdr) or a shorter exposure keeps them",
+                view_names[v],
+                clipped[v],
+                seen[v]
+            )
+        })
+        .collect()
 }
 
 /// What the input shows before any render.
@@ -133,6 +181,12 @@ pub(super) fn inspect(
         super::START_COLOR,
     ));
     warnings.extend(too_bright);
+    warnings.extend(clipped_warnings(
+        &pure,
+        &input.real,
+        &input.clipped_at,
+        &input.view_names,
+    ));
     let orientation_readings =
         orientation::read_orientations(&pure, &input.real, &input.view_names);
     warnings.extend(orientation::orientation_warnings(&orientation_readings));
