@@ -332,6 +332,27 @@ mod tests {
         assert_eq!(cw.source(3, 0, 4, 4), (0, 0));
     }
 
+    /// A `w` x `h` grey image of `albedo_at` each pixel under a gentle shading down the
+    /// rows, with a little noise of its own (2%, the same draws for every image).
+    fn shaded(w: u32, h: u32, albedo_at: impl Fn(u32, u32) -> f32) -> Image {
+        let mut noise = 0x2545_f491_4f6c_dd1d_u64;
+        let pixels = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                noise ^= noise << 13;
+                noise ^= noise >> 7;
+                noise ^= noise << 17;
+                let jitter = 1.0 + 0.02 * ((noise % 1000) as f32 / 1000.0 - 0.5);
+                [albedo_at(x, y) * (1.0 + 0.01 * y as f32) * jitter; 3]
+            })
+            .collect();
+        Image {
+            width: w,
+            height: h,
+            pixels,
+        }
+    }
+
     /// A 64x64 view whose top-left 24x40 block is one group (dark) and the rest another
     /// (bright), each with a gentle shading and a little noise of its own: the image as it
     /// is shows the boundary; written mirrored left to right, it is told so.
@@ -350,24 +371,7 @@ mod tests {
                 group: group_at(x, y),
             })
             .collect();
-        let mut noise = 0x2545_f491_4f6c_dd1d_u64;
-        let pixels: Vec<[f32; 3]> = (0..h)
-            .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| {
-                noise ^= noise << 13;
-                noise ^= noise >> 7;
-                noise ^= noise << 17;
-                let jitter = 1.0 + 0.02 * ((noise % 1000) as f32 / 1000.0 - 0.5);
-                let albedo = if group_at(x, y) == 0 { 0.1 } else { 0.6 };
-                let v = albedo * (1.0 + 0.01 * y as f32) * jitter;
-                [v, v, v]
-            })
-            .collect();
-        let image = Image {
-            width: w,
-            height: h,
-            pixels,
-        };
+        let image = shaded(w, h, |x, y| if group_at(x, y) == 0 { 0.1 } else { 0.6 });
         let names = ["px".to_string()];
         let right = read_orientations(&pure, std::slice::from_ref(&image), &names);
         assert_eq!(right.len(), 1);
@@ -413,27 +417,11 @@ mod tests {
             })
             .collect();
         let image = |squares: bool| {
-            let mut noise = 0x2545_f491_4f6c_dd1d_u64;
-            let pixels = (0..h)
-                .flat_map(|y| (0..w).map(move |x| (x, y)))
-                .map(|(x, y)| {
-                    noise ^= noise << 13;
-                    noise ^= noise >> 7;
-                    noise ^= noise << 17;
-                    let jitter = 1.0 + 0.02 * ((noise % 1000) as f32 / 1000.0 - 0.5);
-                    let albedo = match (squares, group_at(x, y)) {
-                        (true, 0) => 0.1,
-                        (true, _) => 0.6,
-                        (false, _) => 0.3,
-                    };
-                    [albedo * (1.0 + 0.01 * y as f32) * jitter; 3]
-                })
-                .collect();
-            Image {
-                width: w,
-                height: h,
-                pixels,
-            }
+            shaded(w, h, |x, y| match (squares, group_at(x, y)) {
+                (true, 0) => 0.1,
+                (true, _) => 0.6,
+                (false, _) => 0.3,
+            })
         };
         let names = ["py".to_string()];
         let right = read_orientations(&pure, &[image(true)], &names);
