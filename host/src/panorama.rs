@@ -70,6 +70,18 @@ pub struct Frame {
     pub up: Vec3,
 }
 
+/// `v` (finite, non-zero) scaled by a power of two so that its largest component lies in
+/// [0.5, 4): exactly, so a vector already there keeps its bits and its normalised value.
+/// A tiny one (`1e-30,0,1e-30`) has a squared length below f32's range, and was called
+/// zero or parallel.
+fn to_unit_range(v: Vec3) -> Vec3 {
+    let largest = f64::from(v.abs().max_element());
+    let exponent = largest.log2().floor() as i32;
+    let scale = 2f64.powi(-exponent);
+    let exact = |c: f32| (f64::from(c) * scale) as f32;
+    Vec3::new(exact(v.x), exact(v.y), exact(v.z))
+}
+
 impl Frame {
     /// `up` as given (normalised) and `forward` made perpendicular to it; a zero, non-finite
     /// or parallel pair is a usage error.
@@ -80,11 +92,17 @@ impl Frame {
                 "--forward and --up must be finite vectors".into(),
             ));
         }
-        let u = u.normalize_or_zero();
+        for (v, name, given) in [(f, "--forward", forward), (u, "--up", up)] {
+            if v == Vec3::ZERO {
+                return Err(Error::Usage(format!("{name} {given:?} must not be zero")));
+            }
+        }
+        let u = to_unit_range(u).normalize_or_zero();
+        let f = to_unit_range(f);
         let f = (f - u * f.dot(u)).normalize_or_zero();
         if u == Vec3::ZERO || f == Vec3::ZERO {
             return Err(Error::Usage(format!(
-                "--forward {forward:?} and --up {up:?} must be non-zero and not parallel"
+                "--forward {forward:?} and --up {up:?} must not be parallel"
             )));
         }
         Ok(Frame {
@@ -581,6 +599,24 @@ mod tests {
         ] {
             assert!(matches!(Frame::new(forward, up), Err(Error::Usage(_))));
         }
+        // Tiny and huge vectors are directions like any other: their squared lengths
+        // leave f32's range, which made a valid pair read "parallel or zero".
+        for (forward, up) in [
+            ([1e-30, 0.0, 1e-30], [1e-30, 1e-30, 1e-30]),
+            ([1e30, 0.0, 0.0], [0.0, 0.0, 3e38]),
+            ([f32::from_bits(1), 0.0, 0.0], [0.0, 0.0, 1.0]),
+        ] {
+            let f = Frame::new(forward, up).unwrap();
+            assert!((f.up.length() - 1.0).abs() < 1e-6 && f.forward.dot(f.up).abs() < 1e-6);
+        }
+        let f = Frame::new([1e-30, 0.0, 0.0], [0.0, 0.0, 1e-30]).unwrap();
+        assert_eq!((f.forward, f.up), (Vec3::X, Vec3::Z));
+        // The scaling is exact: a pair already of unit size keeps its bits.
+        let (forward, up) = ([0.3f32, -0.7, 0.2], [0.1f32, 0.2, 0.9]);
+        let (plain_u, f) = (Vec3::from(up).normalize_or_zero(), Vec3::from(forward));
+        let plain_f = (f - plain_u * f.dot(plain_u)).normalize_or_zero();
+        let frame = Frame::new(forward, up).unwrap();
+        assert_eq!((frame.forward, frame.up), (plain_f, plain_u));
     }
 
     /// A panorama whose radiance is linear in the direction is split into faces whose
