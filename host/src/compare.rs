@@ -346,6 +346,13 @@ pub fn compare_views(
     json: Option<&Path>,
     threads: Option<usize>,
 ) -> Result<(), Error> {
+    // A render compared with itself reads 0 on every row, which looks like a perfect fit.
+    if fsutil::same_file(dir_a, dir_b) {
+        return Err(Error::Usage(format!(
+            "A and B are the same folder ({}): the comparison would read 0 everywhere; give the reference images as A and the render to judge as B",
+            dir_b.display()
+        )));
+    }
     // B's own render as its independent one would give its whole RMS as the misfit, and
     // A's a misfit of exactly 0 on every row.
     for (other, whose) in [(dir_b, "B's"), (dir_a, "A's, the reference")] {
@@ -792,6 +799,12 @@ pub fn compare_materials(
     scene: Option<&Path>,
     json: Option<&Path>,
 ) -> Result<(), Error> {
+    if fsutil::same_file(truth, materials) {
+        return Err(Error::Usage(format!(
+            "the truth and the materials compared are the same file ({}): every error would read 0",
+            materials.display()
+        )));
+    }
     let t = materials_file::load_materials(truth)?;
     let m = materials_file::load_materials(materials)?;
     let scene = scene.map(scene_file::load_scene).transpose()?;
