@@ -303,8 +303,8 @@ fn a_bench_given_the_truth_of_another_scene_refuses_it_before_any_work() {
 
 /// `compare materials` dropped the groups only the compared file has, and gave "2 of 11"
 /// with exit 0 for a file of another scene. Such a file is refused naming the groups on
-/// each side; a recovery that left a group out (none is written for an unseen group) is
-/// still judged, that group `(missing)`.
+/// each side, and so is the truth given as the file compared; a recovery that left a group
+/// out (none is written for an unseen group) is still judged, that group `(missing)`.
 #[test]
 fn compare_materials_refuses_a_file_of_another_scene_and_judges_a_partial_one() {
     let case = Case::new();
@@ -321,6 +321,19 @@ fn compare_materials_refuses_a_file_of_another_scene_and_judges_a_partial_one() 
         run.stdout.is_empty(),
         "no table for a file of another scene"
     );
+    // The truth compared with itself read 0% on every row.
+    let run = case.run(&[
+        "compare",
+        "materials",
+        "c/materials.toml",
+        "./c/../c/materials.toml",
+    ]);
+    fails(
+        &run,
+        USAGE,
+        &["are the same file (./c/../c/materials.toml)"],
+    );
+    assert!(run.stdout.is_empty());
     let truth = std::fs::read_to_string(case.path("c/materials.toml")).unwrap();
     let at = truth.find("[[material]]\ngroup = \"mirror\"").unwrap();
     std::fs::write(case.path("partial.toml"), &truth[..at]).unwrap();
@@ -362,7 +375,9 @@ fn compare_materials_judges_kinds_against_the_truths_scene() {
         );
         out
     };
-    let out = stdout("c/materials.toml", "c/scene.toml");
+    // A copy: the truth given as its own compared file is refused.
+    std::fs::copy(case.path("c/materials.toml"), case.path("c/same.toml")).unwrap();
+    let out = stdout("c/same.toml", "c/scene.toml");
     assert!(
         out.contains("kinds right: 3 of 3 (groups with a lobe in both)"),
         "{out}"
@@ -405,7 +420,7 @@ fn compare_materials_judges_kinds_against_the_truths_scene() {
         let text = std::fs::read_to_string(case.path(&scene)).unwrap();
         assert!(text.contains(from));
         std::fs::write(case.path(&scene), text.replace(from, to)).unwrap();
-        let a = args("c/materials.toml", &scene);
+        let a = args("c/same.toml", &scene);
         let run = case.run(&a.iter().map(String::as_str).collect::<Vec<_>>());
         fails(&run, INPUT, &[&[scene.as_str()][..], what].concat());
     };
@@ -477,7 +492,8 @@ fn a_file_where_a_folder_of_views_goes_is_named() {
 }
 
 /// A `--json` that names a folder is refused before the work, as a file over an input is:
-/// the whole table was printed, and the run failed only when the JSON was written.
+/// the whole table was printed, and the run failed only when the JSON was written. One
+/// into a folder not made yet makes it.
 #[test]
 fn a_json_that_names_a_folder_is_refused_before_the_work() {
     let case = Case::new();
@@ -523,6 +539,35 @@ fn a_json_that_names_a_folder_is_refused_before_the_work() {
         fails(&run, 4, &["D: a folder is in the way of this output file"]);
         assert!(run.stdout.is_empty(), "{args:?}");
     }
+    // A folder not made yet is made, as `--out`'s is: the JSON failed "No such file or
+    // directory" after the whole table was printed.
+    let run = case.run(&[
+        "compare",
+        "views",
+        "c/scene.toml",
+        "c/views",
+        "B",
+        "--json",
+        "new/sub/views.json",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let json = std::fs::read_to_string(case.path("new/sub/views.json")).unwrap();
+    assert!(json.contains("\"views\""), "{json}");
+    // A run that fails leaves no folder behind.
+    let run = case.run(&[
+        "compare",
+        "materials",
+        "c/materials.toml",
+        "other.toml",
+        "--json",
+        "gone/m.json",
+    ]);
+    fails(&run, INPUT, &["other.toml"]);
+    assert!(!case.path("gone").exists());
 }
 
 /// A report that gives a group's parameters in part was judged on those left (a colour
@@ -745,8 +790,8 @@ fn compare_views_says_where_the_reference_is_zero_instead_of_printing_nan() {
 /// taken out: flat renders 10% bright read +10% (their errors agree), a B2 10% dark against
 /// them -10% (under the noise); a group whose reference is 0 has none, as it has no RMS;
 /// the JSON has it beside the RMS, and leaves it out without B2. B's own folder given as
-/// B2 (which would read the RMS as the misfit), A's (a misfit of 0) and a B2 missing a
-/// view's image are refused, naming them.
+/// B2 (which would read the RMS as the misfit), A's (a misfit of 0), A's folder as B, and
+/// a B2 missing a view's image are refused, naming them.
 #[test]
 fn compare_views_with_an_independent_render_gives_the_misfit() {
     let dir = tempfile::tempdir().unwrap();
@@ -829,6 +874,11 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
         USAGE,
         &["--independent A is A's, the reference folder"],
     );
+
+    // A folder compared with itself read 0 on every row, as a perfect fit would.
+    let run = relume(dir.path(), &["compare", "views", "scene.toml", "A", "./A/"]);
+    fails(&run, USAGE, &["A and B are the same folder (./A/)"]);
+    assert!(run.stdout.is_empty());
 
     std::fs::remove_file(dir.path().join("dark/b.exr")).unwrap();
     // A file that cannot be read is an I/O error (4), as for A's and B's images.

@@ -191,6 +191,11 @@ impl OutputSet {
     ) -> Result<(), Error> {
         let dir = folder_of(path);
         self.check_target(path)?;
+        // A `--json` into a folder not made yet: made as `--out`'s is (and removed again
+        // if the run fails), where the write failed after the whole comparison or bench.
+        if std::fs::symlink_metadata(dir).is_err() {
+            self.create_dir(dir)?;
+        }
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
         let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
         // Registered and created under the lock; written outside it, so that an interrupt
@@ -486,7 +491,7 @@ mod tests {
         // An error while adding: the set is dropped, its temp files go with it.
         let mut set = OutputSet::default();
         set.add(&a, b"new a").unwrap();
-        assert!(set.add(&dir.path().join("no/such/c.txt"), b"c").is_err());
+        assert!(set.add(&a.join("c.txt"), b"c").is_err());
         drop(set);
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
@@ -736,11 +741,24 @@ mod tests {
     }
 
     #[test]
-    fn missing_folder_is_an_error_naming_the_file() {
+    fn a_file_into_a_folder_not_made_yet_makes_it_unless_the_set_fails() {
+        // A `--json no/such/a.json` failed with "No such file or directory" only when it
+        // was written, after the work.
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("no/such/a.txt");
-        let e = write_atomic(&p, b"x").unwrap_err();
-        assert!(e.to_string().contains("a.txt"), "{e}");
+        write_atomic(&p, b"x").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"x");
+        // A set that fails takes the folders it made with it.
+        let q = dir.path().join("not/yet/b.txt");
+        let mut set = OutputSet::default();
+        set.add(&q, b"y").unwrap();
+        assert!(dir.path().join("not/yet").is_dir());
+        drop(set);
+        assert!(!dir.path().join("not").exists());
+        // A file in the way of the folder is still named as such.
+        std::fs::write(dir.path().join("file"), "f").unwrap();
+        let e = write_atomic(&dir.path().join("file/c.txt"), b"z").unwrap_err();
+        assert!(e.to_string().contains("file"), "{e}");
     }
 
     #[test]
