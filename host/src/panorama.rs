@@ -71,13 +71,15 @@ pub struct Frame {
 }
 
 /// `v` (finite, non-zero) scaled by a power of two so that its largest component lies in
-/// [0.5, 4): exactly, so a vector already there keeps its bits and its normalised value.
+/// [1, 2): exactly, so a vector already there keeps its bits and its normalised value.
 /// A tiny one (`1e-30,0,1e-30`) has a squared length below f32's range, and was called
 /// zero or parallel.
 fn to_unit_range(v: Vec3) -> Vec3 {
+    // In f64 every f32 is normal: its exponent field is floor(log2), and 2^-exponent is
+    // built from its bits.
     let largest = f64::from(v.abs().max_element());
-    let exponent = largest.log2().floor() as i32;
-    let scale = 2f64.powi(-exponent);
+    let exponent = ((largest.to_bits() >> 52) & 0x7ff) as i64 - 1023;
+    let scale = f64::from_bits(((1023 - exponent) as u64) << 52);
     let exact = |c: f32| (f64::from(c) * scale) as f32;
     Vec3::new(exact(v.x), exact(v.y), exact(v.z))
 }
