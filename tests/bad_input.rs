@@ -2025,3 +2025,47 @@ fn check_warns_of_small_views_and_refuses_a_panorama_that_sees_no_group() {
         "scene.toml: no light of the scene reaches what its views see",
     );
 }
+
+/// A light whose triangles face away from the room (an OBJ of the other winding order)
+/// lit the room only by way of the ceiling above it, and `check` said only that every
+/// group read too bright for the lights, blaming their radiance or the exposure. The view
+/// that sees the light's back, which reads its radiance where a back is black, now names
+/// the light and the cause; the bundled scene, its light turned right, gets no such word.
+#[test]
+fn a_light_facing_away_is_named_by_the_view_that_sees_its_back_shine() {
+    let cornell = common::workspace().join("scenes/cornell");
+    let obj = std::fs::read_to_string(cornell.join("geometry.obj")).unwrap();
+    let mut in_light = false;
+    let flipped: Vec<String> = obj
+        .lines()
+        .map(|line| {
+            if line.starts_with("o ") {
+                in_light = line == "o light";
+            }
+            match line.strip_prefix("f ") {
+                Some(face) if in_light => {
+                    let mut corners: Vec<&str> = face.split_whitespace().collect();
+                    corners.reverse();
+                    format!("f {}", corners.join(" "))
+                }
+                _ => line.to_string(),
+            }
+        })
+        .collect();
+    assert_ne!(flipped.join("\n"), obj.trim_end());
+    let dir = tempfile::tempdir().unwrap();
+    let geometry = dir.path().join("flipped.obj");
+    std::fs::write(&geometry, flipped.join("\n")).unwrap();
+    let text =
+        cornell_scene_text().replace(path_str(&cornell.join("geometry.obj")), path_str(&geometry));
+    let (code, stderr, _) = check_scene(&text);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("light 'light' is seen from behind in view 'pz' (64 pixels wholly on its back), yet reads 1.000x its declared radiance")
+            && stderr.contains("its triangles likely face away from where it shines"),
+        "{stderr}"
+    );
+    let (code, stderr, _) = check_scene(&cornell_scene_text());
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("seen from behind"), "{stderr}");
+}

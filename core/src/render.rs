@@ -545,6 +545,30 @@ const MIRROR_HIT_SLACK: f32 = 1e-3;
 /// a ray escapes and where a ray sees a light's back, which is black: such a pixel does
 /// not show the light's radiance.
 pub fn pixel_surface(scene: &Scene, view: &View, x: u32, y: u32, n_sub: u32) -> Option<Surface> {
+    footprint_sees(scene, view, x, y, n_sub, false)
+}
+
+/// The light whose back (non-emitting) side the whole footprint of pixel `(x, y)` sees,
+/// tested as [`pixel_surface`] tests a front: such a pixel is black in a panorama of the
+/// scene as declared, and one that reads bright tells of a light whose triangles face away
+/// from where it shines.
+pub fn pixel_light_back(scene: &Scene, view: &View, x: u32, y: u32, n_sub: u32) -> Option<u16> {
+    match footprint_sees(scene, view, x, y, n_sub, true)? {
+        Surface::Light(light) => Some(light),
+        Surface::Group(_) => None,
+    }
+}
+
+/// The one surface every ray of the footprint grid hits: light fronts and groups
+/// (`backs` false), or light backs only (`backs` true).
+fn footprint_sees(
+    scene: &Scene,
+    view: &View,
+    x: u32,
+    y: u32,
+    n_sub: u32,
+    backs: bool,
+) -> Option<Surface> {
     let n = n_sub.max(2);
     let mut seen: Option<Surface> = None;
     for j in 0..n {
@@ -555,8 +579,9 @@ pub fn pixel_surface(scene: &Scene, view: &View, x: u32, y: u32, n_sub: u32) -> 
             let hit = scene.intersect(&ray, f32::INFINITY)?;
             let tri = scene.triangles.get(hit.triangle as usize)?;
             let surface = tri.surface;
-            if matches!(surface, Surface::Light(_)) && tri.normal_area2().dot(ray.direction) >= 0.0
-            {
+            let light_back = matches!(surface, Surface::Light(_))
+                && tri.normal_area2().dot(ray.direction) >= 0.0;
+            if light_back != backs {
                 return None;
             }
             match seen {
@@ -842,6 +867,10 @@ pub(crate) mod tests {
             pixel_surface(&scene, &floor, 1, 1, 4),
             Some(Surface::Group(0))
         );
+        // The light's back is what `pixel_light_back` finds, and only there.
+        assert_eq!(pixel_light_back(&scene, &from_outside, 1, 1, 4), Some(0));
+        assert_eq!(pixel_light_back(&scene, &from_inside, 1, 1, 4), None);
+        assert_eq!(pixel_light_back(&scene, &floor, 1, 1, 4), None);
     }
 
     /// A quad `a b c d` (counter-clockwise seen from its front) as two triangles.

@@ -197,6 +197,31 @@ pub fn calibration_warnings(readings: &[LightReading], light_radiance: &[Vec3]) 
     warnings
 }
 
+/// A warning for each light whose back (`back_readings`: [`read_lights`] over the pixels
+/// interior to a light's non-emitting side) reads more than [`DARK_LIGHT_LIT`] of its own
+/// declared radiance: a light's back is black, and one that shines is most likely a light
+/// whose triangles face the other way, which left the room lit from a light turned to
+/// the wall it sits on and was told only as groups "too bright" for the lights.
+pub fn facing_away_warnings(back_readings: &[LightReading]) -> Vec<String> {
+    back_readings
+        .iter()
+        .filter_map(|r| {
+            let declared = r.declared.iter().copied().fold(0.0, f64::max);
+            let reads = r.measured.iter().copied().fold(0.0, f64::max);
+            (declared > 0.0 && reads > DARK_LIGHT_LIT * declared).then(|| {
+                format!(
+                    "light '{}' is seen from behind in view '{}' ({} wholly on its back), yet reads {}x its declared radiance there (R G B {}) where its back is black: its triangles likely face away from where it shines; a light emits from its front only, where its vertices turn counter-clockwise (scene-format.md): reverse their order in the OBJ",
+                    r.light,
+                    r.view,
+                    counted(r.pixels, "pixel"),
+                    factor_text(reads / declared),
+                    r.ratios_text(),
+                )
+            })
+        })
+        .collect()
+}
+
 /// How far one view's mean residual may lie from the median of the other views' before
 /// recovery warns that its exposure may be off. On the references the views agree to
 /// within 0.8% of that median (64 and 256 px, effort fast); one view 5% too bright lay
@@ -707,6 +732,34 @@ mod tests {
         );
         // With no light declared bright there is nothing to measure against.
         assert!(calibration_warnings(&[dark(lit)], &[Vec3::ZERO]).is_empty());
+    }
+
+    /// A light's back that reads a tenth of its radiance or more shines, and is warned
+    /// of; below that it may be a lamp's housing lit by the room, and a light declared
+    /// dark has no radiance to compare with.
+    #[test]
+    fn a_lights_back_is_warned_of_only_when_it_reads_near_its_radiance() {
+        let back = |declared: [f64; 3], measured: [f64; 3]| LightReading {
+            light: "lamp".into(),
+            view: "up".into(),
+            pixels: 9,
+            declared,
+            measured,
+            ratio: std::array::from_fn(|c| (declared[c] > 0.0).then(|| measured[c] / declared[c])),
+        };
+        let declared = [20.0, 10.0, 5.0];
+        let warnings = facing_away_warnings(&[
+            back(declared, [19.0, 9.5, 4.8]),
+            back(declared, [0.9 * DARK_LIGHT_LIT * 20.0; 3]),
+            back([0.0; 3], [5.0; 3]),
+        ]);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].contains("light 'lamp' is seen from behind in view 'up' (9 pixels")
+                && warnings[0].contains("reads 0.950x its declared radiance"),
+            "{}",
+            warnings[0]
+        );
     }
 
     /// A light declared dark in one channel that reads bright there is told (its ratio is

@@ -140,6 +140,7 @@ pub(super) fn inspect(
     let pixels::Labels {
         pure,
         lights: light_pixels,
+        light_backs,
         empty_views,
     } = {
         let scene = input.owned.build()?;
@@ -176,6 +177,14 @@ pub(super) fn inspect(
         &input.view_names,
     );
     let mut warnings = calibration::calibration_warnings(&light_readings, owned.light_radiance());
+    let back_readings = calibration::read_lights(
+        &light_backs,
+        &input.real,
+        &owned.light_names,
+        owned.light_radiance(),
+        &input.view_names,
+    );
+    warnings.extend(calibration::facing_away_warnings(&back_readings));
     warnings.extend(too_bright::unlit_channel_warnings(
         owned.light_radiance(),
         super::START_COLOR,

@@ -134,6 +134,8 @@ pub struct Labels {
     pub pure: Vec<PurePixel>,
     /// Every light pixel (interior to a light), in view and row order.
     pub lights: Vec<LightPixel>,
+    /// Every pixel interior to a light's back (black as declared), in view and row order.
+    pub light_backs: Vec<LightPixel>,
     /// The views with no pure pixel.
     pub empty_views: Vec<usize>,
 }
@@ -143,6 +145,7 @@ pub fn label_views(pool: &rayon::ThreadPool, scene: &Scene, views: &[View]) -> L
     let mut found = Labels {
         pure: Vec::new(),
         lights: Vec::new(),
+        light_backs: Vec::new(),
         empty_views: Vec::new(),
     };
     for (vi, view) in views.iter().enumerate() {
@@ -161,6 +164,28 @@ pub fn label_views(pool: &rayon::ThreadPool, scene: &Scene, views: &[View]) -> L
                     .iter()
                     .all(|&(nx, ny)| label(nx, ny) == Some(surface))
         };
+        // Light backs among the pixels of no surface (few: silhouettes, the sky), held to
+        // the same interior as light pixels.
+        let backs = parallel::map_pixels(pool, view, |x, y| match label(x, y) {
+            None => render::pixel_light_back(scene, view, x, y, LABEL_RAYS_PER_SIDE),
+            Some(_) => None,
+        });
+        let back = |x: u32, y: u32| backs[(y * w + x) as usize];
+        for y in 1..h.saturating_sub(1) {
+            for x in 1..w.saturating_sub(1) {
+                if let Some(light) = back(x, y) {
+                    let around = [(x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1)];
+                    if around.iter().all(|&(nx, ny)| back(nx, ny) == Some(light)) {
+                        found.light_backs.push(LightPixel {
+                            view: vi as u32,
+                            x,
+                            y,
+                            light,
+                        });
+                    }
+                }
+            }
+        }
         let before = found.pure.len();
         for y in 0..h {
             for x in 0..w {
