@@ -233,7 +233,7 @@ pub(super) fn preview_light(
     }
     if !too_bright.is_empty() {
         warnings.push(format!(
-            "{} brighter in the panorama than any diffuse colour renders under the scene's lights ({}, with the colour at its bound {}): recover gives a group a lobe where one explains it; for groups that are not glossy, a light's radiance or a view's exposure is likely too low",
+            "{} brighter in the panorama than any diffuse colour renders under the scene's lights ({}, with the colour at its bound {}): recover gives a group a lobe where one explains it; for groups that are not glossy, a light's radiance or a view's exposure is likely too low, or a light faces away from the room (its triangles wound the other way)",
             if too_bright.len() == 1 { "1 group reads".to_string() } else { format!("{} groups read", too_bright.len()) },
             too_bright.join(", "),
             diffuse::MAX_DIFFUSE_REFLECTANCE

@@ -204,7 +204,7 @@ pub const BRIGHTER_THAN_LIT: f64 = 0.05;
 pub fn brighter_than_lit(name: &str, model: &GroupModel, fit: &GroupFit) -> Option<String> {
     let (c, worst) = brighter_at_bound(model, fit)?;
     Some(format!(
-        "group '{name}': the panorama is {worst:.2}x as bright as the render with its diffuse reflectance at the bound {} ({} channel): no material explains it under the scene's lights; a light's radiance or a view's exposure is likely too low",
+        "group '{name}': the panorama is {worst:.2}x as bright as the render with its diffuse reflectance at the bound {} ({} channel): no material explains it under the scene's lights; a light's radiance or a view's exposure is likely too low, or a light faces away from the room (its triangles wound the other way)",
         diffuse::MAX_DIFFUSE_REFLECTANCE,
         ["red", "green", "blue"][c]
     ))
