@@ -1879,6 +1879,38 @@ fn a_png_views_clipped_pixels_are_told() {
     );
 }
 
+/// A greyscale view (a grey PNG reads as three equal channels) is told: the colours fitted
+/// to it come out grey. Cornell's floor face written as a grey 16-bit PNG is named; the
+/// same face in colour is not.
+#[test]
+fn a_greyscale_view_is_told() {
+    let cornell = common::workspace().join("scenes/cornell");
+    let text = cornell_scene_text();
+    let floor = image::open(cornell.join("views/nz.exr"))
+        .unwrap()
+        .into_rgb32f();
+    let brightest = floor.pixels().flat_map(|p| p.0).fold(0.0f32, f32::max);
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("nz.png");
+    image::ImageBuffer::<image::Luma<u16>, _>::from_fn(floor.width(), floor.height(), |x, y| {
+        let [r, g, b] = floor.get_pixel(x, y).0;
+        let grey = (r + g + b) / (3.0 * brightest);
+        image::Luma([(relume::images::linear_to_srgb(grey) * 65535.0).round() as u16])
+    })
+    .save(&png)
+    .unwrap();
+    let scene = with_image(&text, "nz.exr", &png);
+    let (code, stderr, _) = check_scene(&scene);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("view 'nz' holds equal R, G and B in every pixel (a greyscale image?)"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("view 'px' holds equal"), "{stderr}");
+    let (_, stderr, _) = check_scene(&text);
+    assert!(!stderr.contains("holds equal R, G and B"), "{stderr}");
+}
+
 /// No surface is brighter in a channel than the lights are there (it reflects at most
 /// what reaches it): a hot pixel in cornell's floor view is left out of the fit and named,
 /// where before it put the floor at its bound; a light declared 100x too dim, which makes

@@ -82,6 +82,25 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
     })
 }
 
+/// A view whose pixels all hold equal R, G and B, and not all 0: a greyscale capture (a
+/// grey PNG is read as three equal channels), from which every colour comes out grey. A
+/// colour capture of the greyest room differs between its channels somewhere, if only by
+/// noise. (A grey PNG of a red wall gave a grey wall without a word.)
+fn greyscale_warnings(real: &[Image], view_names: &[String]) -> Vec<String> {
+    real.iter()
+        .zip(view_names)
+        .filter(|(image, _)| {
+            image.pixels.iter().all(|&[r, g, b]| r == g && g == b)
+                && image.pixels.iter().any(|p| p[0] > 0.0)
+        })
+        .map(|(_, name)| {
+            format!(
+                "view '{name}' holds equal R, G and B in every pixel (a greyscale image?): the groups it sees are fitted to grey, and come out grey where no colour view sees them"
+            )
+        })
+        .collect()
+}
+
 /// A PNG view's pure pixels clipped at its largest code are at least that bright, not
 /// that: counted per view, and told where there are any. (A capture's 6 pixels at 65535
 /// were taken as radiance without a word.)
@@ -190,6 +209,7 @@ pub(super) fn inspect(
         super::START_COLOR,
     ));
     warnings.extend(too_bright);
+    warnings.extend(greyscale_warnings(&input.real, &input.view_names));
     warnings.extend(clipped_warnings(
         &pure,
         &input.real,
