@@ -2101,3 +2101,24 @@ fn a_light_facing_away_is_named_by_the_view_that_sees_its_back_shine() {
     assert_eq!(code, Some(0), "{stderr}");
     assert!(!stderr.contains("seen from behind"), "{stderr}");
 }
+
+/// A group whose every object is hidden is not in the scene: `check` said only that no
+/// view saw it in whole pixels, which sent a user looking at the views; it now names
+/// `hide` as the cause, and says no more of that group.
+#[test]
+fn a_group_all_hidden_is_told_as_hidden() {
+    let text = cornell_scene_text();
+    assert!(text.contains("hide = []"));
+    let (code, stderr, _) = check_scene(&text.replace("hide = []", "hide = [\"sphere\"]"));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("group 'sphere': every object of it is hidden (`hide` in the scene)"),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("group 'sphere': no pure pixel"),
+        "{stderr}"
+    );
+    let (_, stderr, _) = check_scene(&text);
+    assert!(!stderr.contains("is hidden"), "{stderr}");
+}

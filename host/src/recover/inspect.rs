@@ -41,6 +41,8 @@ pub(super) struct Input {
     pub kinds: Vec<GroupKind>,
     /// Whether every object of a group has texture coordinates, as a diffuse map needs.
     pub mapped: Vec<bool>,
+    /// Whether every object of a group is hidden (`hide`): it is not in the scene.
+    pub hidden: Vec<bool>,
 }
 
 /// Reads the scene, its geometry and its panorama's images (each view's exposure applied).
@@ -69,6 +71,11 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         .iter()
         .map(|g| assemble::unmapped_object(&desc, &objects, g).is_none())
         .collect();
+    let hidden: Vec<bool> = desc
+        .groups
+        .iter()
+        .map(|g| g.objects.iter().all(|o| desc.hide.contains(o)))
+        .collect();
     let owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
     Ok(Input {
         owned,
@@ -79,6 +86,7 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         clipped_at,
         kinds,
         mapped,
+        hidden,
     })
 }
 
@@ -216,6 +224,16 @@ pub(super) fn inspect(
         &input.clipped_at,
         &input.view_names,
     ));
+    for (name, _) in owned
+        .group_names
+        .iter()
+        .zip(&input.hidden)
+        .filter(|(_, &h)| h)
+    {
+        warnings.push(format!(
+            "group '{name}': every object of it is hidden (`hide` in the scene): it is not in the scene, so no view sees it and its material is not recovered"
+        ));
+    }
     let orientation_readings =
         orientation::read_orientations(&pure, &input.real, &input.view_names);
     warnings.extend(orientation::orientation_warnings(&orientation_readings));
@@ -410,7 +428,12 @@ pub fn check(
             divisors: &input.header_divisors,
         },
     ));
-    for g in groups.iter().filter(|g| g.total() == 0) {
+    // A group all hidden was told of by `inspect`, with its cause.
+    let hidden = |g: &&GroupSight| {
+        let at = names.iter().position(|n| *n == g.group);
+        at.is_some_and(|i| input.hidden[i])
+    };
+    for g in groups.iter().filter(|g| g.total() == 0 && !hidden(g)) {
         warnings.push(format!(
             "group '{}': no pure pixel in any view; recover will not recover its material",
             g.group
