@@ -692,7 +692,11 @@ fn encode_exr(path: &Path, image: &Image, out: impl Write + Seek) -> Result<(), 
         .write()
         .non_parallel()
         .to_buffered(out)
-        .map_err(|e| Error::input(path, format!("cannot encode EXR: {e}")))
+        .map_err(|e| match e {
+            // A write that fails (a disk full) is an I/O failure (exit 4), not bad input.
+            exr::error::Error::Io(io) => Error::io(path, io),
+            other => Error::input(path, format!("cannot encode EXR: {other}")),
+        })
 }
 
 /// Adds `image` to `set` as an EXR at `path` (what [`write_exr`] would write there),
@@ -758,7 +762,10 @@ pub fn write_png_preview(
         }
         None => auto_exposure(image),
     };
-    let png_error = |e: png::EncodingError| Error::input(path, format!("cannot encode PNG: {e}"));
+    let png_error = |e: png::EncodingError| match e {
+        png::EncodingError::IoError(io) => Error::io(path, io),
+        other => Error::input(path, format!("cannot encode PNG: {other}")),
+    };
     // The settings of image's PNG encoder by default.
     let mut encoder = png::Encoder::new(out, image.width, image.height);
     encoder.set_color(png::ColorType::Rgb);
@@ -863,6 +870,25 @@ fn encode_8bit(v: f32) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A disk that fills under a write is an I/O failure (exit 4), not bad input (3): the
+    /// encoders' I/O errors were reported as "cannot encode EXR: No space left on device".
+    #[test]
+    fn a_full_disk_is_an_io_error_not_bad_input() {
+        let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
+            return; // not a Linux machine
+        };
+        let image = Image {
+            width: 64,
+            height: 64,
+            pixels: vec![[0.5, 0.25, 0.125]; 64 * 64],
+        };
+        let path = Path::new("out/px.exr");
+        let exr = encode_exr(path, &image, std::io::BufWriter::new(&full));
+        assert!(matches!(exr, Err(Error::Io { .. })), "{exr:?}");
+        let png = write_png_preview(path, &image, None, &full);
+        assert!(matches!(png, Err(Error::Io { .. })), "{png:?}");
+    }
     use std::io::Cursor;
 
     fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> [f32; 3]) -> Image {
