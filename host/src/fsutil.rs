@@ -293,10 +293,13 @@ impl OutputSet {
             .collect();
         missing.reverse();
         refuse_file_in_the_way(dir)?;
-        let mut registry = staged();
-        registry.dirs.extend(missing.iter().cloned());
-        self.dirs.extend(missing);
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+        {
+            let mut registry = staged();
+            registry.dirs.extend(missing.iter().cloned());
+            self.dirs.extend(missing);
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        }
+        refuse_unwritable(dir)
     }
 }
 
@@ -422,6 +425,15 @@ pub fn read_text(path: &Path) -> Result<String, Error> {
 pub fn create_dir(dir: &Path) -> Result<(), Error> {
     refuse_file_in_the_way(dir)?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+}
+
+/// An error when no file can be made in the folder `dir` (no write permission, a
+/// read-only mount): found by making one and removing it, before the work, where `render`
+/// into a folder it could not write to failed after its first view.
+fn refuse_unwritable(dir: &Path) -> Result<(), Error> {
+    let probe = dir.join(format!(".relume-probe-{}", std::process::id()));
+    File::create(&probe).map_err(|e| Error::io(dir, e))?;
+    std::fs::remove_file(&probe).map_err(|e| Error::io(&probe, e))
 }
 
 /// An error when the nearest existing one of `dir` and its parents is not a folder: an
@@ -683,6 +695,23 @@ mod tests {
         std::fs::write(out.join("maps/mine.txt"), "mine").unwrap();
         drop(set);
         assert!(out.join("maps/mine.txt").exists());
+    }
+
+    /// A folder where no file can be made is refused when the set makes it, before the
+    /// work; /proc, where even root makes no file, stands in for a folder without write
+    /// permission or on a read-only mount.
+    #[test]
+    fn a_folder_no_file_can_be_made_in_is_refused_at_once() {
+        let proc_self = Path::new("/proc/self");
+        if !proc_self.is_dir() {
+            return; // not Linux
+        }
+        let e = OutputSet::default().create_dir(proc_self).unwrap_err();
+        assert!(matches!(e, Error::Io { .. }), "{e}");
+        assert!(e.to_string().starts_with("/proc/self"), "{e}");
+        let dir = tempfile::tempdir().unwrap();
+        OutputSet::default().create_dir(dir.path()).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 
     #[test]
