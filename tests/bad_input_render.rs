@@ -543,3 +543,29 @@ fn the_case_renders_as_it_is() {
     relume_ok(&case.path(""), &render_args(&["materials.toml"]));
     assert!(Path::new(&case.path("out/render.json")).is_file());
 }
+
+/// A scene too large for its light names the object to leave out: the one that stretches
+/// the bounding box. A speck a million units off was refused naming the room's largest
+/// wall.
+#[test]
+fn a_scene_stretched_by_one_far_object_names_it() {
+    let case = Case::new();
+    let obj = std::fs::read_to_string(case.path("geometry.obj")).unwrap();
+    let speck = "o speck\nv 1000000 0 0\nv 1000000 0.01 0\nv 1000000 0 0.01\nf -3 -2 -1\n";
+    std::fs::write(case.path("geometry.obj"), format!("{obj}{speck}")).unwrap();
+    case.edit(
+        "scene.toml",
+        "objects = [\"box\"]",
+        "objects = [\"box\", \"speck\"]",
+    );
+    let stderr = case.fails(
+        &["check", "scene.toml"],
+        INPUT,
+        &[
+            "the geometry spans 1e6 units",
+            "of the size of light 'light' (0.8 across)",
+            "(without object 'speck' of geometry.obj, the geometry would span 3 units)",
+        ],
+    );
+    assert!(!stderr.contains("the largest is object"), "{stderr}");
+}

@@ -123,22 +123,7 @@ fn refuse_offsets_larger_than_a_light(
         if offset <= MAX_OFFSET_PER_LIGHT_SIZE * extent {
             continue;
         }
-        // The object that spans the most, most likely the one to leave out or crop.
-        let largest = objects
-            .iter()
-            .filter(|o| !desc.hide.contains(&o.name))
-            .map(|o| (o, object_extent(o)))
-            .max_by(|a, b| a.1.total_cmp(&b.1));
-        let hint = largest
-            .map(|(o, e)| {
-                format!(
-                    " (the largest is object '{}' of {}, {} across)",
-                    o.name,
-                    o.file.display(),
-                    significant(e)
-                )
-            })
-            .unwrap_or_default();
+        let hint = what_to_crop(desc, objects);
         return Err(Error::input(
             &desc.path,
             format!(
@@ -149,6 +134,61 @@ fn refuse_offsets_larger_than_a_light(
         ));
     }
     Ok(())
+}
+
+/// Which object to leave out or crop, said for [`CROP`]: the one without which the
+/// geometry's bounding box shrinks the most (a speck a million units off stretched it,
+/// and the hint named the room's largest wall), else, where no one object stretches it,
+/// the one that spans the most.
+fn what_to_crop(desc: &SceneDesc, objects: &[ObjObject]) -> String {
+    let shown: Vec<&ObjObject> = objects
+        .iter()
+        .filter(|o| !desc.hide.contains(&o.name))
+        .collect();
+    let boxes: Vec<([f64; 3], [f64; 3])> =
+        shown.iter().map(|o| bounds(std::iter::once(*o))).collect();
+    let union = |a: ([f64; 3], [f64; 3]), b: ([f64; 3], [f64; 3])| {
+        (
+            std::array::from_fn(|k| a.0[k].min(b.0[k])),
+            std::array::from_fn(|k| a.1[k].max(b.1[k])),
+        )
+    };
+    let empty = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    let side = |(lo, hi): ([f64; 3], [f64; 3])| (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+    // The box of all objects before i and of all after it, for each i.
+    let mut before = vec![empty; boxes.len() + 1];
+    let mut after = vec![empty; boxes.len() + 1];
+    for i in 0..boxes.len() {
+        before[i + 1] = union(before[i], boxes[i]);
+        let j = boxes.len() - 1 - i;
+        after[j] = union(after[j + 1], boxes[j]);
+    }
+    let whole = side(before[boxes.len()]);
+    let without = (0..boxes.len())
+        .map(|i| (i, side(union(before[i], after[i + 1]))))
+        .filter(|&(_, s)| s.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    match without {
+        Some((i, rest)) if rest < 0.5 * whole => format!(
+            " (without object '{}' of {}, the geometry would span {} units)",
+            shown[i].name,
+            shown[i].file.display(),
+            significant(rest)
+        ),
+        _ => shown
+            .iter()
+            .map(|o| (o, object_extent(o)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(o, e)| {
+                format!(
+                    " (the largest is object '{}' of {}, {} across)",
+                    o.name,
+                    o.file.display(),
+                    significant(e)
+                )
+            })
+            .unwrap_or_default(),
+    }
 }
 
 /// What to do about a scene too large for its details.
