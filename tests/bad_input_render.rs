@@ -569,3 +569,26 @@ fn a_scene_stretched_by_one_far_object_names_it() {
     );
     assert!(!stderr.contains("the largest is object"), "{stderr}");
 }
+
+/// A light's face given twice emits twice: every group of the room came out 87-99%
+/// brighter, and `check` and `recover` said nothing. It is refused, naming the light and
+/// the triangle; the same face turned the other way (a panel lit on both sides) is not.
+#[test]
+fn a_light_face_given_twice_is_refused_and_one_turned_over_is_not() {
+    let case = Case::new();
+    let obj = std::fs::read_to_string(case.path("geometry.obj")).unwrap();
+    assert!(obj.contains("\nf 25 26 27 28\n"));
+    let twice = obj.replace("\nf 25 26 27 28\n", "\nf 25 26 27 28\nf 25 26 27 28\n");
+    std::fs::write(case.path("geometry.obj"), twice).unwrap();
+    case.fails(
+        &["check", "scene.toml"],
+        INPUT,
+        &[
+            "geometry.obj: light 'light': its triangle 3 (in file order; corners (1.1, 1.1, 2.49)",
+            "is also triangle 1 of light 'light', facing the same way",
+        ],
+    );
+    let both_sides = obj.replace("\nf 25 26 27 28\n", "\nf 25 26 27 28\nf 28 27 26 25\n");
+    std::fs::write(case.path("geometry.obj"), both_sides).unwrap();
+    relume_ok(&case.path(""), &["check", "scene.toml"]);
+}
