@@ -390,12 +390,30 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>, Error> {
 /// `None` when it is one. Said at the line that names it.
 pub fn not_a_file(path: &Path, a_what: &str) -> Option<String> {
     let why = match std::fs::metadata(path) {
-        Ok(m) if m.is_file() => return None,
+        // Opened, not only looked at: a file without read permission was passed here and
+        // failed later, as an I/O error naming no line.
+        Ok(m) if m.is_file() => match File::open(path) {
+            Ok(_) => return None,
+            Err(e) => format!("cannot be read: {e}"),
+        },
         Ok(m) if m.is_dir() => format!("is a folder, not {a_what}"),
         Ok(_) => format!("is not a regular file (a device, pipe or socket), not {a_what}"),
-        Err(_) => "does not exist".to_string(),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => "does not exist".to_string(),
+        // A folder on the way that may not be entered, a NUL in the name: the file may
+        // well be there, and "does not exist" sent the user looking for it.
+        Err(e) => format!("cannot be reached: {e}"),
     };
-    Some(format!("{} {why}", path.display()))
+    // A control character (a NUL) printed raw garbled the terminal.
+    let shown: String = path
+        .display()
+        .to_string()
+        .chars()
+        .flat_map(|c| match c.is_control() {
+            true => c.escape_debug().collect::<Vec<_>>(),
+            false => vec![c],
+        })
+        .collect();
+    Some(format!("{shown} {why}"))
 }
 
 /// Reads a text input (OBJ, TOML, JSON): UTF-8, with a leading byte order mark dropped (an
@@ -455,6 +473,27 @@ fn refuse_file_in_the_way(dir: &Path) -> Result<(), Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Only a file that is not there "does not exist": a NUL in a name (or a folder on the
+    /// way that may not be entered) cannot be reached, and is said so, the NUL escaped.
+    #[test]
+    fn a_file_that_cannot_be_reached_is_not_said_to_be_missing() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = not_a_file(&dir.path().join("no.obj"), "an OBJ").unwrap();
+        assert!(missing.ends_with("no.obj does not exist"), "{missing}");
+        let nul = not_a_file(&dir.path().join("a\0b.obj"), "an OBJ").unwrap();
+        assert!(
+            nul.ends_with(
+                "a\\0b.obj cannot be reached: file name contained an unexpected NUL byte"
+            ),
+            "{nul}"
+        );
+        std::fs::write(dir.path().join("here.obj"), "").unwrap();
+        assert_eq!(not_a_file(&dir.path().join("here.obj"), "an OBJ"), None);
+        assert!(not_a_file(dir.path(), "an OBJ")
+            .unwrap()
+            .ends_with("is a folder, not an OBJ"));
+    }
 
     #[test]
     fn text_inputs_drop_a_byte_order_mark_and_name_the_line_of_a_non_utf8_byte() {
