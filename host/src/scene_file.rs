@@ -775,10 +775,21 @@ pub mod toml_src {
         pub fn check_format(&self) -> Result<(), Error> {
             let f: FormatOnly = self.parse()?;
             match f.format {
-                None => Err(Error::input(
-                    &self.path,
-                    "missing key `format` (this tool reads format = 1)",
-                )),
+                // A `format` line after a table header belongs to that table, in TOML:
+                // the file had one, and the error named no line.
+                None => match self.text.lines().position(|l| {
+                    l.split('=').next().map(str::trim) == Some("format") && l.contains('=')
+                }) {
+                    Some(at) => Err(Error::at_line(
+                        &self.path,
+                        at + 1,
+                        "`format` is given here, after a table header, so TOML reads it as a key of that table: put it at the top of the file, before the first [table] or [[list]] (this tool reads format = 1)",
+                    )),
+                    None => Err(Error::input(
+                        &self.path,
+                        "missing key `format` (this tool reads format = 1)",
+                    )),
+                },
                 Some(v) => match v.get_ref() {
                     toml::Value::Integer(1) => Ok(()),
                     other => Err(self.at(
@@ -1056,6 +1067,24 @@ objects = ["quad"]
         let e = load_scene(&path).unwrap_err().to_string();
         assert!(
             e.contains("scene.toml") && e.contains("missing key `format`"),
+            "{e}"
+        );
+    }
+
+    /// `format = 1` after a table header is a key of that table in TOML: the file had
+    /// one, and was told it had none, at no line.
+    #[test]
+    fn a_format_line_after_a_table_is_named_at_its_line() {
+        let (_dir, path) = write("", "");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let moved = format!("{}\nformat = 1\n", text.replacen("format = 1\n", "", 1));
+        std::fs::write(&path, &moved).unwrap();
+        let line = moved.lines().count();
+        let e = load_scene(&path).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!(
+                "scene.toml:{line}: `format` is given here, after a table header"
+            )),
             "{e}"
         );
     }
