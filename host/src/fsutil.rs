@@ -340,10 +340,26 @@ fn entries_on_the_way(path: &Path) -> Vec<PathBuf> {
 /// (an output not written yet). An input given twice would be counted twice, and two
 /// outputs of one name would leave only the later.
 pub fn same_file(a: &Path, b: &Path) -> bool {
-    if let (Ok(a), Ok(b)) = (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-        return a == b;
+    if let (Ok(ca), Ok(cb)) = (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        return ca == cb || same_inode(a, b);
     }
     matches!((resolved(a), resolved(b)), (Some(a), Some(b)) if a == b)
+}
+
+/// Whether `a` and `b` are one file under two names (hard links): a materials file given
+/// twice that way was read as two files that both give every group a material.
+#[cfg(unix)]
+fn same_inode(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+#[cfg(not(unix))]
+fn same_inode(_: &Path, _: &Path) -> bool {
+    false
 }
 
 /// The first of `paths` that names, by any spelling ([`same_file`]), a file an earlier
@@ -457,6 +473,22 @@ fn refuse_unwritable(dir: &Path) -> Result<(), Error> {
 /// An error when the nearest existing one of `dir` and its parents is not a folder: an
 /// `--out` naming a file gave the system's bare "File exists" or "Not a directory".
 fn refuse_file_in_the_way(dir: &Path) -> Result<(), Error> {
+    // A link to nothing is neither a folder to go into nor one to make: it read "File
+    // exists (os error 17)", and sent the user looking for a file that is not there.
+    let dangling = dir
+        .ancestors()
+        .filter(|d| !d.as_os_str().is_empty())
+        .find(|d| std::fs::symlink_metadata(d).is_ok_and(|m| m.is_symlink()) && !d.exists());
+    if let Some(link) = dangling {
+        let target = std::fs::read_link(link).unwrap_or_default();
+        return Err(Error::input(
+            link,
+            format!(
+                "is a link to {}, which does not exist: outputs (--out) go into a folder",
+                target.display()
+            ),
+        ));
+    }
     let existing = dir
         .ancestors()
         .filter(|d| !d.as_os_str().is_empty())
@@ -827,6 +859,36 @@ mod tests {
         std::fs::write(dir.path().join("file"), "f").unwrap();
         let e = write_atomic(&dir.path().join("file/c.txt"), b"z").unwrap_err();
         assert!(e.to_string().contains("file"), "{e}");
+    }
+
+    #[test]
+    fn one_file_under_two_hard_links_is_the_same_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b, c) = (
+            dir.path().join("a.toml"),
+            dir.path().join("b.toml"),
+            dir.path().join("c.toml"),
+        );
+        std::fs::write(&a, "x").unwrap();
+        std::fs::write(&c, "x").unwrap();
+        std::fs::hard_link(&a, &b).unwrap();
+        assert!(same_file(&a, &b) && same_file(&a, &dir.path().join("./a.toml")));
+        assert!(!same_file(&a, &c), "the same bytes are not the same file");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn an_output_folder_that_is_a_link_to_nothing_is_named_as_such() {
+        let dir = tempfile::tempdir().unwrap();
+        let link = dir.path().join("dang");
+        std::os::unix::fs::symlink(dir.path().join("gone"), &link).unwrap();
+        for target in [link.clone(), link.join("views")] {
+            let e = OutputSet::default().create_dir(&target).unwrap_err();
+            assert!(matches!(e, Error::Input { .. }), "{e}");
+            assert!(e.to_string().contains("dang: is a link to"), "{e}");
+            assert!(e.to_string().contains("gone, which does not exist"), "{e}");
+        }
+        assert!(!dir.path().join("gone").exists());
     }
 
     #[test]
