@@ -592,3 +592,28 @@ fn a_light_face_given_twice_is_refused_and_one_turned_over_is_not() {
     std::fs::write(case.path("geometry.obj"), both_sides).unwrap();
     relume_ok(&case.path(""), &["check", "scene.toml"]);
 }
+
+/// A lamp in the ceiling's plane, or a hair behind it, is hidden from the views by the
+/// ceiling and lit the room as before, through the renderer's ray slack, without a word:
+/// `check` blamed the exposure. `check` and `render` now name the light and the group;
+/// the lamp a centimetre below the ceiling, as the bundled scene has it, is not named.
+#[test]
+fn a_light_flush_with_a_surface_is_named() {
+    let case = Case::new();
+    let obj = std::fs::read_to_string(case.path("geometry.obj")).unwrap();
+    assert_eq!(obj.matches(" 2.490000\n").count(), 4);
+    for z in ["2.500000", "2.500100"] {
+        let moved = obj.replace(" 2.490000\n", &format!(" {z}\n"));
+        std::fs::write(case.path("geometry.obj"), moved).unwrap();
+        let named = "light 'light' lies against group 'ceiling': at 2 of 2 points on it";
+        let check = relume_ok(&case.path(""), &["check", "scene.toml"]);
+        let stderr = String::from_utf8_lossy(&check.stderr);
+        assert!(stderr.contains(named), "z {z}: {stderr}");
+        let render = relume_ok(&case.path(""), &render_args(&["materials.toml"]));
+        let stderr = String::from_utf8_lossy(&render.stderr);
+        assert!(stderr.contains(named), "z {z}: {stderr}");
+    }
+    std::fs::write(case.path("geometry.obj"), obj).unwrap();
+    let check = relume_ok(&case.path(""), &["check", "scene.toml"]);
+    assert!(!String::from_utf8_lossy(&check.stderr).contains("lies against"));
+}

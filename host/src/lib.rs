@@ -6,7 +6,8 @@
 //! - [`fsutil`]: atomic writes (temp file, then rename).
 //! - [`scene_file`], [`obj`], [`images`], [`materials_file`]: reading (and writing) the
 //!   formats of scene-format.md, validated into plain descriptions.
-//! - [`assemble`]: descriptions to the core's buffers (an owned scene the core borrows).
+//! - [`assemble`]: descriptions to the core's buffers (an owned scene the core borrows);
+//!   [`light_placement`]: lights hidden behind a surface that still light the room.
 //! - [`parallel`]: fixed tiles, results combined in a fixed order.
 //! - [`render_cmd`], [`compare`], [`bench`](mod@bench): the subcommands; [`cli`] parses arguments.
 //! - [`text`]: wording shared by the messages a user reads.
@@ -20,6 +21,7 @@ pub mod downsample;
 pub mod error;
 pub mod fsutil;
 pub mod images;
+pub mod light_placement;
 pub mod materials_file;
 pub mod obj;
 pub mod panorama;

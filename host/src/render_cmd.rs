@@ -70,6 +70,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     }
     let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::Files(&files))?;
     owned.desc.check_view_names(&args.views)?;
+    let placement = crate::light_placement::lights_against_surfaces(&mut owned)?;
     let fallbacks: Vec<String> = owned
         .isotropic_fallbacks()
         .into_iter()
@@ -135,7 +136,8 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         images::add_exr_and_preview(&mut set, &args.out, &view_descs[i].name, &image)?;
     }
     progress.finish_and_clear();
-    let mut warnings = fallbacks;
+    let mut warnings = placement;
+    warnings.extend(fallbacks);
     warnings.extend(files.iter().flat_map(|f| f.roughness_warnings()));
     // A file that gives no material changes nothing: most likely the wrong file was given.
     warnings.extend(

@@ -183,6 +183,7 @@ pub(super) fn inspect(
         }
         labels
     };
+    let mut warnings = crate::light_placement::lights_against_surfaces(&mut input.owned)?;
     let owned = &input.owned;
     let names = too_bright::Names {
         views: &input.view_names,
@@ -203,7 +204,10 @@ pub(super) fn inspect(
         owned.light_radiance(),
         &input.view_names,
     );
-    let mut warnings = calibration::calibration_warnings(&light_readings, owned.light_radiance());
+    warnings.extend(calibration::calibration_warnings(
+        &light_readings,
+        owned.light_radiance(),
+    ));
     let back_readings = calibration::read_lights(
         &light_backs,
         &input.real,
