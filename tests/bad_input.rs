@@ -2122,3 +2122,43 @@ fn a_group_all_hidden_is_told_as_hidden() {
     let (_, stderr, _) = check_scene(&text);
     assert!(!stderr.contains("is hidden"), "{stderr}");
 }
+
+/// A diffuse map that two groups share is read and held once: a 6000x6000 map on the
+/// floor and the ceiling was counted twice against MAX_TEXELS, and refused.
+#[test]
+fn a_map_two_groups_share_is_held_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = SCENE.replace(
+        "objects = [\"quad\"]",
+        "objects = [\"quad\"]\n\n[[group]]\nname = \"shelf\"\nkind = \"plastic\"\nobjects = [\"quad2\"]",
+    );
+    let obj = format!(
+        "{OBJ}o quad2\nv 0 0 0.5\nv 1 0 0.5\nv 1 1 0.5\nv 0 1 0.5\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 8/5 9/6 10/7 11/8\n"
+    );
+    let materials = "format = 1\n\n[[material]]\ngroup = \"floor\"\nmodel = \"textured-diffuse\"\ndiffuse_map = \"tex.exr\"\n\n[[material]]\ngroup = \"shelf\"\nmodel = \"textured-diffuse\"\ndiffuse_map = \"./tex.exr\"\n";
+    for (name, text) in [
+        ("scene.toml", scene.as_str()),
+        ("geo.obj", obj.as_str()),
+        ("m.toml", materials),
+    ] {
+        std::fs::write(dir.path().join(name), text).unwrap();
+    }
+    relume::images::write_exr(
+        &dir.path().join("tex.exr"),
+        &relume::images::Image {
+            width: 2,
+            height: 2,
+            pixels: vec![[0.5; 3]; 4],
+        },
+    )
+    .unwrap();
+    let files = [relume::materials_file::load_materials(&dir.path().join("m.toml")).unwrap()];
+    let owned = relume::assemble::load_and_assemble(
+        &dir.path().join("scene.toml"),
+        relume::assemble::MaterialSource::Files(&files),
+    )
+    .unwrap();
+    assert_eq!((owned.texture_infos.len(), owned.texels.len()), (1, 4));
+    let maps: Vec<_> = owned.materials.iter().map(|m| m.diffuse_map).collect();
+    assert!(maps[0].is_some() && maps[0] == maps[1], "{maps:?}");
+}

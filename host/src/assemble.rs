@@ -15,6 +15,7 @@ use relume_core::scene::{
 };
 
 use crate::error::Error;
+use crate::fsutil;
 use crate::images;
 use crate::materials_file::{self, MaterialDesc, MaterialsDesc, Model};
 use crate::obj::{self, ObjObject};
@@ -581,6 +582,51 @@ fn material_kind(desc: &SceneDesc, file: &MaterialsDesc, m: &MaterialDesc) -> Re
     }
 }
 
+/// The texture of the diffuse map `map` (`context` names the material that gives it, for
+/// a capacity error): read, checked and appended to `texture_infos` and `texels` the first
+/// time, and found in `maps_read` after that. A map that groups share is held once: a
+/// 6000x6000 map on the floor and the ceiling was counted twice against MAX_TEXELS, and
+/// refused.
+fn map_texture(
+    map: &Path,
+    context: impl Fn() -> String,
+    maps_read: &mut Vec<(PathBuf, TextureId)>,
+    texture_infos: &mut Vec<TextureInfo>,
+    texels: &mut Vec<Vec3>,
+) -> Result<TextureId, Error> {
+    if let Some(&(_, id)) = maps_read.iter().find(|(p, _)| fsutil::same_file(p, map)) {
+        return Ok(id);
+    }
+    // Its size is weighed against the texels left before it is decoded.
+    let image = images::read_map(map, texels.len(), &context)?;
+    // A map holds diffuse reflectances, which `color` bounds by 1 as well.
+    images::reject_value(
+        map,
+        &image,
+        |v| v > 1.0,
+        "is above 1: a diffuse map holds reflectances in [0, 1]",
+    )?;
+    if texture_infos.len() >= relume_core::config::MAX_TEXTURES {
+        return Err(Error::core(
+            format!("{}: {}", context(), map.display()),
+            relume_core::Error::Capacity {
+                what: "MAX_TEXTURES",
+                max: relume_core::config::MAX_TEXTURES,
+                needed: texture_infos.len() + 1,
+            },
+        ));
+    }
+    let id = TextureId(texture_infos.len() as u16);
+    texture_infos.push(TextureInfo {
+        width: image.width,
+        height: image.height,
+        offset: texels.len(),
+    });
+    texels.extend(image.pixels.iter().map(|p| Vec3::from(*p)));
+    maps_read.push((map.to_path_buf(), id));
+    Ok(id)
+}
+
 /// One material per group, from one or more files: an error names the group and the
 /// file(s) when a group has none or two, or when a file names a group the scene lacks.
 fn resolve_materials(
@@ -589,6 +635,8 @@ fn resolve_materials(
     texture_infos: &mut Vec<TextureInfo>,
     texels: &mut Vec<Vec3>,
 ) -> Result<Vec<SurfaceMaterial>, Error> {
+    // The maps read so far, by the file they came from.
+    let mut maps_read: Vec<(PathBuf, TextureId)> = Vec::new();
     let mut found: Vec<Option<(PathBuf, usize, SurfaceMaterial)>> = vec![None; desc.groups.len()];
     for file in files {
         for m in &file.materials {
@@ -638,35 +686,13 @@ fn resolve_materials(
                         ),
                     ));
                 }
-                // Its size is weighed against the texels left before it is decoded.
-                let image = images::read_map(map, texels.len(), || {
-                    format!("{}:{}: group '{}'", file.path.display(), m.line, m.group)
-                })?;
-                // A map holds diffuse reflectances, which `color` bounds by 1 as well.
-                images::reject_value(
+                Some(map_texture(
                     map,
-                    &image,
-                    |v| v > 1.0,
-                    "is above 1: a diffuse map holds reflectances in [0, 1]",
-                )?;
-                if texture_infos.len() >= relume_core::config::MAX_TEXTURES {
-                    return Err(Error::core(
-                        format!("{}: {}", file.path.display(), map.display()),
-                        relume_core::Error::Capacity {
-                            what: "MAX_TEXTURES",
-                            max: relume_core::config::MAX_TEXTURES,
-                            needed: texture_infos.len() + 1,
-                        },
-                    ));
-                }
-                let id = TextureId(texture_infos.len() as u16);
-                texture_infos.push(TextureInfo {
-                    width: image.width,
-                    height: image.height,
-                    offset: texels.len(),
-                });
-                texels.extend(image.pixels.iter().map(|p| Vec3::from(*p)));
-                Some(id)
+                    || format!("{}:{}: group '{}'", file.path.display(), m.line, m.group),
+                    &mut maps_read,
+                    texture_infos,
+                    texels,
+                )?)
             } else {
                 None
             };
