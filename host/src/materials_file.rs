@@ -486,7 +486,11 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
             roughness: num(&m.roughness, "roughness")?,
             roughness_u: num(&m.roughness_u, "roughness_u")?,
             roughness_v: num(&m.roughness_v, "roughness_v")?,
-            direction_u: vec3(&m.direction_u, "direction_u")?,
+            direction_u: m
+                .direction_u
+                .as_ref()
+                .map(|v| file.direction(v, "direction_u"))
+                .transpose()?,
             diffuse_map,
             kind,
             line,
@@ -931,6 +935,16 @@ mod tests {
             (m.materials[0].roughness, m.materials[0].color),
             (Some(1.0), Some([1.0, 0.0, 0.0]))
         );
+        // A direction of any length is a direction: 1e-50 underflowed f32 and was refused
+        // as zero.
+        let (_dir, path) = write(&aniso.replace(
+            "direction_u = [1.0, 0.0, 0.0]",
+            "direction_u = [1e-50, 0.0, 0.0]",
+        ));
+        let d = load_materials(&path).unwrap().materials[0]
+            .direction_u
+            .unwrap();
+        assert!((1.0..2.0).contains(&d[0]) && d[1..] == [0.0, 0.0], "{d:?}");
     }
 
     #[test]

@@ -392,8 +392,8 @@ fn check_view(file: &TomlFile, v: &RawView) -> Result<ViewDesc, Error> {
         None => None,
     };
     let position: [f64; 3] = file.vector64(&v.position, "position")?;
-    let direction: [f32; 3] = file.vector(&v.direction, "direction")?;
-    let up: [f32; 3] = file.vector(&v.up, "up")?;
+    let direction: [f32; 3] = file.direction(&v.direction, "direction")?;
+    let up: [f32; 3] = file.direction(&v.up, "up")?;
     let fov_deg: [f32; 2] = file.vector(&v.fov_deg, "fov_deg")?;
     let d = direction.map(f64::from);
     let u = up.map(f64::from);
@@ -871,6 +871,31 @@ pub mod toml_src {
             self.numbers(v, what, to_f32)
         }
 
+        /// Three finite numbers that give a direction, whose length does not matter: one
+        /// whose squares would leave f32's range (`[1e-300, 0, 0]` read as zero, `[1e300,
+        /// 0, 0]` as out of range) is first scaled by a power of two, exactly, to a largest
+        /// component in [1, 2). Ordinary directions are kept as written.
+        pub fn direction(&self, v: &Spanned<Vec<f64>>, what: &str) -> Result<[f32; 3], Error> {
+            let d: [f64; 3] = self.numbers(v, what, |x| match x.is_finite() {
+                true => Ok(x),
+                false => Err(format!("must be a finite number, got {x}")),
+            })?;
+            let largest = d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            if largest == 0.0 || (1e-18..=1e18).contains(&largest) {
+                return Ok(d.map(|x| x as f32));
+            }
+            // 2^600 lifts an f64 subnormal to a normal number, whose exponent field is
+            // then floor(log2); the scale 2^-exponent is built from its bits.
+            let lift = if largest < f64::MIN_POSITIVE {
+                f64::from_bits((1023 + 600) << 52)
+            } else {
+                1.0
+            };
+            let exponent = (((largest * lift).to_bits() >> 52) & 0x7ff) as i64 - 1023;
+            let scale = f64::from_bits(((1023 - exponent) as u64) << 52);
+            Ok(d.map(|x| (x * lift * scale) as f32))
+        }
+
         /// Exactly `N` finite numbers that fit an f32, kept in 64 bits.
         pub fn vector64<const N: usize>(
             &self,
@@ -1236,6 +1261,44 @@ objects = ["quad"]
             "position = [0.0, 1e40, 0.5]",
             9,
             &["out of range for a 32-bit float: 1e40"],
+        );
+    }
+
+    /// A direction's length does not matter: a tiny or huge one whose squares leave f32's
+    /// range was read as zero or refused as out of range. Kept as written otherwise.
+    #[test]
+    fn tiny_and_huge_directions_are_directions() {
+        let (_dir, path) = write(
+            "direction = [0.0, 1.0, 0.0]\nup = [0.0, 0.0, 1.0]",
+            "direction = [0.0, 1e-300, 0.0]\nup = [0.0, 0.0, 3e300]",
+        );
+        let in_unit_range = |v: [f32; 3], k: usize| {
+            (1.0..2.0).contains(&v[k]) && (0..3).all(|i| i == k || v[i] == 0.0)
+        };
+        let desc = load_scene(&path).unwrap();
+        assert!(
+            in_unit_range(desc.views[0].direction, 1),
+            "{:?}",
+            desc.views[0]
+        );
+        assert!(in_unit_range(desc.views[0].up, 2), "{:?}", desc.views[0]);
+        let (_dir, path) = write(
+            "direction = [0.0, 1.0, 0.0]",
+            "direction = [0.0, 5e-320, 0.0]",
+        );
+        let desc = load_scene(&path).unwrap();
+        assert!(
+            in_unit_range(desc.views[0].direction, 1),
+            "{:?}",
+            desc.views[0]
+        );
+        let (_dir, path) = write("up = [0.0, 0.0, 1.0]", "up = [0.0, 0.0, 2.5]");
+        assert_eq!(load_scene(&path).unwrap().views[0].up, [0.0, 0.0, 2.5]);
+        bad(
+            "direction = [0.0, 1.0, 0.0]",
+            "direction = [0.0, 0.0, 0.0]",
+            10,
+            &["direction is zero"],
         );
     }
 
