@@ -425,7 +425,7 @@ fn reject_transparent(path: &Path, decoded: &DynamicImage) -> Result<(), Error> 
                 path,
                 (i % w) as u32,
                 (i / w) as u32,
-                format!("{what}: a radiance image with transparency is not a calibrated capture"),
+                format!("{what}: an image with transparency is neither a calibrated capture nor a map of reflectances (relume reads opaque images)"),
             ))
         }
     }
@@ -1451,7 +1451,9 @@ mod tests {
         let e = err(&p);
         assert!(
             e.contains("rgba.png: pixel (x 1, y 1): alpha 7 is not fully opaque (255)")
-                && e.contains("transparency is not a calibrated capture"),
+                && e.contains(
+                    "with transparency is neither a calibrated capture nor a map of reflectances"
+                ),
             "{e}"
         );
         let p = dir.path().join("la16.png");
