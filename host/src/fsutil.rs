@@ -197,6 +197,7 @@ impl OutputSet {
             self.create_dir(dir)?;
         }
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+        remove_temp_files_of_dead_runs(dir, name);
         let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
         // Registered and created under the lock; written outside it, so that an interrupt
         // does not wait for a long encode: it removes the file (the writer goes on into
@@ -459,6 +460,33 @@ pub fn read_text(path: &Path) -> Result<String, Error> {
 pub fn create_dir(dir: &Path) -> Result<(), Error> {
     refuse_file_in_the_way(dir)?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+}
+
+/// Removes the temp files `.<name>.tmp-<pid>` in `dir` that a run killed outright (no
+/// chance to clean up: SIGKILL, a power cut) left, where `/proc` tells its process is gone.
+/// A live run's, or any where that cannot be told, are left alone.
+fn remove_temp_files_of_dead_runs(dir: &Path, name: &str) {
+    let proc_fs = Path::new("/proc/self");
+    if !proc_fs.exists() {
+        return;
+    }
+    let prefix = format!(".{name}.tmp-");
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file_name = entry.file_name();
+        let Some(pid) = file_name
+            .to_str()
+            .and_then(|f| f.strip_prefix(&prefix))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new("/proc").join(pid.to_string()).exists() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 /// An error when no file can be made in the folder `dir` (no write permission, a
@@ -859,6 +887,26 @@ mod tests {
         std::fs::write(dir.path().join("file"), "f").unwrap();
         let e = write_atomic(&dir.path().join("file/c.txt"), b"z").unwrap_err();
         assert!(e.to_string().contains("file"), "{e}");
+    }
+
+    /// A run killed outright left its temp file; the next run that writes the same file
+    /// removes it, and leaves a live run's alone.
+    #[test]
+    fn a_killed_runs_temp_file_goes_with_the_next_write() {
+        if !Path::new("/proc/self").exists() {
+            return;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        // No process has pid 4194304 or above (Linux's largest pid is 2^22).
+        let dead = dir.path().join(".px.exr.tmp-4194305");
+        let live = dir.path().join(".px.exr.tmp-1");
+        let other = dir.path().join(".nx.exr.tmp-4194305");
+        for f in [&dead, &live, &other] {
+            std::fs::write(f, "partial").unwrap();
+        }
+        write_atomic(&dir.path().join("px.exr"), b"px").unwrap();
+        assert!(!dead.exists());
+        assert!(live.exists() && other.exists());
     }
 
     #[test]
