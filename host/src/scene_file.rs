@@ -718,6 +718,15 @@ pub mod toml_src {
                 .replace("expected one of", "expected one of the keys")
                 .replace("expected f64", "expected a number")
                 .replace("expected i64", "expected an integer");
+            // An integer past TOML's 64 bits: "invalid type: integer `<20 digits>` as i128,
+            // expected an integer" said the type was wrong.
+            let message = match message.strip_suffix("` as i128, expected an integer") {
+                Some(head) => format!(
+                    "{}` is out of range: TOML's integers are 64-bit",
+                    head.replacen("invalid type: integer `", "integer `", 1)
+                ),
+                None => message,
+            };
             match e.span() {
                 Some(span) => self.with_hint(message, span),
                 None => Error::input(&self.path, message),
@@ -1299,6 +1308,16 @@ objects = ["quad"]
             "direction = [0.0, 0.0, 0.0]",
             10,
             &["direction is zero"],
+        );
+    }
+
+    #[test]
+    fn an_integer_past_64_bits_is_out_of_range() {
+        bad(
+            "size = [8, 8]",
+            "size = [99999999999999999999, 8]",
+            13,
+            &["integer `99999999999999999999` is out of range: TOML's integers are 64-bit"],
         );
     }
 
