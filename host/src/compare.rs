@@ -1217,8 +1217,9 @@ mod tests {
     fn compare_json_that_would_replace_an_input_is_refused_before_the_work() {
         let dir = tempfile::tempdir().unwrap();
         let truth = materials_file_of(dir.path(), "t.toml", &["floor"]);
+        let recovered = materials_file_of(dir.path(), "r.toml", &["floor"]);
         let before = std::fs::read(&truth).unwrap();
-        let e = compare_materials(&truth, &truth, None, Some(&truth))
+        let e = compare_materials(&truth, &recovered, None, Some(&truth))
             .unwrap_err()
             .to_string();
         assert!(
