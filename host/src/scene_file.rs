@@ -508,9 +508,17 @@ pub fn check_objects(desc: &SceneDesc, objects: &[ObjObject]) -> Result<(), Erro
         let empty_at = desc.geometry.iter().find_map(|file| {
             crate::obj::object_line(file, object).map(|l| format!("{}:{l}", file.display()))
         });
+        // `g floor extra` names one object, "floor extra": tell it where a word of a
+        // name is the object asked for.
+        let spaced = defined
+            .keys()
+            .filter(|name| name.contains(' ') && name.split_whitespace().any(|w| w == object))
+            .min()
+            .map(|name| format!("; the geometry has object '{name}': OBJ reads all that follows `o` or `g` as one name"))
+            .unwrap_or_default();
         let msg = match empty_at {
             Some(at) => format!("object '{object}' ({role}) has no faces in the geometry ({at})"),
-            None => format!("object '{object}' ({role}) is not in the geometry ({files})"),
+            None => format!("object '{object}' ({role}) is not in the geometry ({files}){spaced}"),
         };
         match line {
             Some(l) => Error::at_line(&desc.path, l, msg),
@@ -1640,6 +1648,26 @@ objects = ["quad"]
             e.contains("scene.toml:4")
                 && e.contains("'chair' (in `hide`) has no faces in the geometry")
                 && e.contains(&format!("geo.obj:{line})")),
+            "{e}"
+        );
+    }
+
+    /// `g quad extra` is one object, "quad extra": the error for 'quad' says so.
+    #[test]
+    fn an_object_whose_name_holds_a_space_is_pointed_to() {
+        let (_dir, path) = write("", "");
+        let obj = path.with_file_name("geo.obj");
+        std::fs::write(
+            &obj,
+            OBJ.replace("o quad\n", "g quad extra\n")
+                .replace("o lamp", "g lamp"),
+        )
+        .unwrap();
+        let d = load_scene(&path).unwrap();
+        let e = check_objects(&d, &objects_of(&d)).unwrap_err().to_string();
+        assert!(
+            e.contains("object 'quad' (in group 'floor') is not in the geometry")
+                && e.contains("; the geometry has object 'quad extra': OBJ reads all that follows `o` or `g` as one name"),
             "{e}"
         );
     }
