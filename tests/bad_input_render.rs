@@ -617,3 +617,33 @@ fn a_light_flush_with_a_surface_is_named() {
     let check = relume_ok(&case.path(""), &["check", "scene.toml"]);
     assert!(!String::from_utf8_lossy(&check.stderr).contains("lies against"));
 }
+
+/// Triangles given twice are told by `check` and `render`: the floor's face twice (it
+/// renders as one, at a cost per copy), and the floor's face given to the ceiling too
+/// (which of the two a view sees there was left to chance).
+#[test]
+fn triangles_given_twice_are_told() {
+    let case = Case::new();
+    let obj = std::fs::read_to_string(case.path("geometry.obj")).unwrap();
+    assert!(obj.contains("\nf 1 2 3 4\no ceiling\n"));
+    let twice = obj.replace("\nf 1 2 3 4\n", "\nf 1 2 3 4\nf 1 2 3 4\n");
+    std::fs::write(case.path("geometry.obj"), twice).unwrap();
+    let copies = "group 'floor' has 2 triangles given again (the same corners)";
+    for args in [
+        &["check", "scene.toml"][..],
+        &render_args(&["materials.toml"]),
+    ] {
+        let run = relume_ok(&case.path(""), args);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(stderr.contains(copies), "{args:?}: {stderr}");
+    }
+    let shared = obj.replace("\no ceiling\n", "\no ceiling\nf 1 2 3 4\n");
+    std::fs::write(case.path("geometry.obj"), shared).unwrap();
+    let run = relume_ok(&case.path(""), &["check", "scene.toml"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("groups 'floor' and 'ceiling' share 2 triangles (the same corners)"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("given again"), "{stderr}");
+}

@@ -7,7 +7,8 @@
 //! - [`scene_file`], [`obj`], [`images`], [`materials_file`]: reading (and writing) the
 //!   formats of scene-format.md, validated into plain descriptions.
 //! - [`assemble`]: descriptions to the core's buffers (an owned scene the core borrows);
-//!   [`light_placement`]: lights hidden behind a surface that still light the room.
+//!   [`light_placement`]: lights hidden behind a surface that still light the room;
+//!   [`repeated_triangles`]: triangles two groups share, or a group gives twice.
 //! - [`parallel`]: fixed tiles, results combined in a fixed order.
 //! - [`render_cmd`], [`compare`], [`bench`](mod@bench): the subcommands; [`cli`] parses arguments.
 //! - [`text`]: wording shared by the messages a user reads.
@@ -28,6 +29,7 @@ pub mod panorama;
 pub mod parallel;
 pub mod recover;
 pub mod render_cmd;
+pub mod repeated_triangles;
 pub mod scene_file;
 pub mod text;
 

@@ -70,7 +70,11 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     }
     let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::Files(&files))?;
     owned.desc.check_view_names(&args.views)?;
-    let placement = crate::light_placement::lights_against_surfaces(&mut owned)?;
+    let mut placement = crate::light_placement::lights_against_surfaces(&mut owned)?;
+    placement.extend(crate::repeated_triangles::repeated_triangle_warnings(
+        owned.triangles(),
+        &owned.group_names,
+    ));
     let fallbacks: Vec<String> = owned
         .isotropic_fallbacks()
         .into_iter()

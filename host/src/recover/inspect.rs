@@ -184,6 +184,10 @@ pub(super) fn inspect(
         labels
     };
     let mut warnings = crate::light_placement::lights_against_surfaces(&mut input.owned)?;
+    warnings.extend(crate::repeated_triangles::repeated_triangle_warnings(
+        input.owned.triangles(),
+        &input.owned.group_names,
+    ));
     let owned = &input.owned;
     let names = too_bright::Names {
         views: &input.view_names,
