@@ -168,7 +168,7 @@ pub(super) fn write_all(
             match texture::uv_affine(rec, g) {
                 Some(affine) => {
                     add_radiance_picture(&mut set, out, name, &image, specularity, &affine)?;
-                    primitive.1 = format!("pict_{name}");
+                    primitive.1 = pattern_name(name, names);
                     rad.push_str(&format!(
                         "\nvoid colorpict {}\n7 red green blue textures/{name}.hdr textures/{name}.cal pic_u pic_v\n0\n0\n",
                         primitive.1
@@ -185,22 +185,24 @@ pub(super) fn write_all(
                 }
             }
         }
-        match primitive.0.radiance_primitive(name, &primitive.1) {
-            Some(p) => {
-                rad.push('\n');
-                rad.push_str(&p);
-            }
-            None => {
-                let rendered_as = match primitive.0 {
-                    GroupModel::Unseen {
-                        stand_in: [r, g, b],
-                    } => format!(
-                        " (the recovery rendered it as a diffuse [{r:.4} {g:.4} {b:.4}]: report.json)"
-                    ),
-                    _ => String::new(),
-                };
-                rad.push_str(&format!("\n# {name}: unseen, not recovered{rendered_as}\n"))
-            }
+        // Unseen: the stand-in the recovery rendered it with (unseen.toml), so that the
+        // scene loads (oconv stopped at "undefined modifier" for a group of no primitive).
+        if let GroupModel::Unseen { stand_in } = primitive.0 {
+            let [r, g, b] = stand_in;
+            rad.push_str(&format!(
+                "\n# {name}: unseen, not recovered; the diffuse stand-in [{r:.4} {g:.4} {b:.4}] the recovery rendered it with (unseen.toml, report.json)\n"
+            ));
+            primitive.0 = GroupModel::Diffuse { color: stand_in };
+        }
+        if let GroupModel::Mirror { .. } = primitive.0 {
+            rad.push_str(&format!(
+                "\n# {name}: RADIANCE's mirror reflects from its front only (where its vertices turn counter-clockwise) and is black from behind; relume's from both sides\n"
+            ));
+        }
+        // Every model has a primitive now (an unseen group's stand-in is a diffuse).
+        if let Some(p) = primitive.0.radiance_primitive(name, &primitive.1) {
+            rad.push('\n');
+            rad.push_str(&p);
         }
     }
     // An earlier recovery's map of a group this one did not map, and its renders of views
@@ -233,6 +235,17 @@ pub(super) fn write_all(
     let text = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(e.to_string()))?;
     set.add(&out.join(REPORT_JSON), text.as_bytes())?;
     set.commit()
+}
+
+/// The name of group `name`'s picture pattern in materials.rad: `pict_<name>`, made longer
+/// while a group has that name (RADIANCE binds a name to its last definition, and the
+/// group `pict_X` rendered X's surfaces invisible).
+fn pattern_name(name: &str, groups: &[String]) -> String {
+    let mut pattern = format!("pict_{name}");
+    while groups.contains(&pattern) {
+        pattern.insert(0, '_');
+    }
+    pattern
 }
 
 /// Writes `path` with the diffuse stand-in every unseen group was rendered with, so that
@@ -341,8 +354,11 @@ fn add_radiance_picture(
          N = {n};\n\
          obj_u = {u0} + (Px-({ox}))*({gux}) + (Py-({oy}))*({guy}) + (Pz-({oz}))*({guz});\n\
          obj_v = {v0} + (Px-({ox}))*({gvx}) + (Py-({oy}))*({gvy}) + (Pz-({oz}))*({gvz});\n\
-         pic_u = (obj_u*N - .5)/(N - 1);\n\
-         pic_v = (obj_v*N - .5)/(N - 1);\n",
+         {{ held to the picture, as relume's lookup clamps at the border: RADIANCE\n\
+            extrapolates a picture past its edge, then tapers it to black }}\n\
+         unit(x) = if(x, if(x - 1, 1, x), 0);\n\
+         pic_u = unit((obj_u*N - .5)/(N - 1));\n\
+         pic_v = unit((obj_v*N - .5)/(N - 1));\n",
         n = map.width,
         u0 = affine.uv0[0],
         v0 = affine.uv0[1],
@@ -365,6 +381,16 @@ fn add_radiance_picture(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A group named `pict_X` took the name of X's picture pattern, and RADIANCE, binding
+    /// a name to its last definition, rendered X's surfaces invisible.
+    #[test]
+    fn a_picture_pattern_takes_no_groups_name() {
+        let groups = ["wall", "pict_wall", "_pict_wall"].map(String::from);
+        assert_eq!(pattern_name("wall", &groups), "__pict_wall");
+        assert_eq!(pattern_name("pict_wall", &groups), "pict_pict_wall");
+        assert_eq!(pattern_name("floor", &groups[..1]), "pict_floor");
+    }
 
     /// Of an earlier run's outputs, those this run does not write again are stale: maps
     /// of groups it did not map, of this scene or another's, and the renders and error
