@@ -265,9 +265,25 @@ fn cornell_recovery_is_deterministic_and_matches_its_golden() {
             new.display()
         );
     }
-    for file in ["materials.rad", "report.json"] {
+    for file in ["materials.rad", "materials.map", "report.json"] {
         assert!(tmp.path().join("t1").join(file).is_file(), "{file} missing");
     }
+    // materials.rad with obj2rad's rules is a whole RADIANCE scene: each object named
+    // after its group's primitive (obj2rad named every face "white" without them), and
+    // the light as declared.
+    let map = std::fs::read_to_string(tmp.path().join("t1/materials.map")).unwrap();
+    let rad = std::fs::read_to_string(tmp.path().join("t1/materials.rad")).unwrap();
+    for rule in [
+        "wall_red (Object \"wall_left\") ;",
+        "walls_white (Object \"wall_front\") ;",
+        "light_light (Object \"light\") ;",
+    ] {
+        assert!(map.contains(rule), "{rule}: {map}");
+    }
+    assert!(
+        rad.contains("\nvoid light light_light\n0\n0\n3 30 28 24\n"),
+        "{rad}"
+    );
     assert_group_work_within_its_stages(&tmp.path().join("t1"));
     // The floor and the white walls passed stage 4's gate on stage 1's errors (0.062 and
     // 0.050), read before stage 2 found the mirror and the metals. Measured again under

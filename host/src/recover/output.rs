@@ -14,7 +14,7 @@ use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialsDesc};
 use crate::parallel;
-use crate::scene_file::GroupKind;
+use crate::scene_file::{GroupKind, SceneDesc};
 
 /// The final views, rendered twice with independent samples: what the views and error
 /// images show is their mean; the two halves give each group's bias-only error
@@ -88,9 +88,15 @@ pub(super) fn prepare(
 /// view's render and error image with their previews, and every group's map files (which
 /// groups get maps depends on the recovery; an earlier run's are removed).
 pub fn output_files(out: &Path, view_names: &[String], group_names: &[String]) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = [MATERIALS_TOML, MATERIALS_RAD, REPORT_JSON, UNSEEN_TOML]
-        .map(|f| out.join(f))
-        .into();
+    let mut files: Vec<PathBuf> = [
+        MATERIALS_TOML,
+        MATERIALS_RAD,
+        MATERIALS_MAP,
+        REPORT_JSON,
+        UNSEEN_TOML,
+    ]
+    .map(|f| out.join(f))
+    .into();
     for dir in [VIEWS_DIR, ERRORS_DIR] {
         for name in view_names {
             files.extend(images::exr_and_preview_paths(&out.join(dir), name));
@@ -103,6 +109,9 @@ pub fn output_files(out: &Path, view_names: &[String], group_names: &[String]) -
 /// The files and folders of a recovery's output folder.
 const MATERIALS_TOML: &str = "materials.toml";
 const MATERIALS_RAD: &str = "materials.rad";
+/// obj2rad's mapping rules (`obj2rad -m`): each OBJ object's faces named after its
+/// group's (or light's) primitive in materials.rad.
+const MATERIALS_MAP: &str = "materials.map";
 const REPORT_JSON: &str = "report.json";
 /// The stand-ins of the unseen groups, apart from materials.toml, which holds only what
 /// was recovered.
@@ -231,10 +240,69 @@ pub(super) fn write_all(
     let toml = materials_file::materials_text(&materials_path, &materials)?;
     set.add(&materials_path, toml.as_bytes())?;
     add_unseen_stand_ins(&mut set, &out.join(UNSEEN_TOML), &rec.models, names)?;
+    rad.push_str(&light_primitives(&rec.owned.desc, names));
     set.add(&out.join(MATERIALS_RAD), rad.as_bytes())?;
+    set.add(
+        &out.join(MATERIALS_MAP),
+        obj2rad_map(&rec.owned.desc, names).as_bytes(),
+    )?;
     let text = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(e.to_string()))?;
     set.add(&out.join(REPORT_JSON), text.as_bytes())?;
     set.commit()
+}
+
+/// The name of light object `object`'s primitive in materials.rad: `light_<object>`, made
+/// longer while a group has that name.
+fn light_name(object: &str, groups: &[String]) -> String {
+    let mut name = format!("light_{object}");
+    while groups.contains(&name) {
+        name.insert(0, '_');
+    }
+    name
+}
+
+/// The scene's lights as RADIANCE `light` primitives (radiance in W sr^-1 m^-2 per channel,
+/// as scene.toml gives it), so that materials.rad with the geometry is a whole scene.
+fn light_primitives(desc: &SceneDesc, groups: &[String]) -> String {
+    let mut text = String::new();
+    for light in desc
+        .lights
+        .iter()
+        .filter(|l| !desc.hide.contains(&l.object))
+    {
+        let [r, g, b] = light.radiance;
+        text.push_str(&format!(
+            "\n# light '{}' as scene.toml declares it\nvoid light {}\n0\n0\n3 {r} {g} {b}\n",
+            light.object,
+            light_name(&light.object, groups)
+        ));
+    }
+    text
+}
+
+/// obj2rad's mapping rules: `obj2rad -m materials.map geometry.obj > geometry.rad` names
+/// each object's faces after its group's primitive in materials.rad, or its light's
+/// (without it, obj2rad names faces by `usemtl`, `g`, or "white"). Hidden objects are
+/// no part of the recovered scene and get no rule.
+fn obj2rad_map(desc: &SceneDesc, groups: &[String]) -> String {
+    let mut text = String::from(
+        "# relume: obj2rad -m materials.map <geometry.obj> > geometry.rad names each object's faces\n\
+         # after its group's material in materials.rad; then oconv materials.rad geometry.rad\n",
+    );
+    let shown = |object: &&String| !desc.hide.contains(*object);
+    for group in &desc.groups {
+        for object in group.objects.iter().filter(shown) {
+            text.push_str(&format!("{} (Object \"{object}\") ;\n", group.name));
+        }
+    }
+    for light in desc.lights.iter().filter(|l| shown(&&l.object)) {
+        text.push_str(&format!(
+            "{} (Object \"{}\") ;\n",
+            light_name(&light.object, groups),
+            light.object
+        ));
+    }
+    text
 }
 
 /// The name of group `name`'s picture pattern in materials.rad: `pict_<name>`, made longer
@@ -381,6 +449,13 @@ fn add_radiance_picture(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_light_primitive_takes_no_groups_name() {
+        let groups = ["light_lamp".to_string()];
+        assert_eq!(light_name("lamp", &groups), "_light_lamp");
+        assert_eq!(light_name("bulb", &groups), "light_bulb");
+    }
 
     /// A group named `pict_X` took the name of X's picture pattern, and RADIANCE, binding
     /// a name to its last definition, rendered X's surfaces invisible.
