@@ -1838,11 +1838,8 @@ fn check_tells_a_view_whose_exposure_is_off_by_orders_of_magnitude() {
 /// is told, with their count; at a gain that clips none, nothing is said.
 #[test]
 fn a_png_views_clipped_pixels_are_told() {
-    let cornell = common::workspace().join("scenes/cornell");
     let text = cornell_scene_text();
-    let floor = image::open(cornell.join("views/nz.exr"))
-        .unwrap()
-        .into_rgb32f();
+    let floor = cornell_floor_view();
     let dir = tempfile::tempdir().unwrap();
     let as_png = |gain: f32| {
         let png = dir.path().join(format!("nz-{gain}.png"));
@@ -1884,11 +1881,8 @@ fn a_png_views_clipped_pixels_are_told() {
 /// same face in colour is not.
 #[test]
 fn a_greyscale_view_is_told() {
-    let cornell = common::workspace().join("scenes/cornell");
     let text = cornell_scene_text();
-    let floor = image::open(cornell.join("views/nz.exr"))
-        .unwrap()
-        .into_rgb32f();
+    let floor = cornell_floor_view();
     let brightest = floor.pixels().flat_map(|p| p.0).fold(0.0f32, f32::max);
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("nz.png");
@@ -1918,12 +1912,9 @@ fn a_greyscale_view_is_told() {
 /// without blue is warned of.
 #[test]
 fn a_pixel_brighter_than_the_lights_is_left_out_and_many_are_refused() {
-    let cornell = common::workspace().join("scenes/cornell");
     let text = cornell_scene_text();
     let dir = tempfile::tempdir().unwrap();
-    let mut floor = image::open(cornell.join("views/nz.exr"))
-        .unwrap()
-        .into_rgb32f();
+    let mut floor = cornell_floor_view();
     floor.put_pixel(20, 15, image::Rgb([1e17; 3]));
     let hot = dir.path().join("nz.exr");
     floor.save(&hot).unwrap();
@@ -1964,6 +1955,14 @@ fn a_pixel_brighter_than_the_lights_is_left_out_and_many_are_refused() {
             && stderr.contains("are brighter in channel B than 2x the lights' radiance there (no light emits there, at least CHANNEL_FLOOR 0.01 of their brightest channel)"),
         "{stderr}"
     );
+}
+
+/// The bundled cornell scene's floor view (`nz`), for tests that write it in another form.
+fn cornell_floor_view() -> image::Rgb32FImage {
+    let cornell = common::workspace().join("scenes/cornell");
+    image::open(cornell.join("views/nz.exr"))
+        .unwrap()
+        .into_rgb32f()
 }
 
 /// cornell's scene.toml with its geometry and images named by absolute paths, so that a
