@@ -31,13 +31,17 @@ pub fn lights_against_surfaces(owned: &mut OwnedScene) -> Result<Vec<String>, Er
     let (group_names, light_names) = (owned.group_names.clone(), owned.light_names.clone());
     let scene = owned.build()?;
     let slack = SLACK_IN_EPSILONS * RAY_EPSILON * scene.size();
+    // Each light's triangles, in one pass over the scene's.
+    let mut of_light = vec![Vec::new(); light_names.len()];
+    for t in scene.triangles {
+        if let Surface::Light(l) = t.surface {
+            if let Some(own) = of_light.get_mut(l as usize) {
+                own.push(t);
+            }
+        }
+    }
     let mut warnings = Vec::new();
-    for (light, name) in light_names.iter().enumerate() {
-        let own: Vec<_> = scene
-            .triangles
-            .iter()
-            .filter(|t| t.surface == Surface::Light(light as u16))
-            .collect();
+    for (name, own) in light_names.iter().zip(&of_light) {
         let stride = own.len().div_ceil(POINTS_PER_LIGHT).max(1);
         let mut tested = 0usize;
         let mut hidden_by = vec![0usize; group_names.len()];
