@@ -498,6 +498,18 @@ fn a_file_where_a_folder_of_views_goes_is_named() {
 fn a_json_that_names_a_folder_is_refused_before_the_work() {
     let case = Case::new();
     std::fs::create_dir(case.path("D")).unwrap();
+    // `compare views` of the case's views against B's, its JSON at `json`.
+    let views_json = |json: &'static str| {
+        [
+            "compare",
+            "views",
+            "c/scene.toml",
+            "c/views",
+            "B",
+            "--json",
+            json,
+        ]
+    };
     for args in [
         &[
             "compare",
@@ -515,15 +527,7 @@ fn a_json_that_names_a_folder_is_refused_before_the_work() {
             "--json",
             "D",
         ],
-        &[
-            "compare",
-            "views",
-            "c/scene.toml",
-            "c/views",
-            "B",
-            "--json",
-            "D",
-        ],
+        &views_json("D"),
         &["check", "c/scene.toml", "--json", "D"],
         &[
             "bench",
@@ -541,15 +545,7 @@ fn a_json_that_names_a_folder_is_refused_before_the_work() {
     }
     // A folder not made yet is made, as `--out`'s is: the JSON failed "No such file or
     // directory" after the whole table was printed.
-    let run = case.run(&[
-        "compare",
-        "views",
-        "c/scene.toml",
-        "c/views",
-        "B",
-        "--json",
-        "new/sub/views.json",
-    ]);
+    let run = case.run(&views_json("new/sub/views.json"));
     assert!(
         run.status.success(),
         "{}",
