@@ -749,7 +749,7 @@ pub fn hdr_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, Error> {
 pub fn write_png_preview(
     path: &Path,
     image: &Image,
-    exposure: Option<f32>,
+    exposure: Option<f64>,
     out: impl Write,
 ) -> Result<(), Error> {
     check_buffer(path, image)?;
@@ -780,7 +780,7 @@ pub fn write_png_preview(
         row.extend(
             pixels
                 .iter()
-                .flat_map(|p| p.map(|v| encode_8bit(v * scale))),
+                .flat_map(|p| p.map(|v| encode_8bit((f64::from(v) * scale) as f32))),
         );
         rows.write_all(&row).map_err(|e| Error::io(path, e))?;
     }
@@ -789,8 +789,10 @@ pub fn write_png_preview(
 }
 
 /// The scale that maps the [`PREVIEW_PERCENTILE`] of luminance to [`PREVIEW_TARGET`] (the
-/// maximum when the percentile is black; 1 for a black image).
-pub fn auto_exposure(image: &Image) -> f32 {
+/// maximum when the percentile is black; 1 for a black image). In f64: the scale of a
+/// view whose radiance is near the smallest f32 (1e-38) overflows f32, and its preview
+/// would show black.
+pub fn auto_exposure(image: &Image) -> f64 {
     // The positive luminances by their bits, whose order is the values' order: a
     // histogram of the high 16 bits finds the percentile's bin, one of the low 16 bits
     // within it the value, exactly, in two passes over the image and no copy of it.
@@ -823,12 +825,7 @@ pub fn auto_exposure(image: &Image) -> f32 {
     }
     let (low_bits, _) = nth_counted(&low, rank_in_bin);
     let p = f32::from_bits(((high_bits << 16) | low_bits) as u32);
-    let s = PREVIEW_TARGET / p;
-    if s.is_finite() {
-        s
-    } else {
-        1.0
-    }
+    f64::from(PREVIEW_TARGET) / f64::from(p)
 }
 
 /// The bin of a histogram (`counts` per bin) that holds its `rank`-th value (0-based, in
@@ -1498,7 +1495,7 @@ mod tests {
         }
     }
 
-    fn preview(img: &Image, exposure: Option<f32>) -> image::RgbImage {
+    fn preview(img: &Image, exposure: Option<f64>) -> image::RgbImage {
         let mut png = Cursor::new(Vec::new());
         write_png_preview(Path::new("p.png"), img, exposure, &mut png).unwrap();
         image::load_from_memory(png.get_ref()).unwrap().into_rgb8()
@@ -1563,18 +1560,26 @@ mod tests {
                 let rank = k
                     .checked_sub(n_black)
                     .map_or(lum.len() - 1, |i| i.min(lum.len() - 1));
-                let s = PREVIEW_TARGET / *lum.select_nth_unstable_by(rank, f32::total_cmp).1;
-                if s.is_finite() {
-                    s
-                } else {
-                    1.0
-                }
+                let p = *lum.select_nth_unstable_by(rank, f32::total_cmp).1;
+                f64::from(PREVIEW_TARGET) / f64::from(p)
             };
             assert_eq!(
                 auto_exposure(&img).to_bits(),
                 expected.to_bits(),
                 "{w}x{h}, narrow {narrow}"
             );
+        }
+    }
+
+    /// A view near the smallest f32 (a light of radiance 1e-38) is exposed as any other:
+    /// its scale, past f32's range, showed it black.
+    #[test]
+    fn preview_of_radiance_near_the_smallest_float_is_exposed() {
+        for scale in [1e-38f32, 1e-42, 1e30] {
+            let img = image(10, 10, |x, y| [(y * 10 + x + 1) as f32 * scale; 3]);
+            let png = preview(&img, None);
+            assert_eq!(png.get_pixel(8, 9).0[0], encode_8bit(0.9), "{scale:e}");
+            assert!(png.get_pixel(0, 0).0[0] > 0, "{scale:e}");
         }
     }
 
