@@ -7,7 +7,9 @@
 //! view is opaque radiance); a grey image gives three equal channels. An EXR's data window
 //! must cover its display window, and a Radiance picture's `EXPOSURE` and `COLORCORR` header
 //! lines are divided out. A file cut short is bad input, not an I/O failure. PNG decoding
-//! uses the sRGB curve through the core's libm math, so it is deterministic across machines.
+//! uses the sRGB curve through the core's libm math, so it is deterministic across machines,
+//! unless the file's `gAMA` chunk declares another (a linear PNG says gamma 1): the PNG
+//! standard's power law then applies. An ICC profile is not read.
 
 use std::cell::Cell;
 use std::io::{BufRead, BufReader, Read, Seek, SeekFrom, Write};
@@ -148,6 +150,10 @@ fn read_image_and_header(
         }
         _ => None,
     };
+    let png_transfer = match format {
+        ImageFormat::Png => png_transfer(&mut reader, unreadable)?,
+        _ => PngTransfer::Srgb,
+    };
     reader
         .seek(SeekFrom::Start(0))
         .map_err(|e| Error::io(path, e))?;
@@ -178,7 +184,7 @@ fn read_image_and_header(
     let decoded = DynamicImage::from_decoder(decoder).map_err(unreadable)?;
     reject_transparent(path, &decoded)?;
     let pixels = match format {
-        ImageFormat::Png => png_to_linear(decoded),
+        ImageFormat::Png => png_to_linear(decoded, png_transfer),
         _ => decoded.into_rgb32f().pixels().map(|p| p.0).collect(),
     };
     let mut image = Image {
@@ -524,16 +530,61 @@ pub fn header_note(divisor: Option<[f64; 3]>) -> String {
     format!(", its header's EXPOSURE and COLORCORR dividing its stored values by {by}")
 }
 
-fn png_to_linear(decoded: DynamicImage) -> Vec<[f32; 3]> {
+/// How a PNG's samples encode light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum PngTransfer {
+    /// The sRGB curve: scene-format.md's PNG, and what an `sRGB` chunk, a `gAMA` of
+    /// 1/2.2 (how writers declare sRGB without that chunk) or no `gAMA` at all say.
+    Srgb,
+    /// `linear = sample^exponent`, the PNG standard's reading of any other `gAMA` (its
+    /// value is `1 / exponent`): 1 for a linear PNG, as raw converters write 16-bit ones.
+    Power(f32),
+}
+
+/// The `gAMA` values read as sRGB: 1/2.2 (45455 in the file), within rounding of writers.
+const PNG_SRGB_GAMMA: core::ops::RangeInclusive<u32> = 45_400..=45_500;
+
+/// The transfer function a PNG's chunks declare ([`PngTransfer`]); `reader` is at its
+/// start. An ICC profile (`iCCP`) is not read: such a file is taken as sRGB, as most are.
+fn png_transfer(
+    reader: &mut (impl BufRead + Seek),
+    unreadable: impl Fn(ImageError) -> Error,
+) -> Result<PngTransfer, Error> {
+    let decoder = png::Decoder::new(reader);
+    let info_reader = decoder.read_info().map_err(|e| {
+        unreadable(ImageError::Decoding(image::error::DecodingError::new(
+            ImageFormat::Png.into(),
+            e,
+        )))
+    })?;
+    // `gamma()` is the gAMA chunk's value, or sRGB's 1/2.2 where an sRGB chunk overrides
+    // it. A gAMA of 0 is invalid, and the decoder ignores it, as the PNG standard says.
+    match info_reader
+        .info()
+        .gamma()
+        .map(png::ScaledFloat::into_scaled)
+    {
+        None => Ok(PngTransfer::Srgb),
+        Some(g) if PNG_SRGB_GAMMA.contains(&g) => Ok(PngTransfer::Srgb),
+        Some(g) => Ok(PngTransfer::Power(100_000.0 / g as f32)),
+    }
+}
+
+fn png_to_linear(decoded: DynamicImage, transfer: PngTransfer) -> Vec<[f32; 3]> {
+    let decode = |c: f32| match transfer {
+        PngTransfer::Srgb => srgb_to_linear(c),
+        PngTransfer::Power(1.0) => c,
+        PngTransfer::Power(exponent) => math::powf(c, exponent),
+    };
     let bits = decoded.color().bits_per_pixel() / u16::from(decoded.color().channel_count());
     if bits > 8 {
         decoded
             .into_rgb16()
             .pixels()
-            .map(|p| p.0.map(|c| srgb_to_linear(f32::from(c) / 65535.0)))
+            .map(|p| p.0.map(|c| decode(f32::from(c) / 65535.0)))
             .collect()
     } else {
-        let table: Vec<f32> = (0..256).map(|c| srgb_to_linear(c as f32 / 255.0)).collect();
+        let table: Vec<f32> = (0..256).map(|c| decode(c as f32 / 255.0)).collect();
         decoded
             .into_rgb8()
             .pixels()
@@ -1134,6 +1185,48 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("is 4x2 but the view says 256x256"), "{e}");
+    }
+
+    /// A 16-bit RGB PNG of one pixel with the given `gAMA` (scaled by 100000) and sRGB
+    /// chunk.
+    fn png_with_chunks(path: &Path, gamma: Option<u32>, srgb: bool, value: [u16; 3]) {
+        let file = std::fs::File::create(path).unwrap();
+        let mut encoder = png::Encoder::new(file, 1, 1);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Sixteen);
+        if let Some(g) = gamma {
+            encoder.set_source_gamma(png::ScaledFloat::from_scaled(g));
+        }
+        if srgb {
+            encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        }
+        let bytes: Vec<u8> = value.iter().flat_map(|c| c.to_be_bytes()).collect();
+        let mut writer = encoder.write_header().unwrap();
+        writer.write_image_data(&bytes).unwrap();
+    }
+
+    /// A PNG's gAMA chunk is honoured (the PNG standard's `linear = sample^(1/gamma)`);
+    /// an sRGB chunk, a gAMA of 1/2.2 or none mean the sRGB curve.
+    #[test]
+    fn png_gamma_chunk_decides_the_transfer() {
+        let dir = tempfile::tempdir().unwrap();
+        let half = [32768u16; 3];
+        let read = |gamma: Option<u32>, srgb: bool| {
+            let p = dir.path().join("g.png");
+            png_with_chunks(&p, gamma, srgb, half);
+            read_image(&p, 1.0).unwrap().pixels[0][0]
+        };
+        let c = 32768.0f32 / 65535.0;
+        let srgb = srgb_to_linear(c);
+        assert_eq!(read(None, false), srgb);
+        assert_eq!(read(Some(45455), false), srgb);
+        assert_eq!(read(Some(100_000), true), srgb, "the sRGB chunk wins");
+        assert_eq!(read(Some(100_000), false), c, "a linear PNG");
+        assert_eq!(
+            read(Some(50_000), false),
+            math::powf(c, 2.0),
+            "gamma 1/2: light = sample^2"
+        );
     }
 
     #[test]
