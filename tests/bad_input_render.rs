@@ -618,6 +618,60 @@ fn a_light_flush_with_a_surface_is_named() {
     assert!(!String::from_utf8_lossy(&check.stderr).contains("lies against"));
 }
 
+/// A rug modelled as a quad in the floor's plane, of another group, leaves it to the
+/// BVH's order which of the two a view sees there. `check` and `render` name both groups,
+/// the view that sees it and a point on it; a rug within the ray slack is told as apart,
+/// one a centimetre up is not told, and the box standing on the floor (its bottom in the
+/// floor's plane, closed over) never is.
+#[test]
+fn a_rug_in_the_floors_plane_is_told() {
+    let case = Case::new();
+    let obj = std::fs::read_to_string(case.path("geometry.obj")).unwrap();
+    let scene = std::fs::read_to_string(case.path("scene.toml")).unwrap();
+    let with_rug = scene.replace(r#"objects = ["plate"]"#, r#"objects = ["plate", "rug"]"#);
+    assert_ne!(with_rug, scene);
+    std::fs::write(case.path("scene.toml"), with_rug).unwrap();
+    let rug = |z: &str| {
+        let n = obj.lines().filter(|l| l.starts_with("v ")).count();
+        let corners = [(0.8, 0.4), (1.6, 0.4), (1.6, 1.2), (0.8, 1.2)]
+            .map(|(x, y)| format!("v {x} {y} {z}\n"))
+            .concat();
+        format!(
+            "{obj}o rug\n{corners}f {} {} {} {}\n",
+            n + 1,
+            n + 2,
+            n + 3,
+            n + 4
+        )
+    };
+    let told = |z: &str| {
+        std::fs::write(case.path("geometry.obj"), rug(z)).unwrap();
+        let check = relume_ok(&case.path(""), &["check", "scene.toml"]);
+        String::from_utf8_lossy(&check.stderr).into_owned()
+    };
+    let stderr = told("0");
+    assert!(
+        stderr.contains("groups 'floor' and 'plate' overlap in one plane (3 pairs of triangles, seen from view 'nz' at ("),
+        "{stderr}"
+    );
+    assert!(stderr.contains("is left to chance"), "{stderr}");
+    assert!(!stderr.contains("'box'"), "{stderr}");
+    let render = relume_ok(&case.path(""), &render_args(&["materials.toml"]));
+    let stderr = String::from_utf8_lossy(&render.stderr);
+    assert!(
+        stderr.contains("groups 'floor' and 'plate' overlap in one plane"),
+        "{stderr}"
+    );
+    // The slack is 2e-4 of the room's 3 units.
+    let stderr = told("0.0003");
+    assert!(
+        stderr.contains("groups 'floor' and 'plate' overlap 0.0003 units apart"),
+        "{stderr}"
+    );
+    let stderr = told("0.01");
+    assert!(!stderr.contains("overlap"), "{stderr}");
+}
+
 /// Triangles given twice are told by `check` and `render`: the floor's face twice (it
 /// renders as one, at a cost per copy), and the floor's face given to the ceiling too
 /// (which of the two a view sees there was left to chance).

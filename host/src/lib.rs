@@ -25,6 +25,7 @@ pub mod images;
 pub mod light_placement;
 pub mod materials_file;
 pub mod obj;
+pub mod overlapping_faces;
 pub mod panorama;
 pub mod parallel;
 pub mod recover;

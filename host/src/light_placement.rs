@@ -17,7 +17,7 @@ use crate::text::counted;
 /// How far in front of a light a surface hides it and still lets its light through, in
 /// `RAY_EPSILON`s of the scene's size: a shadow ray's slack is `RAY_EPSILON` of its length
 /// (up to the scene's diagonal, 1.7 sizes) and the ray starts that far off its surface.
-const SLACK_IN_EPSILONS: f32 = 2.0;
+pub(crate) const SLACK_IN_EPSILONS: f32 = 2.0;
 
 /// Points tested per light, at most (its triangles' centroids, evenly strided).
 const POINTS_PER_LIGHT: usize = 256;

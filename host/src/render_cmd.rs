@@ -75,6 +75,9 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         owned.triangles(),
         &owned.group_names,
     ));
+    placement.extend(crate::overlapping_faces::overlapping_face_warnings(
+        &mut owned,
+    )?);
     let fallbacks: Vec<String> = owned
         .isotropic_fallbacks()
         .into_iter()

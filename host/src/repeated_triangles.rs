@@ -14,7 +14,7 @@ use crate::text::counted;
 
 /// A triangle's corners in a fixed order, as bits: surfaces reflect on both sides, so the
 /// same corners in any order are the same surface.
-fn corners_key(t: &Triangle) -> [[u32; 3]; 3] {
+pub(crate) fn corners_key(t: &Triangle) -> [[u32; 3]; 3] {
     let mut key = t.v.map(|p| p.to_array().map(f32::to_bits));
     key.sort_unstable();
     key

@@ -188,6 +188,9 @@ pub(super) fn inspect(
         input.owned.triangles(),
         &input.owned.group_names,
     ));
+    warnings.extend(crate::overlapping_faces::overlapping_face_warnings(
+        &mut input.owned,
+    )?);
     let owned = &input.owned;
     let names = too_bright::Names {
         views: &input.view_names,

@@ -1,0 +1,545 @@
+//! Faces of two groups that overlap in one plane where a view sees them: a picture
+//! modelled as a quad on its wall's plane, a rug on the floor's, a wall tessellated twice
+//! for two materials. Where they overlap, the ray tracer's closest hit is a tie, and which
+//! group a view sees, and which one light bounces off, is left to the order of the BVH.
+//! Faces a hair apart are no better: a path leaving one starts `RAY_EPSILON` of the
+//! scene's size off it ([`crate::light_placement`]'s slack), beyond the other, so light
+//! passes through. Exact copies are [`crate::repeated_triangles`]' to tell.
+//!
+//! An overlap no view sees is left alone: a box standing on the floor has its bottom in
+//! the floor's plane, and a frame its back in the wall's, but both are closed over, and
+//! every reference scene has such faces.
+//!
+//! Triangles are gathered by plane (a rounded normal and offset, so that only faces that
+//! may be coplanar meet), and within a plane that holds several groups, a sweep over
+//! their extents in the plane tests only pairs whose boxes overlap.
+
+use std::collections::{HashMap, HashSet};
+use std::hash::{DefaultHasher, Hash, Hasher};
+
+use relume_core::geometry::{longest_side, Ray, Surface, Triangle, View};
+use relume_core::math::Vec3;
+use relume_core::render::RAY_EPSILON;
+use relume_core::scene::Scene;
+
+use crate::assemble::OwnedScene;
+use crate::error::Error;
+use crate::light_placement::SLACK_IN_EPSILONS;
+use crate::repeated_triangles::corners_key;
+use crate::text::{counted, significant};
+
+/// Steps per unit of a normal's components when planes are gathered: a face and one
+/// turned by more than about 1/NORMAL_STEPS radians never meet.
+const NORMAL_STEPS: f64 = 64.0;
+
+/// How close to a rounding boundary a normal's component must be for a face to be put in
+/// the neighbouring gathering too (so that two faces on either side of it still meet).
+const NORMAL_MARGIN: f64 = 0.05;
+
+/// Faces this close (as a share of the slack) are in one plane: their tie is the BVH's.
+const TIE_SHARE_OF_SLACK: f64 = 0.01;
+
+/// Points of overlap kept per pair of groups, to look for from the views.
+const POINTS_PER_PAIR: usize = 32;
+
+/// A face prepared for the tests, in f64.
+struct Face {
+    triangle: usize,
+    group: u16,
+    /// Unit normal, turned so that its largest component is positive.
+    normal: [f64; 3],
+    corners: [[f64; 3]; 3],
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+impl Face {
+    /// None for a triangle of no group or of no area.
+    fn new(triangle: usize, t: &Triangle) -> Option<Face> {
+        let Surface::Group(group) = t.surface else {
+            return None;
+        };
+        let corners = t.v.map(|p| p.to_array().map(f64::from));
+        let n = cross(sub(corners[1], corners[0]), sub(corners[2], corners[0]));
+        let length = dot(n, n).sqrt();
+        if !(length > 0.0 && length.is_finite()) {
+            return None;
+        }
+        let largest = (0..3)
+            .max_by(|&a, &b| n[a].abs().total_cmp(&n[b].abs()))
+            .unwrap_or(2);
+        let sign = if n[largest] < 0.0 { -1.0 } else { 1.0 };
+        Some(Face {
+            triangle,
+            group,
+            normal: n.map(|c| c * sign / length),
+            corners,
+        })
+    }
+
+    fn offset(&self) -> f64 {
+        dot(self.normal, self.corners[0])
+    }
+
+    /// The largest distance of `other`'s corners from this face's plane.
+    fn distance_to(&self, other: &Face) -> f64 {
+        let d = self.offset();
+        other
+            .corners
+            .iter()
+            .map(|&c| (dot(self.normal, c) - d).abs())
+            .fold(0.0, f64::max)
+    }
+}
+
+/// Two in-plane axes for faces of unit normal `n`.
+fn plane_axes(n: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+    let helper = if n[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = cross(n, helper);
+    let ul = dot(u, u).sqrt();
+    let u = u.map(|c| c / ul);
+    (u, cross(n, u))
+}
+
+/// Whether two triangles of one plane, given in its 2-D coordinates, overlap by more than
+/// `margin` across on every separating axis: a shared edge or corner is no overlap.
+fn overlap_2d(a: [[f64; 2]; 3], b: [[f64; 2]; 3], margin: f64) -> bool {
+    let axes = (0..3).flat_map(|i| {
+        [a, b].map(|t| {
+            let (p, q) = (t[i], t[(i + 1) % 3]);
+            let (ex, ey) = (q[0] - p[0], q[1] - p[1]);
+            let l = (ex * ex + ey * ey).sqrt();
+            [-ey / l, ex / l]
+        })
+    });
+    let extent = |t: [[f64; 2]; 3], axis: [f64; 2]| {
+        let s = t.map(|p| p[0] * axis[0] + p[1] * axis[1]);
+        (s[0].min(s[1]).min(s[2]), s[0].max(s[1]).max(s[2]))
+    };
+    axes.filter(|axis| axis[0].is_finite() && axis[1].is_finite())
+        .all(|axis| {
+            let (a0, a1) = extent(a, axis);
+            let (b0, b1) = extent(b, axis);
+            a1.min(b1) - a0.max(b0) > margin
+        })
+}
+
+/// What was found for one pair of groups.
+#[derive(Default)]
+struct Overlap {
+    pairs: usize,
+    /// The largest distance between overlapping faces' planes.
+    apart: f64,
+    /// Points inside overlaps (of the first [`POINTS_PER_PAIR`] pairs of triangles).
+    points: Vec<[f64; 3]>,
+}
+
+/// Where `face`'s part of `region` lies: the mean corner of the polygon that clipping
+/// triangle `a` by triangle `b` leaves (both in the plane's 2-D coordinates along `u`
+/// and `v`), put back on `face`'s plane. None when the clip leaves nothing.
+fn overlap_point(
+    a: [[f64; 2]; 3],
+    b: [[f64; 2]; 3],
+    (u, v): ([f64; 3], [f64; 3]),
+    face: &Face,
+) -> Option<[f64; 3]> {
+    let twice_area = |t: [[f64; 2]; 3]| {
+        (t[1][0] - t[0][0]) * (t[2][1] - t[0][1]) - (t[2][0] - t[0][0]) * (t[1][1] - t[0][1])
+    };
+    let turn = if twice_area(b) < 0.0 { -1.0 } else { 1.0 };
+    let mut polygon: Vec<[f64; 2]> = a.to_vec();
+    for i in 0..3 {
+        let (p, q) = (b[i], b[(i + 1) % 3]);
+        let side =
+            |x: [f64; 2]| turn * ((q[0] - p[0]) * (x[1] - p[1]) - (q[1] - p[1]) * (x[0] - p[0]));
+        let mut clipped = Vec::with_capacity(polygon.len() + 1);
+        for k in 0..polygon.len() {
+            let (c, d) = (polygon[k], polygon[(k + 1) % polygon.len()]);
+            let (sc, sd) = (side(c), side(d));
+            if sc >= 0.0 {
+                clipped.push(c);
+            }
+            if (sc >= 0.0) != (sd >= 0.0) {
+                let t = sc / (sc - sd);
+                clipped.push([c[0] + t * (d[0] - c[0]), c[1] + t * (d[1] - c[1])]);
+            }
+        }
+        polygon = clipped;
+    }
+    if polygon.is_empty() {
+        return None;
+    }
+    let n = polygon.len() as f64;
+    let x = polygon.iter().map(|p| p[0]).sum::<f64>() / n;
+    let y = polygon.iter().map(|p| p[1]).sum::<f64>() / n;
+    let offset = face.offset();
+    Some([0, 1, 2].map(|i| u[i] * x + v[i] * y + face.normal[i] * offset))
+}
+
+/// Warnings for groups whose faces overlap in one plane, or within the renderer's ray
+/// slack of it, where a view sees the overlap: one per pair of groups, naming the view,
+/// a point and the number of triangle pairs.
+pub fn overlapping_face_warnings(owned: &mut OwnedScene) -> Result<Vec<String>, Error> {
+    let slack = f64::from(SLACK_IN_EPSILONS * RAY_EPSILON * longest_side(owned.triangles()));
+    let found = find_overlaps(owned.triangles(), slack);
+    if found.is_empty() {
+        return Ok(Vec::new());
+    }
+    let group_names = owned.group_names.clone();
+    let view_names: Vec<String> = owned.desc.views.iter().map(|v| v.name.clone()).collect();
+    let views = owned.views.clone();
+    let origin = owned.origin;
+    let scene = owned.build()?;
+    let name = |g: u16| group_names.get(g as usize).map_or("?", String::as_str);
+    let mut warnings = Vec::new();
+    for ((a, b), o) in found {
+        let Some((p, view)) = o
+            .points
+            .iter()
+            .find_map(|&p| seen_by(&scene, &views, p, slack).map(|v| (p, v)))
+        else {
+            continue;
+        };
+        let at = format!(
+            "({}, {}, {})",
+            significant(p[0] + origin[0]),
+            significant(p[1] + origin[1]),
+            significant(p[2] + origin[2])
+        );
+        let view = view_names.get(view).map_or("?", String::as_str);
+        let what = format!(
+            "{} of triangles, seen from view '{view}' at {at}",
+            counted(o.pairs as u64, "pair")
+        );
+        warnings.push(if o.apart <= TIE_SHARE_OF_SLACK * slack {
+            format!(
+                "groups '{}' and '{}' overlap in one plane ({what}): which of the two a view sees there, and which one light bounces off, is left to chance; move one in front of the other by more than {} units (the renderer's ray slack), or cut the covered part away",
+                name(a),
+                name(b),
+                significant(slack)
+            )
+        } else {
+            format!(
+                "groups '{}' and '{}' overlap {} units apart ({what}), closer than the renderer's ray slack of {} units: the views see the nearer, but light leaving either starts beyond the other and passes through it; move them further apart, or cut the covered part away",
+                name(a),
+                name(b),
+                significant(o.apart),
+                significant(slack)
+            )
+        });
+    }
+    Ok(warnings)
+}
+
+/// The first of `views` that sees point `p` (in the scene's coordinates): `p` within its
+/// frame, and nothing nearer than `p` less `slack` on the line from its position.
+fn seen_by(scene: &Scene, views: &[View], p: [f64; 3], slack: f64) -> Option<usize> {
+    let p = Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32);
+    views.iter().position(|view| {
+        let d = p - view.position;
+        let z = d.dot(view.forward);
+        if z.is_nan() || z <= 0.0 {
+            return false;
+        }
+        let sx = d.dot(view.right_span) / (view.right_span.length_squared() * z);
+        let sy = d.dot(view.up_span) / (view.up_span.length_squared() * z);
+        if !(sx.abs() <= 0.5 && sy.abs() <= 0.5) {
+            return false;
+        }
+        let distance = d.length();
+        let hit = scene.intersect(&Ray::new(view.position, d / distance), f32::INFINITY);
+        hit.is_some_and(|h| f64::from(h.t) >= f64::from(distance) - slack)
+    })
+}
+
+/// Each pair of groups (smaller index first, in order) with faces that overlap within
+/// `slack` of one plane.
+fn find_overlaps(triangles: &[Triangle], slack: f64) -> Vec<((u16, u16), Overlap)> {
+    if !(slack > 0.0 && slack.is_finite()) {
+        return Vec::new();
+    }
+    // Each face under a hash of its rounded plane (or two, or more, near a rounding
+    // boundary), sorted: 16 bytes a face, where a map of lists cost several times that.
+    let mut entries: Vec<(u64, u32)> = Vec::new();
+    for (i, t) in triangles.iter().enumerate() {
+        if let Some(face) = Face::new(i, t) {
+            for key in plane_keys(&face, slack) {
+                let mut hasher = DefaultHasher::new();
+                key.hash(&mut hasher);
+                entries.push((hasher.finish(), i as u32));
+            }
+        }
+    }
+    entries.sort_unstable();
+    let mut found: HashMap<(u16, u16), Overlap> = HashMap::new();
+    let mut seen: HashSet<(u32, u32)> = HashSet::new();
+    for run in entries.chunk_by(|a, b| a.0 == b.0) {
+        let group_of = |&(_, i): &(u64, u32)| triangles[i as usize].surface;
+        if run.iter().all(|e| group_of(e) == group_of(&run[0])) {
+            continue;
+        }
+        let faces: Vec<Face> = run
+            .iter()
+            .filter_map(|&(_, i)| Face::new(i as usize, &triangles[i as usize]))
+            .collect();
+        sweep_plane(triangles, &faces, slack, &mut seen, &mut found);
+    }
+    let mut pairs: Vec<_> = found.into_iter().collect();
+    pairs.sort_unstable_by_key(|(k, _)| *k);
+    pairs
+}
+
+/// The rounded planes a face is gathered under: its normal in steps of 1/NORMAL_STEPS and
+/// its offset in cells of four slacks, and the neighbouring step or cell of any that it
+/// lies near the edge of, so that two faces of one plane always share a key.
+fn plane_keys(face: &Face, slack: f64) -> Vec<[i64; 4]> {
+    let mut keys = vec![[0i64; 4]];
+    let offset = face.offset() / (4.0 * slack);
+    let scaled = face.normal.map(|c| c * NORMAL_STEPS);
+    for (axis, (x, margin)) in scaled
+        .into_iter()
+        .map(|x| (x, NORMAL_MARGIN))
+        .chain([(offset, 0.25)])
+        .enumerate()
+    {
+        let nearest = x.round();
+        let other = if ((x - x.floor()) - 0.5).abs() < margin {
+            Some(if x < nearest {
+                nearest - 1.0
+            } else {
+                nearest + 1.0
+            })
+        } else {
+            None
+        };
+        keys = keys
+            .into_iter()
+            .flat_map(|key| {
+                let with = |v: f64| {
+                    let mut key = key;
+                    key[axis] = v as i64;
+                    key
+                };
+                std::iter::once(with(nearest)).chain(other.map(with))
+            })
+            .collect();
+    }
+    keys
+}
+
+/// Tests the faces of one gathered plane pairwise, by a sweep along one in-plane axis:
+/// only faces of different groups whose extents overlap on both axes are compared.
+fn sweep_plane(
+    triangles: &[Triangle],
+    faces: &[Face],
+    slack: f64,
+    seen: &mut HashSet<(u32, u32)>,
+    found: &mut HashMap<(u16, u16), Overlap>,
+) {
+    let (u, v) = plane_axes(faces[0].normal);
+    let items: Vec<([[f64; 2]; 3], [f64; 4])> = faces
+        .iter()
+        .map(|f| {
+            let p = f.corners.map(|c| [dot(c, u), dot(c, v)]);
+            let (mut u0, mut u1, mut v0, mut v1) = (p[0][0], p[0][0], p[0][1], p[0][1]);
+            for q in &p[1..] {
+                (u0, u1) = (u0.min(q[0]), u1.max(q[0]));
+                (v0, v1) = (v0.min(q[1]), v1.max(q[1]));
+            }
+            (p, [u0, u1, v0, v1])
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..faces.len()).collect();
+    order.sort_unstable_by(|&a, &b| items[a].1[0].total_cmp(&items[b].1[0]).then(a.cmp(&b)));
+    let mut active: Vec<usize> = Vec::new();
+    for &i in &order {
+        let (p, bx) = items[i];
+        active.retain(|&j| items[j].1[1] > bx[0] + slack);
+        let fa = &faces[i];
+        for &j in &active {
+            let (q, by) = items[j];
+            let fb = &faces[j];
+            if fa.group == fb.group || !(by[2] < bx[3] - slack && bx[2] < by[3] - slack) {
+                continue;
+            }
+            let (ta, tb) = (fa.triangle as u32, fb.triangle as u32);
+            let pair = (ta.min(tb), ta.max(tb));
+            if seen.contains(&pair) {
+                continue;
+            }
+            let apart = fa.distance_to(fb).max(fb.distance_to(fa));
+            if apart.is_nan() || apart > slack || !overlap_2d(p, q, slack) {
+                continue;
+            }
+            if corners_key(&triangles[fa.triangle]) == corners_key(&triangles[fb.triangle]) {
+                continue; // an exact copy: repeated_triangles tells it
+            }
+            seen.insert(pair);
+            let (ga, gb) = (fa.group.min(fb.group), fa.group.max(fb.group));
+            let entry = found.entry((ga, gb)).or_default();
+            entry.pairs += 1;
+            entry.apart = entry.apart.max(apart);
+            if entry.points.len() < POINTS_PER_PAIR {
+                entry.points.extend(overlap_point(p, q, (u, v), fa));
+            }
+        }
+        active.push(i);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use relume_core::math::{self, Vec2, Vec3};
+
+    fn triangle(v: [[f32; 3]; 3], group: u16) -> Triangle {
+        Triangle {
+            v: v.map(Vec3::from),
+            uv: [Vec2::ZERO; 3],
+            surface: Surface::Group(group),
+        }
+    }
+
+    /// A quad in the plane through `origin` spanned by `a` and `b`, as two triangles
+    /// split along one diagonal or the other.
+    fn quad(origin: Vec3, a: Vec3, b: Vec3, other_diagonal: bool, group: u16) -> [Triangle; 2] {
+        let [p, q, r, s] = [origin, origin + a, origin + a + b, origin + b].map(|v| v.to_array());
+        if other_diagonal {
+            [triangle([p, q, s], group), triangle([q, r, s], group)]
+        } else {
+            [triangle([p, q, r], group), triangle([p, r, s], group)]
+        }
+    }
+
+    /// The pairs of groups found, with their triangle pairs, distance and points.
+    fn overlaps(t: &[Triangle]) -> Vec<((u16, u16), Overlap)> {
+        let slack = f64::from(SLACK_IN_EPSILONS * RAY_EPSILON * longest_side(t));
+        find_overlaps(t, slack)
+    }
+
+    /// A 4x3 wall in the plane x = 0 tilted by `tilt` about the z axis (0 for an axis
+    /// plane), a room's floor to set the scene's size, and a 1x1 picture `lift` in front
+    /// of the wall.
+    fn wall_and_picture(tilt: f32, lift: f32, picture_group: u16) -> Vec<Triangle> {
+        let (s, c) = (math::sin(tilt), math::cos(tilt));
+        let along = Vec3::new(s, c, 0.0);
+        let normal = Vec3::new(c, -s, 0.0);
+        let up = Vec3::Z;
+        let mut t = Vec::new();
+        t.extend(quad(Vec3::ZERO, along * 4.0, up * 3.0, false, 0));
+        t.extend(quad(
+            along * 1.5 + up + normal * lift,
+            along,
+            up,
+            true,
+            picture_group,
+        ));
+        t.extend(quad(
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::X * 5.0,
+            Vec3::Y * 4.0,
+            false,
+            2,
+        ));
+        t
+    }
+
+    #[test]
+    fn a_picture_in_its_walls_plane_is_found_with_points_on_it() {
+        for tilt in [0.0f32, 0.3, 1.0, 2.5] {
+            let found = overlaps(&wall_and_picture(tilt, 0.0, 1));
+            assert_eq!(found.len(), 1, "tilt {tilt}");
+            let ((a, b), o) = &found[0];
+            assert_eq!((*a, *b), (0, 1));
+            assert_eq!(o.pairs, 4, "each picture triangle over both wall triangles");
+            assert!(o.apart < 1e-6, "{}", o.apart);
+            // Every point lies on the picture, in the wall's plane.
+            let (s, c) = (f64::from(math::sin(tilt)), f64::from(math::cos(tilt)));
+            for p in &o.points {
+                let along = p[0] * s + p[1] * c;
+                let off = p[0] * c - p[1] * s;
+                assert!(off.abs() < 1e-5, "{p:?}");
+                assert!(
+                    (1.5..=2.5).contains(&along) && (1.0..=2.0).contains(&p[2]),
+                    "{p:?}"
+                );
+            }
+            assert_eq!(o.points.len(), 4);
+        }
+    }
+
+    #[test]
+    fn a_picture_within_the_slack_is_found_apart_and_one_beyond_it_is_not() {
+        // The scene is 5 units long: the slack is 2 * 1e-4 * 5 = 0.001.
+        let found = overlaps(&wall_and_picture(0.3, 0.0005, 1));
+        assert_eq!(found.len(), 1);
+        assert!(
+            (found[0].1.apart - 0.0005).abs() < 1e-6,
+            "{}",
+            found[0].1.apart
+        );
+        for lift in [0.002, 0.1, -0.01] {
+            assert!(
+                overlaps(&wall_and_picture(0.3, lift, 1)).is_empty(),
+                "lift {lift}"
+            );
+        }
+    }
+
+    #[test]
+    fn neighbours_copies_and_one_groups_own_faces_are_no_overlap() {
+        // Two groups meeting edge to edge in one plane (a wall of two materials).
+        let mut t = Vec::new();
+        t.extend(quad(Vec3::ZERO, Vec3::Y * 2.0, Vec3::Z * 3.0, false, 0));
+        t.extend(quad(Vec3::Y * 2.0, Vec3::Y * 2.0, Vec3::Z * 3.0, true, 1));
+        assert!(overlaps(&t).is_empty());
+        // A picture in its wall's plane, of the wall's own group.
+        assert!(overlaps(&wall_and_picture(0.3, 0.0, 0)).is_empty());
+        // The same quad, split the same way, in two groups: repeated_triangles' case.
+        let mut t = Vec::new();
+        t.extend(quad(Vec3::ZERO, Vec3::Y, Vec3::Z, false, 0));
+        t.extend(quad(Vec3::ZERO, Vec3::Y, Vec3::Z, false, 1));
+        assert!(overlaps(&t).is_empty());
+        // Split along the other diagonal, the copy overlaps: each triangle two others.
+        let mut t = Vec::new();
+        t.extend(quad(Vec3::ZERO, Vec3::Y, Vec3::Z, false, 0));
+        t.extend(quad(Vec3::ZERO, Vec3::Y, Vec3::Z, true, 1));
+        let found = overlaps(&t);
+        assert_eq!(found.len(), 1);
+        assert_eq!(found[0].1.pairs, 4);
+    }
+
+    #[test]
+    fn faces_on_either_side_of_a_rounding_boundary_still_meet() {
+        // Offsets walked across several cells of four slacks: wherever the wall's plane
+        // falls, the picture in it is found.
+        for k in 0..40 {
+            let x = 0.37 + k as f32 * 0.00023;
+            let mut t = wall_and_picture(0.0, 0.0, 1);
+            for tri in &mut t[..4] {
+                for v in &mut tri.v {
+                    v.x += x;
+                }
+            }
+            assert_eq!(overlaps(&t).len(), 1, "x {x}");
+        }
+    }
+}
