@@ -572,7 +572,8 @@ fn a_scene_stretched_by_one_far_object_names_it() {
 
 /// A light's face given twice emits twice: every group of the room came out 87-99%
 /// brighter, and `check` and `recover` said nothing. It is refused, naming the light and
-/// the triangle; the same face turned the other way (a panel lit on both sides) is not.
+/// the triangle, and so is the face given again along its other diagonal; the same face
+/// turned the other way (a panel lit on both sides) is not.
 #[test]
 fn a_light_face_given_twice_is_refused_and_one_turned_over_is_not() {
     let case = Case::new();
@@ -588,9 +589,25 @@ fn a_light_face_given_twice_is_refused_and_one_turned_over_is_not() {
             "is also triangle 1 of light 'light', facing the same way",
         ],
     );
-    let both_sides = obj.replace("\nf 25 26 27 28\n", "\nf 25 26 27 28\nf 28 27 26 25\n");
-    std::fs::write(case.path("geometry.obj"), both_sides).unwrap();
-    relume_ok(&case.path(""), &["check", "scene.toml"]);
+    // The same quad split along its other diagonal is no copy, but emits twice as much.
+    let other_diagonal = obj.replace("\nf 25 26 27 28\n", "\nf 25 26 27 28\nf 26 27 28 25\n");
+    std::fs::write(case.path("geometry.obj"), other_diagonal).unwrap();
+    case.fails(
+        &["check", "scene.toml"],
+        INPUT,
+        &[
+            "geometry.obj: light 'light': its triangle 3 (in file order; corners (1.1, 1.9, 2.49), (1.9, 1.9, 2.49), (1.9, 1.1, 2.49))",
+            "overlaps triangle 1 of light 'light' in one plane, facing the same way (near (1.6, 1.8, 2.49))",
+        ],
+    );
+    for both_sides in ["f 28 27 26 25", "f 27 26 25 28"] {
+        let lit_twice = obj.replace(
+            "\nf 25 26 27 28\n",
+            &format!("\nf 25 26 27 28\n{both_sides}\n"),
+        );
+        std::fs::write(case.path("geometry.obj"), lit_twice).unwrap();
+        relume_ok(&case.path(""), &["check", "scene.toml"]);
+    }
 }
 
 /// A lamp in the ceiling's plane, or a hair behind it, is hidden from the views by the

@@ -122,6 +122,56 @@ fn refuse_a_light_triangle_twice<'o>(
     Ok(())
 }
 
+/// An error when two light triangles overlap in one plane (or within the renderer's ray
+/// slack of it) facing the same way: both emit there, as an exact copy would
+/// ([`refuse_a_light_triangle_twice`]), but a lamp's quad given again split along its other
+/// diagonal is no copy. `light_objects` gives where each light object's triangles start
+/// in `triangles`, which are placed relative to `origin`.
+fn refuse_overlapping_light_faces(
+    triangles: &[Triangle],
+    light_objects: &[(usize, &ObjObject)],
+    origin: [f64; 3],
+) -> Result<(), Error> {
+    if light_objects.is_empty() {
+        return Ok(());
+    }
+    let slack = f64::from(
+        crate::light_placement::SLACK_IN_EPSILONS * RAY_EPSILON * longest_side(triangles),
+    );
+    let Some((i, j, point)) = crate::overlapping_faces::overlapping_light_faces(triangles, slack)
+    else {
+        return Ok(());
+    };
+    let object_of = |t: usize| {
+        let k = light_objects.partition_point(|&(start, _)| start <= t);
+        light_objects
+            .get(k.saturating_sub(1))
+            .map(|&(start, o)| (o, t - start))
+    };
+    let (Some((later, at)), Some((earlier, first))) = (object_of(j), object_of(i)) else {
+        return Ok(());
+    };
+    let corners: Vec<String> = later.triangles[at]
+        .iter()
+        .map(|p| format!("({}, {}, {})", p[0], p[1], p[2]))
+        .collect();
+    let near: Vec<String> = (0..3)
+        .map(|k| crate::text::significant(point[k] + origin[k]))
+        .collect();
+    Err(Error::input(
+        &later.file,
+        format!(
+            "light '{}': its triangle {} (in file order; corners {}) overlaps triangle {} of light '{}' in one plane, facing the same way (near ({})): both would emit there, and that part of the light be counted twice; give each part of a light's surface once",
+            later.name,
+            at + 1,
+            corners.join(", "),
+            first + 1,
+            earlier.name,
+            near.join(", ")
+        ),
+    ))
+}
+
 /// The largest ray offset a light's size allows, as a share of the light's longest side.
 /// The references' offsets are 0.04-0.36% of their smallest light's (the living room's
 /// desk lamp bulb, 0.14 units in a room of 5).
@@ -386,6 +436,8 @@ pub fn assemble(
     );
     let mut triangles = Vec::new();
     let mut light_triangles = HashMap::new();
+    // Where each light object's triangles start in `triangles`.
+    let mut light_objects: Vec<(usize, &ObjObject)> = Vec::new();
     for object in objects {
         if desc.hide.iter().any(|h| h == &object.name) {
             continue;
@@ -402,6 +454,7 @@ pub fn assemble(
         if let Surface::Light(_) = surface {
             refuse_a_light_without_area(object)?;
             refuse_a_light_triangle_twice(object, &mut light_triangles)?;
+            light_objects.push((triangles.len(), object));
         }
         for (i, v) in object.triangles.iter().enumerate() {
             let uv = match &object.uvs {
@@ -421,6 +474,7 @@ pub fn assemble(
         triangles.len(),
     )
     .map_err(|e| core_err("triangles", e))?;
+    refuse_overlapping_light_faces(&triangles, &light_objects, origin)?;
     refuse_offsets_larger_than_a_light(&desc, &triangles, &light_names, objects)?;
 
     let mut views = Vec::with_capacity(desc.views.len());

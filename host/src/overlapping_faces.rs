@@ -45,9 +45,11 @@ const POINTS_PER_PAIR: usize = 32;
 /// A face prepared for the tests, in f64.
 struct Face {
     triangle: usize,
-    group: u16,
+    surface: Surface,
     /// Unit normal, turned so that its largest component is positive.
     normal: [f64; 3],
+    /// Whether the triangle's own front normal is `normal` (not turned).
+    front: bool,
     corners: [[f64; 3]; 3],
 }
 
@@ -68,11 +70,8 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 
 impl Face {
-    /// None for a triangle of no group or of no area.
+    /// None for a triangle of no area.
     fn new(triangle: usize, t: &Triangle) -> Option<Face> {
-        let Surface::Group(group) = t.surface else {
-            return None;
-        };
         let corners = t.v.map(|p| p.to_array().map(f64::from));
         let n = cross(sub(corners[1], corners[0]), sub(corners[2], corners[0]));
         let length = dot(n, n).sqrt();
@@ -85,8 +84,9 @@ impl Face {
         let sign = if n[largest] < 0.0 { -1.0 } else { 1.0 };
         Some(Face {
             triangle,
-            group,
+            surface: t.surface,
             normal: n.map(|c| c * sign / length),
+            front: sign > 0.0,
             corners,
         })
     }
@@ -271,10 +271,67 @@ fn seen_by(scene: &Scene, views: &[View], p: [f64; 3], slack: f64) -> Option<usi
 }
 
 /// Each pair of groups (smaller index first, in order) with faces that overlap within
-/// `slack` of one plane.
+/// `slack` of one plane, exact copies left out.
 fn find_overlaps(triangles: &[Triangle], slack: f64) -> Vec<((u16, u16), Overlap)> {
+    let mut found: HashMap<(u16, u16), Overlap> = HashMap::new();
+    let of_groups = |a: &Face, b: &Face| match (a.surface, b.surface) {
+        (Surface::Group(g), Surface::Group(h)) => g != h,
+        _ => false,
+    };
+    scan(triangles, slack, of_groups, |a, b, apart, point| {
+        if corners_key(&triangles[a.triangle]) == corners_key(&triangles[b.triangle]) {
+            return; // an exact copy: repeated_triangles tells it
+        }
+        let (Surface::Group(g), Surface::Group(h)) = (a.surface, b.surface) else {
+            return;
+        };
+        let entry = found.entry((g.min(h), g.max(h))).or_default();
+        entry.pairs += 1;
+        entry.apart = entry.apart.max(apart);
+        if entry.points.len() < POINTS_PER_PAIR {
+            entry.points.extend(point());
+        }
+    });
+    let mut pairs: Vec<_> = found.into_iter().collect();
+    pairs.sort_unstable_by_key(|(k, _)| *k);
+    pairs
+}
+
+/// The first two light triangles (indices into `triangles`, in order) that overlap
+/// within `slack` of one plane facing the same way, with a point of their overlap: both
+/// emit there, and the light is counted twice. Exact copies included.
+pub fn overlapping_light_faces(
+    triangles: &[Triangle],
+    slack: f64,
+) -> Option<(usize, usize, [f64; 3])> {
+    let of_lights = |a: &Face, b: &Face| {
+        matches!(
+            (a.surface, b.surface),
+            (Surface::Light(_), Surface::Light(_))
+        ) && a.front == b.front
+    };
+    let mut first: Option<(usize, usize, [f64; 3])> = None;
+    scan(triangles, slack, of_lights, |a, b, _, point| {
+        let (i, j) = (a.triangle.min(b.triangle), a.triangle.max(b.triangle));
+        if first.is_none_or(|(fi, fj, _)| (i, j) < (fi, fj)) {
+            let p = point().unwrap_or_else(|| a.corners[0]);
+            first = Some((i, j, p));
+        }
+    });
+    first
+}
+
+/// Calls `on_overlap` once for each pair of faces that `may_pair` admits (from their
+/// surfaces and facing alone) and that overlap by more than `slack` across within `slack`
+/// of one plane, with their planes' distance and a way to a point of the overlap.
+fn scan(
+    triangles: &[Triangle],
+    slack: f64,
+    may_pair: impl Fn(&Face, &Face) -> bool,
+    mut on_overlap: impl FnMut(&Face, &Face, f64, &dyn Fn() -> Option<[f64; 3]>),
+) {
     if !(slack > 0.0 && slack.is_finite()) {
-        return Vec::new();
+        return;
     }
     // Each face under a hash of its rounded plane (or two, or more, near a rounding
     // boundary), sorted: 16 bytes a face, where a map of lists cost several times that.
@@ -289,22 +346,27 @@ fn find_overlaps(triangles: &[Triangle], slack: f64) -> Vec<((u16, u16), Overlap
         }
     }
     entries.sort_unstable();
-    let mut found: HashMap<(u16, u16), Overlap> = HashMap::new();
     let mut seen: HashSet<(u32, u32)> = HashSet::new();
     for run in entries.chunk_by(|a, b| a.0 == b.0) {
-        let group_of = |&(_, i): &(u64, u32)| triangles[i as usize].surface;
-        if run.iter().all(|e| group_of(e) == group_of(&run[0])) {
-            continue;
-        }
         let faces: Vec<Face> = run
             .iter()
             .filter_map(|&(_, i)| Face::new(i as usize, &triangles[i as usize]))
             .collect();
-        sweep_plane(triangles, &faces, slack, &mut seen, &mut found);
+        // One face of each surface and facing: `may_pair` looks at nothing else, so a
+        // plane where it admits no pair of these (one group's floor) is passed over.
+        let mut kinds: Vec<&Face> = Vec::new();
+        for f in &faces {
+            if !kinds
+                .iter()
+                .any(|k| k.surface == f.surface && k.front == f.front)
+            {
+                kinds.push(f);
+            }
+        }
+        if kinds.iter().any(|a| kinds.iter().any(|b| may_pair(a, b))) {
+            sweep_plane(&faces, slack, &may_pair, &mut seen, &mut on_overlap);
+        }
     }
-    let mut pairs: Vec<_> = found.into_iter().collect();
-    pairs.sort_unstable_by_key(|(k, _)| *k);
-    pairs
 }
 
 /// The rounded planes a face is gathered under: its normal in steps of 1/NORMAL_STEPS and
@@ -346,13 +408,13 @@ fn plane_keys(face: &Face, slack: f64) -> Vec<[i64; 4]> {
 }
 
 /// Tests the faces of one gathered plane pairwise, by a sweep along one in-plane axis:
-/// only faces of different groups whose extents overlap on both axes are compared.
+/// only faces that `may_pair` admits and whose extents overlap on both axes are compared.
 fn sweep_plane(
-    triangles: &[Triangle],
     faces: &[Face],
     slack: f64,
+    may_pair: &impl Fn(&Face, &Face) -> bool,
     seen: &mut HashSet<(u32, u32)>,
-    found: &mut HashMap<(u16, u16), Overlap>,
+    on_overlap: &mut impl FnMut(&Face, &Face, f64, &dyn Fn() -> Option<[f64; 3]>),
 ) {
     let (u, v) = plane_axes(faces[0].normal);
     let items: Vec<([[f64; 2]; 3], [f64; 4])> = faces
@@ -377,7 +439,8 @@ fn sweep_plane(
         for &j in &active {
             let (q, by) = items[j];
             let fb = &faces[j];
-            if fa.group == fb.group || !(by[2] < bx[3] - slack && bx[2] < by[3] - slack) {
+            let boxes_meet = by[2] < bx[3] - slack && bx[2] < by[3] - slack;
+            if !boxes_meet || !may_pair(fa, fb) {
                 continue;
             }
             let (ta, tb) = (fa.triangle as u32, fb.triangle as u32);
@@ -389,17 +452,8 @@ fn sweep_plane(
             if apart.is_nan() || apart > slack || !overlap_2d(p, q, slack) {
                 continue;
             }
-            if corners_key(&triangles[fa.triangle]) == corners_key(&triangles[fb.triangle]) {
-                continue; // an exact copy: repeated_triangles tells it
-            }
             seen.insert(pair);
-            let (ga, gb) = (fa.group.min(fb.group), fa.group.max(fb.group));
-            let entry = found.entry((ga, gb)).or_default();
-            entry.pairs += 1;
-            entry.apart = entry.apart.max(apart);
-            if entry.points.len() < POINTS_PER_PAIR {
-                entry.points.extend(overlap_point(p, q, (u, v), fa));
-            }
+            on_overlap(fa, fb, apart, &|| overlap_point(p, q, (u, v), fa));
         }
         active.push(i);
     }
@@ -525,6 +579,29 @@ mod tests {
         let found = overlaps(&t);
         assert_eq!(found.len(), 1);
         assert_eq!(found[0].1.pairs, 4);
+    }
+
+    #[test]
+    fn light_faces_overlap_only_facing_the_same_way() {
+        let light = |v: [[f32; 3]; 3], l: u16| Triangle {
+            surface: Surface::Light(l),
+            ..triangle(v, 0)
+        };
+        let a = [[0.0, 0.0, 2.0], [1.0, 0.0, 2.0], [0.0, 1.0, 2.0]];
+        let b = [[0.2, 0.2, 2.0], [1.2, 0.2, 2.0], [0.2, 1.2, 2.0]];
+        let turned = [b[2], b[1], b[0]];
+        let floor = quad(Vec3::ZERO, Vec3::X * 3.0, Vec3::Y * 3.0, false, 0);
+        for (other, l, expected) in [(b, 0, true), (b, 1, true), (turned, 0, false)] {
+            let mut t = floor.to_vec();
+            t.extend([light(a, 0), light(other, l)]);
+            let slack = f64::from(SLACK_IN_EPSILONS * RAY_EPSILON * longest_side(&t));
+            let found = overlapping_light_faces(&t, slack);
+            assert_eq!(found.is_some(), expected, "{other:?} of light {l}");
+            if let Some((i, j, p)) = found {
+                assert_eq!((i, j), (2, 3));
+                assert!(p[2] == 2.0 && (0.2..0.8).contains(&p[0]), "{p:?}");
+            }
+        }
     }
 
     #[test]
