@@ -278,20 +278,27 @@ fn find_overlaps(triangles: &[Triangle], slack: f64) -> Vec<((u16, u16), Overlap
         (Surface::Group(g), Surface::Group(h)) => g != h,
         _ => false,
     };
-    scan(triangles, slack, of_groups, |a, b, apart, point| {
-        if corners_key(&triangles[a.triangle]) == corners_key(&triangles[b.triangle]) {
-            return; // an exact copy: repeated_triangles tells it
-        }
-        let (Surface::Group(g), Surface::Group(h)) = (a.surface, b.surface) else {
-            return;
-        };
-        let entry = found.entry((g.min(h), g.max(h))).or_default();
-        entry.pairs += 1;
-        entry.apart = entry.apart.max(apart);
-        if entry.points.len() < POINTS_PER_PAIR {
-            entry.points.extend(point());
-        }
-    });
+    let is_group = |s: Surface| matches!(s, Surface::Group(_));
+    scan(
+        triangles,
+        slack,
+        is_group,
+        of_groups,
+        |a, b, apart, point| {
+            if corners_key(&triangles[a.triangle]) == corners_key(&triangles[b.triangle]) {
+                return; // an exact copy: repeated_triangles tells it
+            }
+            let (Surface::Group(g), Surface::Group(h)) = (a.surface, b.surface) else {
+                return;
+            };
+            let entry = found.entry((g.min(h), g.max(h))).or_default();
+            entry.pairs += 1;
+            entry.apart = entry.apart.max(apart);
+            if entry.points.len() < POINTS_PER_PAIR {
+                entry.points.extend(point());
+            }
+        },
+    );
     let mut pairs: Vec<_> = found.into_iter().collect();
     pairs.sort_unstable_by_key(|(k, _)| *k);
     pairs
@@ -311,7 +318,8 @@ pub fn overlapping_light_faces(
         ) && a.front == b.front
     };
     let mut first: Option<(usize, usize, [f64; 3])> = None;
-    scan(triangles, slack, of_lights, |a, b, _, point| {
+    let is_light = |s: Surface| matches!(s, Surface::Light(_));
+    scan(triangles, slack, is_light, of_lights, |a, b, _, point| {
         let (i, j) = (a.triangle.min(b.triangle), a.triangle.max(b.triangle));
         if first.is_none_or(|(fi, fj, _)| (i, j) < (fi, fj)) {
             let p = point().unwrap_or_else(|| a.corners[0]);
@@ -321,12 +329,14 @@ pub fn overlapping_light_faces(
     first
 }
 
-/// Calls `on_overlap` once for each pair of faces that `may_pair` admits (from their
+/// Calls `on_overlap` once for each pair of the faces `admits` (by their surface) that
+/// `may_pair` admits (from their
 /// surfaces and facing alone) and that overlap by more than `slack` across within `slack`
 /// of one plane, with their planes' distance and a way to a point of the overlap.
 fn scan(
     triangles: &[Triangle],
     slack: f64,
+    admits: impl Fn(Surface) -> bool,
     may_pair: impl Fn(&Face, &Face) -> bool,
     mut on_overlap: impl FnMut(&Face, &Face, f64, &dyn Fn() -> Option<[f64; 3]>),
 ) {
@@ -337,25 +347,29 @@ fn scan(
     // boundary), sorted: 16 bytes a face, where a map of lists cost several times that.
     let mut entries: Vec<(u64, u32)> = Vec::new();
     for (i, t) in triangles.iter().enumerate() {
+        if !admits(t.surface) {
+            continue;
+        }
         if let Some(face) = Face::new(i, t) {
-            for key in plane_keys(&face, slack) {
+            plane_keys(&face, slack, |key| {
                 let mut hasher = DefaultHasher::new();
                 key.hash(&mut hasher);
                 entries.push((hasher.finish(), i as u32));
-            }
+            });
         }
     }
     entries.sort_unstable();
     let mut seen: HashSet<(u32, u32)> = HashSet::new();
     for run in entries.chunk_by(|a, b| a.0 == b.0) {
-        let faces: Vec<Face> = run
-            .iter()
-            .filter_map(|&(_, i)| Face::new(i as usize, &triangles[i as usize]))
-            .collect();
+        let faces = || {
+            run.iter()
+                .filter_map(|&(_, i)| Face::new(i as usize, &triangles[i as usize]))
+        };
         // One face of each surface and facing: `may_pair` looks at nothing else, so a
-        // plane where it admits no pair of these (one group's floor) is passed over.
-        let mut kinds: Vec<&Face> = Vec::new();
-        for f in &faces {
+        // plane where it admits no pair of these (one group's floor) is passed over
+        // before its faces are held.
+        let mut kinds: Vec<Face> = Vec::new();
+        for f in faces() {
             if !kinds
                 .iter()
                 .any(|k| k.surface == f.surface && k.front == f.front)
@@ -364,6 +378,7 @@ fn scan(
             }
         }
         if kinds.iter().any(|a| kinds.iter().any(|b| may_pair(a, b))) {
+            let faces: Vec<Face> = faces().collect();
             sweep_plane(&faces, slack, &may_pair, &mut seen, &mut on_overlap);
         }
     }
@@ -371,40 +386,39 @@ fn scan(
 
 /// The rounded planes a face is gathered under: its normal in steps of 1/NORMAL_STEPS and
 /// its offset in cells of four slacks, and the neighbouring step or cell of any that it
-/// lies near the edge of, so that two faces of one plane always share a key.
-fn plane_keys(face: &Face, slack: f64) -> Vec<[i64; 4]> {
-    let mut keys = vec![[0i64; 4]];
+/// lies near the edge of, so that two faces of one plane always share a key. Passed to
+/// `each` (one key for most faces, up to 16), with no allocation.
+fn plane_keys(face: &Face, slack: f64, mut each: impl FnMut([i64; 4])) {
     let offset = face.offset() / (4.0 * slack);
     let scaled = face.normal.map(|c| c * NORMAL_STEPS);
-    for (axis, (x, margin)) in scaled
-        .into_iter()
-        .map(|x| (x, NORMAL_MARGIN))
-        .chain([(offset, 0.25)])
-        .enumerate()
-    {
-        let nearest = x.round();
-        let other = if ((x - x.floor()) - 0.5).abs() < margin {
-            Some(if x < nearest {
-                nearest - 1.0
-            } else {
-                nearest + 1.0
-            })
-        } else {
-            None
-        };
-        keys = keys
-            .into_iter()
-            .flat_map(|key| {
-                let with = |v: f64| {
-                    let mut key = key;
-                    key[axis] = v as i64;
-                    key
-                };
-                std::iter::once(with(nearest)).chain(other.map(with))
-            })
-            .collect();
+    let coordinates = [scaled[0], scaled[1], scaled[2], offset];
+    let margins = [NORMAL_MARGIN, NORMAL_MARGIN, NORMAL_MARGIN, 0.25];
+    let mut nearest = [0i64; 4];
+    let mut other = [None; 4];
+    for axis in 0..4 {
+        let x = coordinates[axis];
+        let n = x.round();
+        nearest[axis] = n as i64;
+        if ((x - x.floor()) - 0.5).abs() < margins[axis] {
+            other[axis] = Some(if x < n { n - 1.0 } else { n + 1.0 } as i64);
+        }
     }
-    keys
+    // Every choice of nearest or other per axis, where an axis has another.
+    for choice in 0u32..16 {
+        let mut key = nearest;
+        let mut possible = true;
+        for axis in 0..4 {
+            if choice & (1 << axis) != 0 {
+                match other[axis] {
+                    Some(o) => key[axis] = o,
+                    None => possible = false,
+                }
+            }
+        }
+        if possible {
+            each(key);
+        }
+    }
 }
 
 /// Tests the faces of one gathered plane pairwise, by a sweep along one in-plane axis:
