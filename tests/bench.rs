@@ -156,6 +156,36 @@ fn a_missing_truth_is_an_error_naming_the_file() {
     assert!(!tmp.path().join("out").exists());
 }
 
+#[test]
+fn a_thread_count_out_of_range_is_refused_before_the_output_folder_is_made() {
+    // Tradeoff told its first run and stability made --out before the pool refused it.
+    let root = workspace();
+    let tmp = tempfile::tempdir().unwrap();
+    for command in ["tradeoff", "stability"] {
+        let out = tmp.path().join(command);
+        let output = relume(
+            tmp.path(),
+            &[
+                "bench",
+                command,
+                path_str(&root.join("scenes/cornell/scene.toml")),
+                "--truth",
+                path_str(&root.join("scenes/cornell/materials.toml")),
+                "--out",
+                path_str(&out),
+                "--quick",
+                "--threads",
+                "0",
+            ],
+        );
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{command}: {stderr}");
+        assert!(stderr.contains("--threads"), "{command}: {stderr}");
+        assert!(!stderr.contains("recovering"), "{command}: {stderr}");
+        assert!(!out.exists(), "{command}: {} was made", out.display());
+    }
+}
+
 /// Writes an edit of the bundled scene into `dir/<name>/scene.toml`: its geometry plus
 /// `extra_obj`, its panorama as the reference images, and `extra_group` appended.
 fn cornell_edit(dir: &std::path::Path, name: &str, extra_obj: &str, extra_group: &str) -> PathBuf {

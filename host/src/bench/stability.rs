@@ -152,6 +152,8 @@ fn new_input_warnings<'a>(run: &'a Judged, baseline: &Judged) -> Vec<&'a str> {
 /// Runs the study, writes stability.csv, seed-spread.csv and stability.svg (and .png) under
 /// `args.out`, prints the runs and the verdict on the targets.
 pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
+    // Before the output folder is made: the runs start the pool.
+    crate::parallel::check_threads(args.threads)?;
     let desc = scene_file::load_scene(&args.scene)?;
     let truth = materials_file::load_materials(&args.truth)?;
     let view_side = desc.views.first().map_or(0, |v| v.size[0]);

@@ -153,6 +153,8 @@ pub struct TradeoffRow {
 /// Runs the sweep, writes `tradeoff.csv` and `tradeoff.svg` (and `.png`) under `args.out`, prints the
 /// table and returns the rows.
 pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
+    // Before the output folder is made and the first run told: the runs start the pool.
+    crate::parallel::check_threads(args.threads)?;
     let desc = scene_file::load_scene(&args.scene)?;
     let truth = materials_file::load_materials(&args.truth)?;
     check_truth_of(&desc, &truth)?;
