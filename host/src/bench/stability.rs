@@ -182,7 +182,7 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
                    perturbation: Option<Perturbation>,
                    limit: Option<(String, u32)>|
      -> Result<StabilityRun, Error> {
-        let id = run_id(family, size);
+        let id = run_id(family, size, seed);
         let scene = match perturbation {
             Some(p) => {
                 perturb::write_perturbed(&args.scene, &p, &args.out.join("scenes").join(&id))?
@@ -282,9 +282,14 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
     Ok(runs)
 }
 
-/// The folder name of a run (under runs/) and of its perturbed scene (under scenes/).
-fn run_id(family: Family, size: f64) -> String {
-    format!("{}_{}", family.name(), size)
+/// The folder name of a run (under runs/) and of its perturbed scene (under scenes/). A
+/// seed's run is named by the seed itself: past 2^53 its size (a 64-bit float) gives
+/// neighbouring seeds one folder.
+fn run_id(family: Family, size: f64, seed: u64) -> String {
+    match family {
+        Family::Seed => format!("{}_{seed}", family.name()),
+        _ => format!("{}_{}", family.name(), size),
+    }
 }
 
 /// Whether the resolution family has a point at `side` pixels: smaller than the views,
@@ -321,7 +326,8 @@ fn plan(args: &StabilityArgs, desc: &SceneDesc) -> Vec<Point> {
     };
     let mut points: Vec<Point> = sizes(Family::Seed, args.quick)
         .into_iter()
-        .map(|k| args.seed + k as u64)
+        // Any seed starts a family, as any seed is a recovery's: past u64::MAX it wraps.
+        .map(|k| args.seed.wrapping_add(k as u64))
         .map(|seed| point(Family::Seed, seed as f64, seed, None))
         .collect();
     for family in [Family::Noise, Family::Exposure, Family::Light] {
@@ -360,7 +366,7 @@ fn plan(args: &StabilityArgs, desc: &SceneDesc) -> Vec<Point> {
 fn outputs(args: &StabilityArgs, desc: &SceneDesc) -> Vec<PathBuf> {
     let mut files = Vec::new();
     for point in plan(args, desc) {
-        let id = run_id(point.family, point.size);
+        let id = run_id(point.family, point.size, point.seed);
         files.extend(recovery_outputs(&args.out.join("runs").join(&id), desc));
         if point.perturbation.is_some() {
             files.extend(derived_scene_outputs(
@@ -1154,6 +1160,41 @@ mod tests {
         assert!(first.perturbation.is_none());
         let last = points.last().unwrap();
         assert_eq!(last.family, Family::Pixels);
-        assert_eq!(run_id(Family::Exposure, -5.0), "exposure_-5");
+        assert_eq!(run_id(Family::Exposure, -5.0, 4), "exposure_-5");
+    }
+
+    /// A seed family from any first seed: one folder per seed past 2^53, where the seeds'
+    /// sizes round to one float (three runs shared runs/seed_1152921504606846976), and no
+    /// overflow from u64::MAX (a panic in a debug build).
+    #[test]
+    fn a_seed_family_from_a_large_seed_has_a_folder_per_seed() {
+        let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+        let desc = scene_file::load_scene(&cornell.join("scene.toml")).unwrap();
+        for (first, seeds) in [
+            (1u64 << 60, vec![1u64 << 60, (1 << 60) + 1, (1 << 60) + 2]),
+            (u64::MAX, vec![u64::MAX, 0, 1]),
+        ] {
+            let args = StabilityArgs {
+                scene: cornell.join("scene.toml"),
+                truth: cornell.join("materials.toml"),
+                out: PathBuf::from("out"),
+                seed: first,
+                threads: None,
+                effort: Effort::Fast,
+                quick: true,
+                group: None,
+            };
+            let points: Vec<Point> = plan(&args, &desc)
+                .into_iter()
+                .filter(|p| p.family == Family::Seed)
+                .collect();
+            assert_eq!(points.iter().map(|p| p.seed).collect::<Vec<_>>(), seeds);
+            let ids: std::collections::BTreeSet<String> = points
+                .iter()
+                .map(|p| run_id(p.family, p.size, p.seed))
+                .collect();
+            assert_eq!(ids.len(), seeds.len(), "{ids:?}");
+            assert!(ids.contains(&format!("seed_{}", seeds[1])), "{ids:?}");
+        }
     }
 }
