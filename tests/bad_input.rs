@@ -1793,6 +1793,105 @@ fn a_join_of_views_that_are_no_panorama_is_refused() {
     assert!(!dir.path().join("pano.hdr").exists());
 }
 
+/// Views a unit apart in a room 3 across are at two positions wherever the room is: moved
+/// 270 km from its origin, join took them for one (within 1e-5 of their distance from the
+/// origin, 2.7 units) and split --scene split the capture at the first view's position.
+#[test]
+fn views_apart_in_a_scene_far_from_its_origin_are_not_one_position() {
+    let root = common::workspace();
+    let cornell = root.join("scenes/cornell");
+    let dir = tempfile::tempdir().unwrap();
+    let offset = [1e5f64, -2.5e5, 3e4];
+    let moved = |numbers: &str, dx: f64| -> String {
+        let moved: Vec<String> = numbers
+            .split([',', ' '])
+            .filter(|n| !n.is_empty())
+            .zip(offset)
+            .enumerate()
+            .map(|(k, (n, d))| {
+                let extra = if k == 0 { dx } else { 0.0 };
+                format!("{:?}", n.parse::<f64>().unwrap() + d + extra)
+            })
+            .collect();
+        moved.join(", ")
+    };
+    let obj = std::fs::read_to_string(cornell.join("geometry.obj")).unwrap();
+    let obj: Vec<String> = obj
+        .lines()
+        .map(|l| match l.strip_prefix("v ") {
+            Some(xyz) => format!("v {}", moved(xyz, 0.0).replace(',', "")),
+            None => l.to_string(),
+        })
+        .collect();
+    std::fs::write(dir.path().join("geometry.obj"), obj.join("\n")).unwrap();
+    let text = std::fs::read_to_string(cornell.join("scene.toml")).unwrap();
+    let write_scene = |name: &str, px_dx: f64| -> std::path::PathBuf {
+        let mut first = true;
+        let lines: Vec<String> = text
+            .lines()
+            .map(|l| match l.strip_prefix("position = [") {
+                Some(rest) => {
+                    // The first view, px, moved by px_dx along x.
+                    let dx = if std::mem::take(&mut first) {
+                        px_dx
+                    } else {
+                        0.0
+                    };
+                    format!("position = [{}]", moved(rest.trim_end_matches(']'), dx))
+                }
+                None => l.replace("\"views/", &format!("\"{}/views/", path_str(&cornell))),
+            })
+            .collect();
+        let path = dir.path().join(name);
+        std::fs::write(&path, lines.join("\n")).unwrap();
+        path
+    };
+    let apart = write_scene("apart.toml", 1.0);
+    let together = write_scene("together.toml", 0.0);
+    let views = cornell.join("views");
+    let run = |args: &[&str]| {
+        let run = relume(dir.path(), args);
+        (
+            run.status.code(),
+            String::from_utf8_lossy(&run.stderr).to_string(),
+        )
+    };
+    let join = |scene: &Path, out: &str| {
+        run(&[
+            "panorama",
+            "join",
+            path_str(scene),
+            path_str(&views),
+            "--out",
+            out,
+        ])
+    };
+    let (code, stderr) = join(&apart, "apart.exr");
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("view 'nx' is at [100001.5, -249999.1, 30001.3]")
+            && stderr.contains("view 'px' at [100002.5, -249999.1, 30001.3]")
+            && stderr.contains("one position"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("apart.exr").exists());
+    let (code, stderr) = join(&together, "together.exr");
+    assert_eq!(code, Some(0), "{stderr}");
+    // Split the joined capture with the apart scene as template: no one position to split at.
+    let (code, stderr) = run(&[
+        "panorama",
+        "split",
+        "together.exr",
+        "--scene",
+        path_str(&apart),
+        "--out",
+        "faces",
+    ]);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(stderr.contains("one position"), "{stderr}");
+    assert!(!dir.path().join("faces").exists());
+}
+
 /// `relume check` tells a view whose exposure is off by orders of magnitude from its
 /// preview, in a second, where recover tells it after its work: cornell with view px's
 /// exposure given as 0.01 (its render under the first look's colours reads 42x the

@@ -21,8 +21,9 @@ use crate::downsample;
 use crate::error::Error;
 use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
+use crate::obj::ObjObject;
 use crate::parallel;
-use crate::scene_file::{self, SceneDesc, ViewDesc};
+use crate::scene_file::{SceneDesc, ViewDesc};
 
 /// Where the faces go under `--out`, and the views' file beside it.
 pub const FACES_DIR: &str = "views";
@@ -275,14 +276,15 @@ pub struct JoinArgs {
 
 /// Where every view of `desc` is, as a panorama's views are: an error naming two views
 /// apart (or a scene with none).
-fn common_position(desc: &SceneDesc) -> Result<[f64; 3], Error> {
+fn common_position(desc: &SceneDesc, objects: &[ObjObject]) -> Result<[f64; 3], Error> {
     let Some(first) = desc.views.first() else {
         return Err(Error::input(&desc.path, "has no view"));
     };
+    let size = geometry_size(objects);
     match desc
         .views
         .iter()
-        .find(|v| apart(v.position, first.position))
+        .find(|v| apart(v.position, first.position, size))
     {
         Some(v) => Err(Error::input(
             &desc.path,
@@ -295,11 +297,31 @@ fn common_position(desc: &SceneDesc) -> Result<[f64; 3], Error> {
     }
 }
 
-/// Whether two view positions are apart by more than rounding: by 1e-5 of their distance
-/// from the origin, in whatever unit the scene is in.
-fn apart(a: [f64; 3], b: [f64; 3]) -> bool {
+/// The longest side of the objects' bounding box, in their files' 64-bit coordinates (0
+/// without a vertex).
+fn geometry_size(objects: &[ObjObject]) -> f64 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in objects.iter().flat_map(|o| o.triangles.iter().flatten()) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
+}
+
+/// Whether two view positions are apart by more than rounding: by 1e-5 of the scene's
+/// `size`, in whatever unit and wherever the scene is (positions are read in 64 bits). Of
+/// their distance from the origin, as it was, views 2.7 units apart in a room 3 across
+/// 270 km from its origin were one position. A scene of no size falls back to that.
+fn apart(a: [f64; 3], b: [f64; 3], size: f64) -> bool {
     let length = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    length(std::array::from_fn(|k| a[k] - b[k])) > 1e-5 * length(a).max(length(b))
+    let scale = match size.is_finite() && size > 0.0 {
+        true => size,
+        false => length(a).max(length(b)),
+    };
+    length(std::array::from_fn(|k| a[k] - b[k])) > 1e-5 * scale
 }
 
 /// Joins the scene's views, all at one position, into one equirectangular image: each
@@ -307,8 +329,8 @@ fn apart(a: [f64; 3], b: [f64; 3]) -> bool {
 /// sees its direction most centrally. Every direction must be seen by some view.
 pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
     let frame = Frame::new(args.forward, args.up)?;
-    let desc = scene_file::load_scene(&args.scene)?;
-    common_position(&desc)?;
+    let (desc, objects) = assemble::load_scene(&args.scene)?;
+    common_position(&desc, &objects)?;
     let widest = widest_side(desc.views.iter().map(|v| v.size));
     let width = args.width.unwrap_or(4 * widest);
     let max = relume_core::config::MAX_VIEW_SIDE;
@@ -429,14 +451,15 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
         .scene
         .as_ref()
         .map(|scene| {
-            assemble::load_and_assemble(scene, MaterialSource::GeometryOnly)?;
-            scene_file::load_scene(scene)
+            let (desc, objects) = assemble::load_scene(scene)?;
+            assemble::assemble(desc.clone(), &objects, MaterialSource::GeometryOnly)?;
+            Ok::<_, Error>((desc, objects))
         })
         .transpose()?;
     let position = match (args.position, &template) {
         (Some(p), _) if p.iter().all(|x| x.is_finite()) => p,
         (Some(_), _) => return Err(Error::Usage("--position must be finite".into())),
-        (None, Some(desc)) => common_position(desc)?,
+        (None, Some((desc, objects))) => common_position(desc, objects)?,
         (None, None) => {
             return Err(Error::Usage(
                 "--position is needed: where the panorama was taken (or a --scene whose views are all there)".into(),
@@ -486,7 +509,7 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
     let k = samples_per_side(image.width, size);
     let pool = parallel::thread_pool(args.threads)?;
     let mut inputs = vec![(args.image.clone(), "the panorama".to_string())];
-    if let Some(desc) = &template {
+    if let Some((desc, _)) = &template {
         inputs.extend(desc.input_files());
     }
     let mut set = OutputSet::keeping(inputs);
@@ -527,7 +550,7 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
     if template.is_none() && scene_toml.is_file() {
         set.remove_on_commit(&scene_toml)?;
     }
-    if let Some(mut desc) = template {
+    if let Some((mut desc, _)) = template {
         // The template's own views give way to the faces; its paths and the faces' are
         // made absolute, as a derived scene's are (`bench downsample`).
         let faces_absolute =
@@ -563,11 +586,17 @@ mod tests {
         for scale in [1e-3f64, 1.0, 1e3] {
             let p = [1.5 * scale, 0.9 * scale, 1.3 * scale];
             let moved = |d: f64| [p[0] + d * scale, p[1], p[2]];
-            assert!(apart(p, moved(1e-3)), "{scale}");
-            assert!(!apart(p, moved(1e-7)), "{scale}");
+            assert!(apart(p, moved(1e-3), 3.0 * scale), "{scale}");
+            assert!(!apart(p, moved(1e-7), 3.0 * scale), "{scale}");
         }
-        assert!(!apart([0.0; 3], [0.0; 3]));
-        assert!(apart([0.0; 3], [1e-6, 0.0, 0.0]));
+        assert!(!apart([0.0; 3], [0.0; 3], 3.0));
+        // A scene of no size: relative to the positions, as if they were its size.
+        assert!(apart([0.0; 3], [1e-6, 0.0, 0.0], 0.0));
+        assert!(!apart([1.0, 0.0, 0.0], [1.0 + 1e-7, 0.0, 0.0], 0.0));
+        // A room 3 across, 270 km from its origin: a unit apart is apart.
+        let far = [100_001.5, -249_999.1, 30_001.3];
+        assert!(apart(far, [far[0] - 1.0, far[1], far[2]], 3.0));
+        assert!(!apart(far, [far[0] + 1e-6, far[1], far[2]], 3.0));
     }
 
     #[test]
