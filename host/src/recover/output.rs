@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
+use relume_core::geometry::{Surface, Triangle};
 
 use super::model::GroupModel;
 use super::{texture, RecoverReport, Recovery};
@@ -119,6 +120,8 @@ pub const UNSEEN_TOML: &str = "unseen.toml";
 const VIEWS_DIR: &str = "views";
 const ERRORS_DIR: &str = "errors";
 const TEXTURES_DIR: &str = "textures";
+/// Curved textured groups' faces, for obj2mesh (`add_maps_and_radiance`).
+const MESHES_DIR: &str = "meshes";
 
 /// Writes everything into `set` (from [`prepare`]) and commits it.
 pub(super) fn write_all(
@@ -158,62 +161,7 @@ pub(super) fn write_all(
     }
     let names = &rec.owned.group_names;
     let map_path = |g: usize| out.join(TEXTURES_DIR).join(format!("{}.exr", names[g]));
-    let mut rad = String::from("# relume: recovered materials as RADIANCE primitives\n");
-    for (g, model) in rec.models.iter().enumerate() {
-        let name = &names[g];
-        // What RADIANCE is given: the model itself, under the modifier of its map when
-        // it has one it can place.
-        let mut primitive = (*model, String::from("void"));
-        if let GroupModel::Textured { map, lobe } = *model {
-            let specularity = lobe.specularity();
-            set.create_dir(&out.join(TEXTURES_DIR))?;
-            let map = &rec.maps[map];
-            let image = Image {
-                width: map.side,
-                height: map.side,
-                pixels: map.texels.iter().map(|t| t.to_array()).collect(),
-            };
-            images::add_exr(&mut set, &map_path(g), &image)?;
-            match texture::uv_affine(rec, g) {
-                Some(affine) => {
-                    add_radiance_picture(&mut set, out, name, &image, specularity, &affine)?;
-                    primitive.1 = pattern_name(name, names);
-                    rad.push_str(&format!(
-                        "\nvoid colorpict {}\n7 red green blue textures/{name}.hdr textures/{name}.cal pic_u pic_v\n0\n0\n",
-                        primitive.1
-                    ));
-                }
-                None => {
-                    rad.push_str(&format!(
-                        "\n# {name}: its texture coordinates are not an affine function of the surface point (a curved group), which a RADIANCE colorpict on polygons cannot reproduce; the map's mean colour is used\n"
-                    ));
-                    let mean = map.texels.iter().fold(Vec3::ZERO, |a, b| a + *b)
-                        / map.texels.len().max(1) as f32;
-                    let color = mean / (1.0 - specularity as f32).max(1e-3);
-                    primitive.0 = lobe.with_color(color.to_array().map(f64::from));
-                }
-            }
-        }
-        // Unseen: the stand-in the recovery rendered it with (unseen.toml), so that the
-        // scene loads (oconv stopped at "undefined modifier" for a group of no primitive).
-        if let GroupModel::Unseen { stand_in } = primitive.0 {
-            let [r, g, b] = stand_in;
-            rad.push_str(&format!(
-                "\n# {name}: unseen, not recovered; the diffuse stand-in [{r:.4} {g:.4} {b:.4}] the recovery rendered it with (unseen.toml, report.json)\n"
-            ));
-            primitive.0 = GroupModel::Diffuse { color: stand_in };
-        }
-        if let GroupModel::Mirror { .. } = primitive.0 {
-            rad.push_str(&format!(
-                "\n# {name}: RADIANCE's mirror reflects from its front only (where its vertices turn counter-clockwise) and is black from behind; relume's from both sides\n"
-            ));
-        }
-        // Every model has a primitive now (an unseen group's stand-in is a diffuse).
-        if let Some(p) = primitive.0.radiance_primitive(name, &primitive.1) {
-            rad.push('\n');
-            rad.push_str(&p);
-        }
-    }
+    add_maps_and_radiance(&mut set, out, rec)?;
     // An earlier recovery's map of a group this one did not map, and its renders of views
     // this scene lacks (an earlier run of another scene), are no outputs of this run.
     for path in stale_outputs(&set, out) {
@@ -240,15 +188,149 @@ pub(super) fn write_all(
     let toml = materials_file::materials_text(&materials_path, &materials)?;
     set.add(&materials_path, toml.as_bytes())?;
     add_unseen_stand_ins(&mut set, &out.join(UNSEEN_TOML), &rec.models, names)?;
+    let text = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(e.to_string()))?;
+    set.add(&out.join(REPORT_JSON), text.as_bytes())?;
+    set.commit()
+}
+
+/// Adds every textured group's map (`textures/<group>.exr`) and what RADIANCE is given:
+/// materials.rad, each picture's `.hdr` and `.cal`, a curved group's mesh
+/// (`meshes/<group>.obj`) and materials.map, obj2rad's rules.
+fn add_maps_and_radiance(set: &mut OutputSet, out: &Path, rec: &Recovery) -> Result<(), Error> {
+    let names = &rec.owned.group_names;
+    // The textured groups whose (u, v) RADIANCE reads on a mesh: materials.map leaves
+    // their objects to it.
+    let mut on_mesh = Vec::new();
+    let mut rad = String::from("# relume: recovered materials as RADIANCE primitives\n");
+    for (g, model) in rec.models.iter().enumerate() {
+        let name = &names[g];
+        // What RADIANCE is given: the model itself, under the modifier of its map when
+        // it has one, and after it the mesh of a curved group.
+        let mut primitive = (*model, String::from("void"));
+        let mut after = String::new();
+        if let GroupModel::Textured { map, lobe } = *model {
+            set.create_dir(&out.join(TEXTURES_DIR))?;
+            let map = &rec.maps[map];
+            let image = Image {
+                width: map.side,
+                height: map.side,
+                pixels: map.texels.iter().map(|t| t.to_array()).collect(),
+            };
+            let exr = out.join(TEXTURES_DIR).join(format!("{name}.exr"));
+            images::add_exr(set, &exr, &image)?;
+            let affine = texture::uv_affine(rec, g);
+            let placement = match &affine {
+                Some(affine) => Placement::Affine(affine),
+                None => {
+                    // Curved: its (u, v) are no affine function of the hit point, which
+                    // is all a picture on obj2rad's polygons can be given. An obj2mesh
+                    // mesh keeps the OBJ's (u, v), which a .cal reads as Lu and Lv.
+                    set.create_dir(&out.join(MESHES_DIR))?;
+                    let triangles = rec
+                        .owned
+                        .triangles()
+                        .iter()
+                        .filter(|t| t.surface == Surface::Group(g as u16));
+                    let obj = mesh_obj(name, triangles, rec.owned.origin);
+                    set.add(&mesh_path(out, name, "obj"), obj.as_bytes())?;
+                    on_mesh.push(g);
+                    rad.push_str(&format!(
+                        "\n# {name}: its texture coordinates are not an affine function of the surface point (a curved group),\n\
+                         # so RADIANCE reads them on a mesh: meshes/{name}.obj holds its faces (materials.map leaves them out\n\
+                         # of obj2rad's polygons). Before oconv, make the mesh in this folder, again after every recovery\n\
+                         # (the mesh keeps the materials it was made with; a recovery removes an earlier one):\n\
+                         #   obj2mesh -a materials.rad meshes/{name}.obj meshes/{name}.rtm\n"
+                    ));
+                    after = format!("\nvoid mesh {name}.mesh\n1 meshes/{name}.rtm\n0\n0\n");
+                    Placement::Mesh
+                }
+            };
+            add_radiance_picture(set, out, name, &image, lobe.specularity(), placement)?;
+            primitive.1 = pattern_name(name, names);
+            rad.push_str(&format!(
+                "\nvoid colorpict {}\n7 red green blue textures/{name}.hdr textures/{name}.cal pic_u pic_v\n0\n0\n",
+                primitive.1
+            ));
+        }
+        // Unseen: the stand-in the recovery rendered it with (unseen.toml), so that the
+        // scene loads (oconv stopped at "undefined modifier" for a group of no primitive).
+        if let GroupModel::Unseen { stand_in } = primitive.0 {
+            let [r, g, b] = stand_in;
+            rad.push_str(&format!(
+                "\n# {name}: unseen, not recovered; the diffuse stand-in [{r:.4} {g:.4} {b:.4}] the recovery rendered it with (unseen.toml, report.json)\n"
+            ));
+            primitive.0 = GroupModel::Diffuse { color: stand_in };
+        }
+        if let GroupModel::Mirror { .. } = primitive.0 {
+            rad.push_str(&format!(
+                "\n# {name}: RADIANCE's mirror reflects from its front only (where its vertices turn counter-clockwise) and is black from behind; relume's from both sides\n"
+            ));
+        }
+        // Every model has a primitive now (an unseen group's stand-in is a diffuse).
+        if let Some(p) = primitive.0.radiance_primitive(name, &primitive.1) {
+            rad.push('\n');
+            rad.push_str(&p);
+        }
+        rad.push_str(&after);
+    }
     rad.push_str(&light_primitives(&rec.owned.desc, names));
     set.add(&out.join(MATERIALS_RAD), rad.as_bytes())?;
     set.add(
         &out.join(MATERIALS_MAP),
-        obj2rad_map(&rec.owned.desc, names).as_bytes(),
-    )?;
-    let text = serde_json::to_string_pretty(report).map_err(|e| Error::Usage(e.to_string()))?;
-    set.add(&out.join(REPORT_JSON), text.as_bytes())?;
-    set.commit()
+        obj2rad_map(&rec.owned.desc, names, &on_mesh).as_bytes(),
+    )
+}
+
+/// `meshes/<group>.<extension>`: a curved group's faces (`obj`), or the mesh obj2mesh
+/// makes of them (`rtm`).
+fn mesh_path(out: &Path, name: &str, extension: &str) -> PathBuf {
+    out.join(MESHES_DIR).join(format!("{name}.{extension}"))
+}
+
+/// A curved group's faces as an OBJ for obj2mesh: in the scene's own coordinates (its
+/// triangles are placed relative to `origin`), each corner with its texture coordinates,
+/// all under `usemtl <group>`, which `obj2mesh -a materials.rad` binds to the group's
+/// primitive.
+fn mesh_obj<'a>(
+    name: &str,
+    triangles: impl Iterator<Item = &'a Triangle>,
+    origin: [f64; 3],
+) -> String {
+    // A coordinate as the OBJ gave it where 32 bits hold it (a scene near its origin),
+    // else in 64.
+    let coordinate = |c: f64| {
+        if f64::from(c as f32) == c {
+            format!("{}", c as f32)
+        } else {
+            format!("{c}")
+        }
+    };
+    let mut text = format!(
+        "# relume: the faces of group {name}, whose texture coordinates obj2mesh keeps (RADIANCE's Lu, Lv):\n\
+         #   obj2mesh -a materials.rad meshes/{name}.obj meshes/{name}.rtm\n\
+         usemtl {name}\n"
+    );
+    for (i, t) in triangles.enumerate() {
+        for (v, uv) in t.v.iter().zip(&t.uv) {
+            let [x, y, z] = [v.x, v.y, v.z]
+                .iter()
+                .zip(origin)
+                .map(|(c, o)| coordinate(o + f64::from(*c)))
+                .collect::<Vec<_>>()
+                .try_into()
+                .expect("three coordinates");
+            text.push_str(&format!("v {x} {y} {z}\nvt {} {}\n", uv.x, uv.y));
+        }
+        let k = 3 * i + 1;
+        text.push_str(&format!(
+            "f {k}/{k} {}/{} {}/{}\n",
+            k + 1,
+            k + 1,
+            k + 2,
+            k + 2
+        ));
+    }
+    text
 }
 
 /// The name of light object `object`'s primitive in materials.rad: `light_<object>`, made
@@ -283,16 +365,27 @@ fn light_primitives(desc: &SceneDesc, groups: &[String]) -> String {
 /// obj2rad's mapping rules: `obj2rad -m materials.map geometry.obj > geometry.rad` names
 /// each object's faces after its group's primitive in materials.rad, or its light's
 /// (without it, obj2rad names faces by `usemtl`, `g`, or "white"). Hidden objects are
-/// no part of the recovered scene and get no rule.
-fn obj2rad_map(desc: &SceneDesc, groups: &[String]) -> String {
+/// no part of the recovered scene and get no rule. The objects of the groups `on_mesh`
+/// (by index) are obj2mesh's, as meshes/<group>.obj: their rule is `void`, which obj2rad
+/// skips, so that their faces are not polygons as well.
+fn obj2rad_map(desc: &SceneDesc, groups: &[String], on_mesh: &[usize]) -> String {
     let mut text = String::from(
         "# relume: obj2rad -m materials.map <geometry.obj> > geometry.rad names each object's faces\n\
          # after its group's material in materials.rad; then oconv materials.rad geometry.rad\n",
     );
     let shown = |object: &&String| !desc.hide.contains(*object);
-    for group in &desc.groups {
+    for (g, group) in desc.groups.iter().enumerate() {
+        let modifier = if on_mesh.contains(&g) {
+            text.push_str(&format!(
+                "# {}: its faces are the mesh meshes/{}.rtm (obj2mesh, materials.rad), not polygons\n",
+                group.name, group.name
+            ));
+            "void"
+        } else {
+            group.name.as_str()
+        };
         for object in group.objects.iter().filter(shown) {
-            text.push_str(&format!("{} (Object \"{object}\") ;\n", group.name));
+            text.push_str(&format!("{modifier} (Object \"{object}\") ;\n"));
         }
     }
     for light in desc.lights.iter().filter(|l| shown(&&l.object)) {
@@ -357,15 +450,18 @@ fn add_unseen_stand_ins(
     set.add(path, text.as_bytes())
 }
 
-/// The files of `out/views`, `out/errors` (`.exr`, `.png`) and `out/textures` (`.exr`,
-/// `.hdr`, `.cal`) that `set` does not write: an earlier recovery's renders of views this
-/// scene lacks and maps this recovery did not make, which its materials do not name.
-/// Files of other kinds, and the run's inputs, are left alone.
+/// The files of `out/views`, `out/errors` (`.exr`, `.png`), `out/textures` (`.exr`,
+/// `.hdr`, `.cal`) and `out/meshes` (`.obj`, `.rtm`) that `set` does not write: an
+/// earlier recovery's renders of views this scene lacks and maps this recovery did not
+/// make, which its materials do not name, and every mesh obj2mesh made (`.rtm`), which
+/// holds the materials of the run it was made from. Files of other kinds, and the run's
+/// inputs, are left alone.
 fn stale_outputs(set: &OutputSet, out: &Path) -> Vec<PathBuf> {
     let written = [
         (VIEWS_DIR, &["exr", "png"][..]),
         (ERRORS_DIR, &["exr", "png"]),
         (TEXTURES_DIR, &["exr", "hdr", "cal"]),
+        (MESHES_DIR, &["obj", "rtm"]),
     ];
     let mut stale = Vec::new();
     for (dir, extensions) in written {
@@ -389,15 +485,28 @@ fn stale_outputs(set: &OutputSet, out: &Path) -> Vec<PathBuf> {
     stale
 }
 
-/// The files a recovery into `out` writes for a mapped group `name`: its map, and its
-/// RADIANCE picture and mapping.
-fn map_files(out: &Path, name: &str) -> [PathBuf; 3] {
-    ["exr", "hdr", "cal"].map(|ext| out.join(TEXTURES_DIR).join(format!("{name}.{ext}")))
+/// The files a recovery into `out` writes (or removes) for a mapped group `name`: its
+/// map, its RADIANCE picture and mapping, and a curved group's mesh faces and an earlier
+/// run's mesh of them.
+fn map_files(out: &Path, name: &str) -> Vec<PathBuf> {
+    let pictures =
+        ["exr", "hdr", "cal"].map(|ext| out.join(TEXTURES_DIR).join(format!("{name}.{ext}")));
+    let meshes = ["obj", "rtm"].map(|ext| mesh_path(out, name, ext));
+    pictures.into_iter().chain(meshes).collect()
+}
+
+/// Where a textured group's (u, v) come from in its RADIANCE `.cal`.
+enum Placement<'a> {
+    /// An affine function of the hit point (Px, Py, Pz), as on obj2rad's polygons.
+    Affine(&'a texture::UvAffine),
+    /// The obj2mesh mesh's own texture coordinates (Lu, Lv): a curved group.
+    Mesh,
 }
 
 /// The RADIANCE picture and mapping of a textured group: `textures/<group>.hdr` holds the
 /// map over (1 - s) (RADIANCE's plastic multiplies the picture by its colour and (1 - s));
-/// `textures/<group>.cal` turns the hit point into the OBJ (u, v) and remaps it so that
+/// `textures/<group>.cal` turns the hit point (or on a mesh, the mesh's (Lu, Lv)) into
+/// the OBJ (u, v) and remaps it so that
 /// RADIANCE, which interpolates between the first and last texel over [0, 1], samples the
 /// texel centres where the OBJ convention puts them (as in the references' tex_*.cal).
 fn add_radiance_picture(
@@ -406,7 +515,7 @@ fn add_radiance_picture(
     name: &str,
     map: &Image,
     specularity: f64,
-    affine: &texture::UvAffine,
+    placement: Placement,
 ) -> Result<(), Error> {
     let scale = 1.0 / (1.0 - specularity as f32).max(1e-3);
     let picture = Image {
@@ -416,29 +525,44 @@ fn add_radiance_picture(
     };
     let hdr = out.join(TEXTURES_DIR).join(format!("{name}.hdr"));
     set.add(&hdr, &images::hdr_bytes(&hdr, &picture)?)?;
-    let (o, gu, gv) = (affine.origin, affine.grad_u, affine.grad_v);
+    let uv = match placement {
+        Placement::Affine(affine) => {
+            let (o, gu, gv) = (affine.origin, affine.grad_u, affine.grad_v);
+            format!(
+                "{{ relume: OBJ (u, v) of group {name} as an affine function of the hit point }}\n\
+                 N = {n};\n\
+                 obj_u = {u0} + (Px-({ox}))*({gux}) + (Py-({oy}))*({guy}) + (Pz-({oz}))*({guz});\n\
+                 obj_v = {v0} + (Px-({ox}))*({gvx}) + (Py-({oy}))*({gvy}) + (Pz-({oz}))*({gvz});\n",
+                n = map.width,
+                u0 = affine.uv0[0],
+                v0 = affine.uv0[1],
+                ox = o.x,
+                oy = o.y,
+                oz = o.z,
+                gux = gu.x,
+                guy = gu.y,
+                guz = gu.z,
+                gvx = gv.x,
+                gvy = gv.y,
+                gvz = gv.z,
+            )
+        }
+        Placement::Mesh => format!(
+            "{{ relume: OBJ (u, v) of group {name}, read on its obj2mesh mesh (meshes/{name}.rtm)\n\
+               as the mesh's local coordinates Lu, Lv }}\n\
+             N = {n};\n\
+             obj_u = Lu;\n\
+             obj_v = Lv;\n",
+            n = map.width,
+        ),
+    };
     let cal = format!(
-        "{{ relume: OBJ (u, v) of group {name} as an affine function of the hit point }}\n\
-         N = {n};\n\
-         obj_u = {u0} + (Px-({ox}))*({gux}) + (Py-({oy}))*({guy}) + (Pz-({oz}))*({guz});\n\
-         obj_v = {v0} + (Px-({ox}))*({gvx}) + (Py-({oy}))*({gvy}) + (Pz-({oz}))*({gvz});\n\
+        "{uv}\
          {{ held to the picture, as relume's lookup clamps at the border: RADIANCE\n\
             extrapolates a picture past its edge, then tapers it to black }}\n\
          unit(x) = if(x, if(x - 1, 1, x), 0);\n\
          pic_u = unit((obj_u*N - .5)/(N - 1));\n\
-         pic_v = unit((obj_v*N - .5)/(N - 1));\n",
-        n = map.width,
-        u0 = affine.uv0[0],
-        v0 = affine.uv0[1],
-        ox = o.x,
-        oy = o.y,
-        oz = o.z,
-        gux = gu.x,
-        guy = gu.y,
-        guz = gu.z,
-        gvx = gv.x,
-        gvy = gv.y,
-        gvz = gv.z,
+         pic_v = unit((obj_v*N - .5)/(N - 1));\n"
     );
     set.add(
         &out.join(TEXTURES_DIR).join(format!("{name}.cal")),
@@ -515,5 +639,216 @@ mod tests {
         .map(|f| dir.path().join(f))
         .collect();
         assert_eq!(stale, expected);
+    }
+}
+
+#[cfg(test)]
+mod curved_tests {
+    use super::*;
+    use crate::assemble::{self, MaterialSource};
+    use crate::recover::model::MapLobe;
+
+    /// A flat picture `label` (u, v along y, z in the plane x = 0), a half-cylinder
+    /// `wrap` whose u runs round it (no affine function of the point), a plain floor and a
+    /// lamp; `label` and `wrap` textured.
+    fn scene(dir: &Path) -> Recovery {
+        let mut obj = String::from(
+            "o label\nv 0 0.2 0.2\nv 0 0.8 0.2\nv 0 0.8 0.8\nv 0 0.2 0.8\n\
+             vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n\
+             o floor\nv 0 0 0\nv 2 0 0\nv 2 2 0\nv 0 2 0\nf 5 6 7 8\n\
+             o lamp\nv 0.5 0.5 1.9\nv 1.5 0.5 1.9\nv 1.5 1.5 1.9\nf 9 11 10\n\
+             o wrap\n",
+        );
+        let segments = 6;
+        for i in 0..=segments {
+            let a = std::f64::consts::PI * i as f64 / segments as f64;
+            let (x, y) = (1.2 + 0.3 * libm::cos(a), 1.0 + 0.3 * libm::sin(a));
+            let u = i as f64 / segments as f64;
+            obj.push_str(&format!(
+                "v {x} {y} 0.1\nv {x} {y} 0.6\nvt {u} 0\nvt {u} 1\n"
+            ));
+        }
+        for i in 0..segments {
+            // Vertices 12 + 2i (bottom) and 13 + 2i (top); vt 5 + 2i and 6 + 2i.
+            let (b, t, nb, nt) = (12 + 2 * i, 13 + 2 * i, 14 + 2 * i, 15 + 2 * i);
+            let (tb, tt, tnb, tnt) = (5 + 2 * i, 6 + 2 * i, 7 + 2 * i, 8 + 2 * i);
+            obj.push_str(&format!("f {b}/{tb} {nb}/{tnb} {nt}/{tnt} {t}/{tt}\n"));
+        }
+        std::fs::write(dir.join("geo.obj"), obj).unwrap();
+        let toml = r#"format = 1
+name = "curved"
+geometry = ["geo.obj"]
+hide = []
+
+[[view]]
+name = "front"
+image = "views/front.exr"
+position = [1.5, 1.0, 1.0]
+direction = [-1.0, 0.0, 0.0]
+up = [0.0, 0.0, 1.0]
+fov_deg = [90.0, 90.0]
+size = [8, 8]
+exposure = 1.0
+
+[[light]]
+object = "lamp"
+radiance = [5.0, 5.0, 5.0]
+
+[[group]]
+name = "label"
+kind = "plastic"
+objects = ["label"]
+
+[[group]]
+name = "floor"
+kind = "plastic"
+objects = ["floor"]
+
+[[group]]
+name = "wrap"
+kind = "plastic"
+objects = ["wrap"]
+"#;
+        std::fs::write(dir.join("scene.toml"), toml).unwrap();
+        let owned =
+            assemble::load_and_assemble(&dir.join("scene.toml"), MaterialSource::GeometryOnly)
+                .unwrap();
+        let map = |base: f32| texture::RecoveredMap {
+            side: 4,
+            texels: (0..16)
+                .map(|i| Vec3::new(base, 0.05 * i as f32, 0.5 - 0.02 * i as f32))
+                .collect(),
+        };
+        Recovery {
+            views: Vec::new(),
+            real: Vec::new(),
+            pure: Vec::new(),
+            models: vec![
+                GroupModel::Textured {
+                    map: 0,
+                    lobe: MapLobe::None,
+                },
+                GroupModel::Diffuse {
+                    color: [0.5, 0.4, 0.3],
+                },
+                GroupModel::Textured {
+                    map: 1,
+                    lobe: MapLobe::Isotropic {
+                        specularity: 0.05,
+                        roughness: 0.1,
+                    },
+                },
+            ],
+            owned,
+            maps: vec![map(0.2), map(0.7)],
+            pool: crate::parallel::thread_pool(Some(1)).unwrap(),
+            seed: 1,
+        }
+    }
+
+    /// A curved textured group lost its whole map in RADIANCE (written as its mean
+    /// colour): its (u, v) are no affine function of the hit point, which is all a
+    /// picture on obj2rad's polygons can be given. It is now written as an obj2mesh mesh
+    /// of its faces with their (u, v), read as Lu, Lv, its objects left out of obj2rad's
+    /// polygons; a flat picture is written as before, and an earlier run's mesh, which
+    /// holds that run's materials, is removed.
+    #[test]
+    fn a_curved_textured_group_keeps_its_map_as_an_obj2mesh_mesh() {
+        let dir = tempfile::tempdir().unwrap();
+        let rec = scene(dir.path());
+        let out = dir.path().join("out");
+        std::fs::create_dir_all(out.join("meshes")).unwrap();
+        for stale in ["meshes/wrap.rtm", "meshes/old.obj", "meshes/old.rtm"] {
+            std::fs::write(out.join(stale), b"an earlier run's").unwrap();
+        }
+        let mut set = OutputSet::keeping(Vec::new());
+        add_maps_and_radiance(&mut set, &out, &rec).unwrap();
+        for path in stale_outputs(&set, &out) {
+            set.remove_on_commit(&path).unwrap();
+        }
+        set.commit().unwrap();
+        let read = |f: &str| std::fs::read_to_string(out.join(f)).unwrap();
+        let rad = read("materials.rad");
+
+        // The flat picture: its colorpict on the hit point, as before.
+        assert!(
+            rad.contains(
+                "\nvoid colorpict pict_label\n7 red green blue textures/label.hdr textures/label.cal pic_u pic_v\n0\n0\n\npict_label plastic label\n0\n0\n5 1 1 1 0 0\n"
+            ),
+            "{rad}"
+        );
+        assert!(!rad.contains("label.mesh") && !out.join("meshes/label.obj").exists());
+        let affine = texture::uv_affine(&rec, 0).expect("the label is flat");
+        let (o, gu, gv) = (affine.origin, affine.grad_u, affine.grad_v);
+        let old_cal = format!(
+            "{{ relume: OBJ (u, v) of group label as an affine function of the hit point }}\n\
+             N = 4;\n\
+             obj_u = {u0} + (Px-({ox}))*({gux}) + (Py-({oy}))*({guy}) + (Pz-({oz}))*({guz});\n\
+             obj_v = {v0} + (Px-({ox}))*({gvx}) + (Py-({oy}))*({gvy}) + (Pz-({oz}))*({gvz});\n\
+             {{ held to the picture, as relume's lookup clamps at the border: RADIANCE\n\
+                extrapolates a picture past its edge, then tapers it to black }}\n\
+             unit(x) = if(x, if(x - 1, 1, x), 0);\n\
+             pic_u = unit((obj_u*N - .5)/(N - 1));\n\
+             pic_v = unit((obj_v*N - .5)/(N - 1));\n",
+            u0 = affine.uv0[0],
+            v0 = affine.uv0[1],
+            ox = o.x,
+            oy = o.y,
+            oz = o.z,
+            gux = gu.x,
+            guy = gu.y,
+            guz = gu.z,
+            gvx = gv.x,
+            gvy = gv.y,
+            gvz = gv.z,
+        );
+        assert_eq!(read("textures/label.cal"), old_cal);
+
+        // The curved group: its map (not its mean), on the mesh's (Lu, Lv).
+        assert!(texture::uv_affine(&rec, 2).is_none(), "the wrap is curved");
+        assert!(!rad.contains("map's mean colour"), "{rad}");
+        assert!(
+            rad.contains("#   obj2mesh -a materials.rad meshes/wrap.obj meshes/wrap.rtm\n")
+                && rad.contains(
+                    "\nvoid colorpict pict_wrap\n7 red green blue textures/wrap.hdr textures/wrap.cal pic_u pic_v\n0\n0\n\npict_wrap plastic wrap\n"
+                )
+                && rad.contains("\nvoid mesh wrap.mesh\n1 meshes/wrap.rtm\n0\n0\n"),
+            "{rad}"
+        );
+        let cal = read("textures/wrap.cal");
+        assert!(
+            cal.contains("N = 4;\nobj_u = Lu;\nobj_v = Lv;\n")
+                && cal.contains("pic_u = unit((obj_u*N - .5)/(N - 1));")
+                && !cal.contains("Px"),
+            "{cal}"
+        );
+        assert!(out.join("textures/wrap.hdr").is_file() && out.join("textures/wrap.exr").is_file());
+        // Its faces, with their (u, v) as the OBJ gave them, all under its material.
+        let mesh = read("meshes/wrap.obj");
+        let lines = |prefix: &str| mesh.lines().filter(|l| l.starts_with(prefix)).count();
+        assert_eq!(
+            (lines("f "), lines("v "), lines("vt ")),
+            (12, 36, 36),
+            "{mesh}"
+        );
+        assert_eq!(lines("usemtl "), 1);
+        assert!(
+            mesh.contains("usemtl wrap\n") && mesh.contains("\nvt 0.5 1\n"),
+            "{mesh}"
+        );
+        assert!(mesh.contains("\nv 0.9 1 0.1\n"), "{mesh}");
+
+        // obj2rad leaves the curved group's faces to the mesh (a `void` rule it skips).
+        let map = read("materials.map");
+        assert!(
+            map.contains("label (Object \"label\") ;\nfloor (Object \"floor\") ;\n")
+                && map.contains("\nvoid (Object \"wrap\") ;\n")
+                && !map.contains("wrap (Object"),
+            "{map}"
+        );
+        // An earlier run's meshes are gone (the .rtm held that run's materials).
+        for stale in ["meshes/wrap.rtm", "meshes/old.obj", "meshes/old.rtm"] {
+            assert!(!out.join(stale).exists(), "{stale}");
+        }
     }
 }
