@@ -2105,7 +2105,9 @@ fn check_warns_of_small_views_and_refuses_a_panorama_that_sees_no_group() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(0), "{stderr}");
     assert!(
-        stderr.contains("a view is only 8 pixels on a side: below 32"),
+        stderr.contains(
+            "view 'floor' is only 8 pixels on a side (and 1 more view: 'cellar' 8): below 32"
+        ),
         "{stderr}"
     );
     let report: serde_json::Value =

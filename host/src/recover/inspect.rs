@@ -450,8 +450,10 @@ pub fn check(
             g.group
         ));
     }
-    let smallest_side = rec.views.iter().map(|v| v.width.min(v.height)).min();
-    warnings.extend(smallest_side.and_then(warnings::small_view));
+    let sides: Vec<(String, u32)> = (input.view_names.iter().cloned())
+        .zip(rec.views.iter().map(|v| v.width.min(v.height)))
+        .collect();
+    warnings.extend(warnings::small_views(&sides));
     let few_pixels = groups
         .iter()
         .filter(|g| (1..warnings::FEW_PIXELS).contains(&g.total()))

@@ -971,12 +971,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         groups: &reports,
         models: &rec.models,
         panorama_noise_bound: noise_bound,
-        smallest_view_side: rec
-            .views
+        view_sides: &view_names
             .iter()
-            .map(|v| v.width.min(v.height))
-            .min()
-            .unwrap_or(0),
+            .cloned()
+            .zip(rec.views.iter().map(|v| v.width.min(v.height)))
+            .collect::<Vec<_>>(),
         budget: &args.budget,
     }));
     let report = RecoverReport {

@@ -52,19 +52,34 @@ pub struct Inputs<'a> {
     pub groups: &'a [GroupReport],
     pub models: &'a [GroupModel],
     pub panorama_noise_bound: f64,
-    /// The smallest side, in pixels, of any view.
-    pub smallest_view_side: u32,
+    /// Each view's name and shorter side, in pixels.
+    pub view_sides: &'a [(String, u32)],
     pub budget: &'a Budget,
 }
 
 /// The warnings, input-wide first, then group by group.
-/// The warning for views of `smallest_side` pixels on their shorter side, if small.
-pub fn small_view(smallest_side: u32) -> Option<String> {
-    (smallest_side < SMALL_VIEW).then(|| {
-        format!(
-            "a view is only {smallest_side} pixels on a side: below {SMALL_VIEW} speculars and small groups were lost (docs/stability.md)"
-        )
-    })
+/// The warning for the views under [`SMALL_VIEW`] pixels on their shorter side, of
+/// `views` (each view's name and shorter side): the smallest named, and the others after
+/// it (it said "a view is only 4 pixels on a side", and which view was left to guess).
+pub fn small_views(views: &[(String, u32)]) -> Option<String> {
+    let mut small: Vec<&(String, u32)> = views.iter().filter(|(_, s)| *s < SMALL_VIEW).collect();
+    small.sort_by_key(|(_, side)| *side);
+    let ((name, side), others) = small.split_first()?;
+    let others = match others {
+        [] => String::new(),
+        _ => {
+            let listed: Vec<String> = others.iter().map(|(n, s)| format!("'{n}' {s}")).collect();
+            format!(
+                " (and {}: {})",
+                crate::text::counted(others.len() as u64, "more view"),
+                listed.join(", ")
+            )
+        }
+    };
+    Some(format!(
+        "view '{name}' is only {} on a side{others}: below {SMALL_VIEW} speculars and small groups were lost (docs/stability.md)",
+        crate::text::counted(*side, "pixel")
+    ))
 }
 
 pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
@@ -77,7 +92,7 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
             100.0 * NOISY_PANORAMA
         ));
     }
-    warnings.extend(small_view(inputs.smallest_view_side));
+    warnings.extend(small_views(inputs.view_sides));
     if inputs.budget.loop_spp < FEW_LOOP_SAMPLES {
         warnings.push(format!(
             "{} samples per pixel in the loop (effort fast): diffuse reflectances were seen to spread up to about 1% over seeds, 0.3% at {FEW_LOOP_SAMPLES} (effort default) {SEE}",
@@ -397,9 +412,30 @@ mod tests {
             groups,
             models,
             panorama_noise_bound: noise,
-            smallest_view_side: side,
+            view_sides: &[("front".into(), side), ("back".into(), 2 * side)],
             budget: &effort.budget(),
         })
+    }
+
+    /// The small-view warning names its views, the smallest first, and no view of 32
+    /// pixels or more.
+    #[test]
+    fn the_small_view_warning_names_the_views() {
+        let sides = |list: &[(&str, u32)]| -> Vec<(String, u32)> {
+            list.iter().map(|(n, s)| (n.to_string(), *s)).collect()
+        };
+        assert_eq!(small_views(&sides(&[("px", 32), ("nx", 64)])), None);
+        assert_eq!(
+            small_views(&sides(&[("px", 32), ("tall", 1)])).unwrap(),
+            "view 'tall' is only 1 pixel on a side: below 32 speculars and small groups were lost (docs/stability.md)"
+        );
+        let w = small_views(&sides(&[("a", 16), ("b", 64), ("c", 4), ("d", 16)])).unwrap();
+        assert!(
+            w.starts_with(
+                "view 'c' is only 4 pixels on a side (and 2 more views: 'a' 16, 'd' 16): below 32"
+            ),
+            "{w}"
+        );
     }
 
     #[test]
@@ -569,7 +605,10 @@ mod tests {
         let w = warnings_for(&groups, &models, 0.05, 16, Effort::Fast);
         let has = |needle: &str| w.iter().any(|s| s.contains(needle));
         assert!(has("relative noise may be up to 5.0%"), "{w:?}");
-        assert!(has("only 16 pixels on a side"), "{w:?}");
+        assert!(
+            has("view 'front' is only 16 pixels on a side: below 32"),
+            "{w:?}"
+        );
         assert!(has("effort fast"), "{w:?}");
         assert!(
             has("'statue': isotropic model from only 40 pure pixels"),
