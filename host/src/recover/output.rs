@@ -220,7 +220,7 @@ fn add_maps_and_radiance(set: &mut OutputSet, out: &Path, rec: &Recovery) -> Res
             images::add_exr(set, &exr, &image)?;
             let affine = texture::uv_affine(rec, g);
             let placement = match &affine {
-                Some(affine) => Placement::Affine(affine),
+                Some(affine) => Placement::Affine(affine, rec.owned.origin),
                 None => {
                     // Curved: its (u, v) are no affine function of the hit point, which
                     // is all a picture on obj2rad's polygons can be given. An obj2mesh
@@ -497,8 +497,10 @@ fn map_files(out: &Path, name: &str) -> Vec<PathBuf> {
 
 /// Where a textured group's (u, v) come from in its RADIANCE `.cal`.
 enum Placement<'a> {
-    /// An affine function of the hit point (Px, Py, Pz), as on obj2rad's polygons.
-    Affine(&'a texture::UvAffine),
+    /// An affine function of the hit point (Px, Py, Pz), as on obj2rad's polygons; the
+    /// function is in the frame the scene was moved to, whose origin is the second field
+    /// in the scene's own coordinates (`OwnedScene::origin`), where RADIANCE evaluates it.
+    Affine(&'a texture::UvAffine, [f64; 3]),
     /// The obj2mesh mesh's own texture coordinates (Lu, Lv): a curved group.
     Mesh,
 }
@@ -526,8 +528,19 @@ fn add_radiance_picture(
     let hdr = out.join(TEXTURES_DIR).join(format!("{name}.hdr"));
     set.add(&hdr, &images::hdr_bytes(&hdr, &picture)?)?;
     let uv = match placement {
-        Placement::Affine(affine) => {
+        Placement::Affine(affine, origin) => {
             let (o, gu, gv) = (affine.origin, affine.grad_u, affine.grad_v);
+            // The point the function is expanded about, back in the scene's own
+            // coordinates (in 64 bits: a scene 300 km from its origin is moved to its
+            // centre, and f32 there is 3 cm coarse); written as before at origin 0.
+            let at = |c: f32, shift: f64| {
+                if shift == 0.0 {
+                    c.to_string()
+                } else {
+                    (f64::from(c) + shift).to_string()
+                }
+            };
+            let (ox, oy, oz) = (at(o.x, origin[0]), at(o.y, origin[1]), at(o.z, origin[2]));
             format!(
                 "{{ relume: OBJ (u, v) of group {name} as an affine function of the hit point }}\n\
                  N = {n};\n\
@@ -536,9 +549,6 @@ fn add_radiance_picture(
                 n = map.width,
                 u0 = affine.uv0[0],
                 v0 = affine.uv0[1],
-                ox = o.x,
-                oy = o.y,
-                oz = o.z,
                 gux = gu.x,
                 guy = gu.y,
                 guz = gu.z,
@@ -652,6 +662,11 @@ mod curved_tests {
     /// `wrap` whose u runs round it (no affine function of the point), a plain floor and a
     /// lamp; `label` and `wrap` textured.
     fn scene(dir: &Path) -> Recovery {
+        scene_shifted(dir, 0.0)
+    }
+
+    /// [`scene`] moved `shift` along x, OBJ and view alike.
+    fn scene_shifted(dir: &Path, shift: f64) -> Recovery {
         let mut obj = String::from(
             "o label\nv 0 0.2 0.2\nv 0 0.8 0.2\nv 0 0.8 0.8\nv 0 0.2 0.8\n\
              vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n\
@@ -674,6 +689,16 @@ mod curved_tests {
             let (tb, tt, tnb, tnt) = (5 + 2 * i, 6 + 2 * i, 7 + 2 * i, 8 + 2 * i);
             obj.push_str(&format!("f {b}/{tb} {nb}/{tnb} {nt}/{tnt} {t}/{tt}\n"));
         }
+        let obj: String = obj
+            .lines()
+            .map(|l| match l.strip_prefix("v ") {
+                Some(xyz) => {
+                    let (x, yz) = xyz.split_once(' ').unwrap();
+                    format!("v {} {yz}\n", x.parse::<f64>().unwrap() + shift)
+                }
+                None => format!("{l}\n"),
+            })
+            .collect();
         std::fs::write(dir.join("geo.obj"), obj).unwrap();
         let toml = r#"format = 1
 name = "curved"
@@ -708,7 +733,8 @@ objects = ["floor"]
 name = "wrap"
 kind = "plastic"
 objects = ["wrap"]
-"#;
+"#
+        .replace("position = [1.5,", &format!("position = [{},", 1.5 + shift));
         std::fs::write(dir.join("scene.toml"), toml).unwrap();
         let owned =
             assemble::load_and_assemble(&dir.join("scene.toml"), MaterialSource::GeometryOnly)
@@ -743,6 +769,54 @@ objects = ["wrap"]
             maps: vec![map(0.2), map(0.7)],
             pool: crate::parallel::thread_pool(Some(1)).unwrap(),
             seed: 1,
+        }
+    }
+
+    /// A flat picture's .cal gives the OBJ's (u, v) at the OBJ's points in a scene far
+    /// from its origin too: the scene is moved to its centre to be rendered, and the
+    /// .cal's affine function was written in that moved frame, where RADIANCE evaluates
+    /// it in the OBJ's own.
+    #[test]
+    fn a_flat_pictures_cal_is_in_the_objs_coordinates_far_from_the_origin() {
+        let shift = 300_000.0;
+        let dir = tempfile::tempdir().unwrap();
+        let rec = scene_shifted(dir.path(), shift);
+        assert!(rec.owned.origin[0] != 0.0, "the scene is moved");
+        let out = dir.path().join("out");
+        let mut set = OutputSet::keeping(Vec::new());
+        add_maps_and_radiance(&mut set, &out, &rec).unwrap();
+        set.commit().unwrap();
+        let cal = std::fs::read_to_string(out.join("textures/label.cal")).unwrap();
+        // obj_u = u0 + (Px-(ox))*(gx) + (Py-(oy))*(gy) + (Pz-(oz))*(gz), evaluated here.
+        let evaluate = |line: &str, p: [f64; 3]| {
+            let rhs = line.split_once(" = ").unwrap().1.trim_end_matches(';');
+            let numbers: Vec<f64> = rhs
+                .split(|c: char| "()*+ ".contains(c) || c.is_ascii_alphabetic())
+                .filter(|t| !t.is_empty() && *t != "-")
+                .map(|t| t.parse().unwrap())
+                .collect();
+            let [u0, ox, gx, oy, gy, oz, gz] = numbers[..] else {
+                panic!("{rhs}: {numbers:?}")
+            };
+            u0 + (p[0] - ox) * gx + (p[1] - oy) * gy + (p[2] - oz) * gz
+        };
+        let line = |name: &str| {
+            cal.lines()
+                .find(|l| l.starts_with(name))
+                .unwrap()
+                .to_string()
+        };
+        // The label's corners (x = 0 before the shift) and their vt.
+        for (p, uv) in [
+            ([shift, 0.2, 0.2], [0.0, 0.0]),
+            ([shift, 0.8, 0.2], [1.0, 0.0]),
+            ([shift, 0.8, 0.8], [1.0, 1.0]),
+        ] {
+            let got = [evaluate(&line("obj_u"), p), evaluate(&line("obj_v"), p)];
+            assert!(
+                (got[0] - uv[0]).abs() < 1e-4 && (got[1] - uv[1]).abs() < 1e-4,
+                "{p:?}: {got:?} against {uv:?}\n{cal}"
+            );
         }
     }
 
