@@ -2083,6 +2083,28 @@ fn with_image(text: &str, name: &str, image: &Path) -> String {
     changed
 }
 
+/// Cameras outside the room (cornell's views moved 2 m behind its red wall, seeing the
+/// walls' backs) or inside an object (the box) see nothing a light reaches: check refuses
+/// the scene as recover does, and the message names that cause among a light's, where it
+/// named only lights hidden, dark, facing away or missing.
+#[test]
+fn views_outside_the_room_or_inside_an_object_are_named_as_a_cause_of_no_light() {
+    for position in ["[-2.0, 0.9, 1.3]", "[0.85, 2.15, 0.45]"] {
+        let text = cornell_scene_text().replace("[1.5, 0.9, 1.3]", position);
+        let (code, stderr, report) = check_scene(&text);
+        assert_eq!(code, Some(INPUT), "{position}: {stderr}");
+        assert!(
+            stderr.contains("no light of the scene reaches what its views see")
+                && stderr.contains("views outside the room or inside an object"),
+            "{position}: {stderr}"
+        );
+        assert!(
+            report.is_none(),
+            "{position}: a refused check writes no JSON"
+        );
+    }
+}
+
 /// `relume check` of a scene.toml `text` written in a folder of its own: its exit code,
 /// its stderr and its JSON report (`None` where it wrote none).
 fn check_scene(text: &str) -> (Option<i32>, String, Option<serde_json::Value>) {

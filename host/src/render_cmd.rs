@@ -172,7 +172,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         ));
     } else if all_black {
         warnings.push(format!(
-            "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away?)",
+            "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away? Or the cameras outside the room or inside an object, seeing the backs of surfaces no light reaches?)",
             args.scene.display()
         ));
     } else {

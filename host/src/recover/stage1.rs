@@ -170,7 +170,7 @@ fn refuse_unlit_or_black(
     if !lit && unlit.iter().any(Option::is_some) {
         return Err(Error::input(
             &rec.owned.desc.path,
-            "no light of the scene reaches what its views see: every group's pure pixels render black, so no material can be recovered (a light hidden, of radiance 0, facing away, or none?)",
+            "no light of the scene reaches what its views see: every group's pure pixels render black, so no material can be recovered (a light hidden, of radiance 0, facing away, or none? Or the views outside the room or inside an object, seeing the backs of surfaces no light reaches?)",
         ));
     }
     // A panorama that is 0 over every lit group's pure pixels is not a room of black
