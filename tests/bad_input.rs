@@ -2105,6 +2105,44 @@ fn views_outside_the_room_or_inside_an_object_are_named_as_a_cause_of_no_light()
     }
 }
 
+/// A group whose every triangle is degenerate (corners in a line, or repeated) is told
+/// as such: check said only "no pure pixel in any view", which sends a user to the views.
+/// A group with an area that no view sees keeps that warning.
+#[test]
+fn a_group_of_no_area_is_told_as_such() {
+    let dir = tempfile::tempdir().unwrap();
+    let cornell = common::workspace().join("scenes/cornell");
+    let obj = std::fs::read_to_string(cornell.join("geometry.obj")).unwrap();
+    let n = obj.lines().filter(|l| l.starts_with("v ")).count();
+    let extra = format!(
+        "\no flat\nv 2 2 0.5\nv 2.1 2 0.5\nv 2.2 2 0.5\nf {a} {b} {c}\nf {a} {a} {b}\no speck\nv 1 2 0.5\nv 1.001 2 0.5\nv 1 2.001 0.5\nf {d} {e} {f}\n",
+        a = n + 1,
+        b = n + 2,
+        c = n + 3,
+        d = n + 4,
+        e = n + 5,
+        f = n + 6
+    );
+    let geometry = dir.path().join("geometry.obj");
+    std::fs::write(&geometry, format!("{obj}{extra}")).unwrap();
+    let text = cornell_scene_text().replace(
+        path_str(&cornell.join("geometry.obj")),
+        path_str(&geometry),
+    ) + "\n[[group]]\nname = \"flat\"\nkind = \"plastic\"\nobjects = [\"flat\"]\n\n[[group]]\nname = \"speck\"\nkind = \"plastic\"\nobjects = [\"speck\"]\n";
+    let (code, stderr, _) = check_scene(&text);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("group 'flat': its faces have no area (every triangle degenerate"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("group 'flat': no pure pixel"), "{stderr}");
+    assert!(
+        stderr.contains("group 'speck': no pure pixel in any view"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("group 'speck': its faces"), "{stderr}");
+}
+
 /// `relume check` of a scene.toml `text` written in a folder of its own: its exit code,
 /// its stderr and its JSON report (`None` where it wrote none).
 fn check_scene(text: &str) -> (Option<i32>, String, Option<serde_json::Value>) {

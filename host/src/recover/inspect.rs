@@ -21,6 +21,7 @@ use crate::assemble::{self, MaterialSource, OwnedScene};
 use crate::error::Error;
 use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
+use crate::obj::ObjObject;
 use crate::parallel;
 use crate::scene_file::GroupKind;
 
@@ -43,6 +44,9 @@ pub(super) struct Input {
     pub mapped: Vec<bool>,
     /// Whether every object of a group is hidden (`hide`): it is not in the scene.
     pub hidden: Vec<bool>,
+    /// Whether a group's faces (those not hidden) have no area, every triangle degenerate:
+    /// no view can see it.
+    pub no_area: Vec<bool>,
 }
 
 /// Reads the scene, its geometry and its panorama's images (each view's exposure applied).
@@ -76,6 +80,16 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         .iter()
         .map(|g| g.objects.iter().all(|o| desc.hide.contains(o)))
         .collect();
+    let no_area: Vec<bool> = desc
+        .groups
+        .iter()
+        .zip(&hidden)
+        .map(|(g, &hidden)| {
+            let shown =
+                |o: &&ObjObject| g.objects.contains(&o.name) && !desc.hide.contains(&o.name);
+            !hidden && objects.iter().filter(shown).all(|o| !has_area(o))
+        })
+        .collect();
     let owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
     Ok(Input {
         owned,
@@ -87,6 +101,21 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         kinds,
         mapped,
         hidden,
+        no_area,
+    })
+}
+
+/// Whether some triangle of `object` has an area, in 64 bits relative to its first corner.
+fn has_area(object: &ObjObject) -> bool {
+    object.triangles.iter().any(|[a, b, c]| {
+        let u: [f64; 3] = std::array::from_fn(|k| b[k] - a[k]);
+        let v: [f64; 3] = std::array::from_fn(|k| c[k] - a[k]);
+        let cross = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        cross.iter().any(|&x| x != 0.0)
     })
 }
 
@@ -243,6 +272,16 @@ pub(super) fn inspect(
     {
         warnings.push(format!(
             "group '{name}': every object of it is hidden (`hide` in the scene): it is not in the scene, so no view sees it and its material is not recovered"
+        ));
+    }
+    for (name, _) in owned
+        .group_names
+        .iter()
+        .zip(&input.no_area)
+        .filter(|(_, &n)| n)
+    {
+        warnings.push(format!(
+            "group '{name}': its faces have no area (every triangle degenerate: corners repeated or in a line), so no view sees it and its material is not recovered"
         ));
     }
     let orientation_readings =
@@ -439,10 +478,10 @@ pub fn check(
             divisors: &input.header_divisors,
         },
     ));
-    // A group all hidden was told of by `inspect`, with its cause.
+    // A group all hidden, or of no area, was told of by `inspect`, with its cause.
     let hidden = |g: &&GroupSight| {
         let at = names.iter().position(|n| *n == g.group);
-        at.is_some_and(|i| input.hidden[i])
+        at.is_some_and(|i| input.hidden[i] || input.no_area[i])
     };
     for g in groups.iter().filter(|g| g.total() == 0 && !hidden(g)) {
         warnings.push(format!(
