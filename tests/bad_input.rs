@@ -1438,6 +1438,51 @@ exposure = 1.0
     assert!(stderr.contains("2 unfinished output file(s)"), "{stderr}");
 }
 
+/// A --size far past the capture's texels is warned of before the work, as recover tells
+/// its input's: the warning came only once the faces were written (minutes and gigabytes
+/// for --size 16384 of a 64x32 capture), and not at all from a run that failed before.
+#[test]
+fn a_split_finer_than_its_capture_is_warned_of_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let capture = dir.path().join("capture.exr");
+    relume::images::write_exr(
+        &capture,
+        &relume::images::Image {
+            width: 16,
+            height: 8,
+            pixels: vec![[0.5; 3]; 128],
+        },
+    )
+    .unwrap();
+    // Its faces' folder under a file: the run fails as it writes, after its checks.
+    std::fs::write(dir.path().join("taken"), "a file").unwrap();
+    let run = relume(
+        dir.path(),
+        &[
+            "panorama",
+            "split",
+            path_str(&capture),
+            "--position",
+            "0,0,1",
+            "--size",
+            "64",
+            "--out",
+            "taken/faces",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(INPUT), "{stderr}");
+    let warned = stderr
+        .find("relume: warning: ")
+        .unwrap_or_else(|| panic!("no warning: {stderr}"));
+    assert!(
+        stderr[warned..].contains("capture.exr holds 0.06 texels across a face pixel")
+            && stderr.contains("taken: is a file"),
+        "{stderr}"
+    );
+    assert!(warned < stderr.find("relume: error").unwrap(), "{stderr}");
+}
+
 /// `relume panorama`'s bad input: an image not twice as wide as high is bad input naming
 /// it and its size; a zero or oversized face, an up along the forward direction or a
 /// position that is not three numbers is a usage error; an output over the image is

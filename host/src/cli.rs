@@ -561,11 +561,9 @@ fn run(command: Command) -> Result<(), Error> {
                 scene,
                 out,
                 threads,
+                tell_warnings: true,
             };
             let summary = crate::panorama::split(&args)?;
-            for w in &summary.warnings {
-                eprintln!("relume: warning: {w}");
-            }
             println!(
                 "wrote six {0}x{0} faces ({1}x{1} samples per pixel) and {2}{3} under {4}",
                 summary.size,

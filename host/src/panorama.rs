@@ -53,6 +53,9 @@ pub struct PanoramaArgs {
     pub scene: Option<PathBuf>,
     pub out: PathBuf,
     pub threads: Option<usize>,
+    /// Print each warning on stderr as soon as it is found, before the work (as `recover`
+    /// tells its input's): a --size far past the capture's took minutes before its warning.
+    pub tell_warnings: bool,
 }
 
 /// What was written.
@@ -60,6 +63,7 @@ pub struct PanoramaSummary {
     pub size: u32,
     /// Footprint samples per face pixel side.
     pub samples_per_side: u32,
+    /// Every warning (already printed when `tell_warnings`).
     pub warnings: Vec<String>,
 }
 
@@ -505,6 +509,11 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
             "{} holds {texels:.2} texels across a face pixel (fewer than MIN_TEXELS_PER_PIXEL {MIN_TEXELS_PER_PIXEL}): the faces are finer than the capture, and their pixels at a group's edge mix in more than their footprint; {within}",
             args.image.display()
         ));
+    }
+    if args.tell_warnings {
+        for w in &warnings {
+            eprintln!("relume: warning: {w}");
+        }
     }
     let k = samples_per_side(image.width, size);
     let pool = parallel::thread_pool(args.threads)?;
