@@ -292,16 +292,19 @@ fn run_id(family: Family, size: f64, seed: u64) -> String {
     }
 }
 
-/// Whether the resolution family has a point at `side` pixels: smaller than the views,
-/// and dividing every view's size.
+/// Whether the resolution family has a point at `side` pixels: smaller than the first
+/// view's width and dividing it, by a factor that divides every view's width and height,
+/// as box-averaging needs. (Views divisible by `side` itself passed: views of 48 and 32
+/// at 16 took factor 3, which 32 refused, after the other families' runs.)
 fn resolution_applies(desc: &SceneDesc, side: u32) -> bool {
     let view_side = desc.views.first().map_or(0, |v| v.size[0]);
     side > 0
         && side < view_side
-        && desc
-            .views
-            .iter()
-            .all(|v| v.size[0].is_multiple_of(side) && v.size[1].is_multiple_of(side))
+        && view_side.is_multiple_of(side)
+        && desc.views.iter().all(|v| {
+            let factor = view_side / side;
+            v.size[0].is_multiple_of(factor) && v.size[1].is_multiple_of(factor)
+        })
 }
 
 /// One recovery of the study: its family and size (the x of its chart), its seed, and
@@ -1161,6 +1164,24 @@ mod tests {
         let last = points.last().unwrap();
         assert_eq!(last.family, Family::Pixels);
         assert_eq!(run_id(Family::Exposure, -5.0, 4), "exposure_-5");
+    }
+
+    /// A resolution point is one box-averaging can make: the first view's width over
+    /// `side` divides every view.
+    #[test]
+    fn a_resolution_point_takes_a_factor_that_divides_every_view() {
+        let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+        let mut desc = scene_file::load_scene(&cornell.join("scene.toml")).unwrap();
+        let mut with_sizes = |sizes: [[u32; 2]; 2]| {
+            desc.views.truncate(2);
+            desc.views[0].size = sizes[0];
+            desc.views[1].size = sizes[1];
+            [8, 16, 24].map(|side| resolution_applies(&desc, side))
+        };
+        assert_eq!(with_sizes([[32, 32], [32, 32]]), [true, true, false]);
+        // 48 by 3 to 16, which 32 is not a multiple of; by 2 to 24, which it is.
+        assert_eq!(with_sizes([[48, 48], [32, 32]]), [false, false, true]);
+        assert_eq!(with_sizes([[32, 8], [32, 32]]), [true, true, false]);
     }
 
     /// A seed family from any first seed: one folder per seed past 2^53, where the seeds'

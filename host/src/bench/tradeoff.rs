@@ -68,9 +68,12 @@ fn with_base(mut values: Vec<u32>, base: u32) -> Vec<u32> {
     values
 }
 
-/// The points to run, knob by knob; `view_side` is the scene's view width in pixels (the
-/// resolution knob's values are what box-averaging gives).
-pub fn sweep(base: Effort, quick: bool, view_side: u32) -> Vec<SweepPoint> {
+/// The points to run, knob by knob; `view_sizes` are the scene's views' sizes in pixels:
+/// the resolution knob's values are what box-averaging gives the first view's width, by
+/// the factors that divide every view's width and height (a factor checked against the
+/// first view alone stopped the sweep at its resolution point, after the other runs).
+pub fn sweep(base: Effort, quick: bool, view_sizes: &[[u32; 2]]) -> Vec<SweepPoint> {
+    let view_side = view_sizes.first().map_or(0, |s| s[0]);
     let b = base.budget();
     let mut points = Vec::new();
     let efforts = if quick {
@@ -125,7 +128,10 @@ pub fn sweep(base: Effort, quick: bool, view_side: u32) -> Vec<SweepPoint> {
         });
     }
     for f in factors {
-        if view_side.is_multiple_of(f) {
+        if view_sizes
+            .iter()
+            .all(|s| s[0].is_multiple_of(f) && s[1].is_multiple_of(f))
+        {
             points.push(SweepPoint {
                 knob: "resolution",
                 value: (view_side / f).to_string(),
@@ -162,7 +168,8 @@ pub fn run(args: &TradeoffArgs) -> Result<Vec<TradeoffRow>, Error> {
     if view_side == 0 {
         return Err(Error::input(&args.scene, "has no view to recover from"));
     }
-    let points = sweep(args.effort, args.quick, view_side);
+    let sizes: Vec<[u32; 2]> = desc.views.iter().map(|v| v.size).collect();
+    let points = sweep(args.effort, args.quick, &sizes);
     let mut set = prepare_outputs(&desc, &truth, outputs(args, &desc, &points))?;
     fsutil::create_dir(&args.out)?;
     // Points with the same knobs share one run.
@@ -450,7 +457,7 @@ mod tests {
     #[test]
     fn each_point_changes_one_knob_of_the_base() {
         let base = Effort::Fast.budget();
-        let points = sweep(Effort::Fast, false, 64);
+        let points = sweep(Effort::Fast, false, &[[64, 64]]);
         for p in &points {
             let b = p.budget;
             let changed = [
@@ -529,17 +536,25 @@ mod tests {
 
     #[test]
     fn quick_sweeps_keep_the_base_and_skip_factors_that_do_not_divide() {
-        let points = sweep(Effort::Default, true, 30);
+        let points = sweep(Effort::Default, true, &[[30, 30]]);
         let values = |knob: &str| values_of(&points, knob);
         assert_eq!(values("effort"), ["default"]);
         assert_eq!(values("anneal-levels"), ["4", "8"]);
         assert_eq!(values("loop-spp"), ["16", "32"]);
         assert_eq!(values("resolution"), ["15", "30"]);
-        let odd = sweep(Effort::Fast, true, 33);
+        let odd = sweep(Effort::Fast, true, &[[33, 33]]);
         assert!(odd
             .iter()
             .filter(|p| p.knob == "resolution")
             .all(|p| p.factor == 1));
+        // A factor must divide every view, not the first alone: a 31x31 view or a first
+        // view 32x9 gives no box-averaged point.
+        for sizes in [&[[32, 32], [31, 31]][..], &[[32, 9], [32, 32]]] {
+            let points = sweep(Effort::Fast, true, sizes);
+            assert_eq!(values_of(&points, "resolution"), ["32"], "{sizes:?}");
+        }
+        let points = sweep(Effort::Fast, true, &[[32, 8], [16, 16]]);
+        assert_eq!(values_of(&points, "resolution"), ["16", "32"]);
     }
 
     #[test]
@@ -555,7 +570,7 @@ mod tests {
             quick: true,
         };
         let desc = scene_file::load_scene(&args.scene).unwrap();
-        let points = sweep(args.effort, args.quick, 32);
+        let points = sweep(args.effort, args.quick, &[[32, 32]]);
         let files = outputs(&args, &desc, &points);
         for file in [
             "out/runs/effort-fast/materials.toml",
