@@ -2188,6 +2188,42 @@ fn a_group_of_no_area_is_told_as_such() {
     assert!(!stderr.contains("group 'speck': its faces"), "{stderr}");
 }
 
+/// A PNG view's clipped pixels (at its largest code) are told as `bench downsample`
+/// averages them into the EXR it writes, where check and recover can no longer tell them;
+/// a PNG with none is not warned of.
+#[test]
+fn downsample_tells_a_png_views_clipped_pixels() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, clipped) in [("clipped", true), ("unclipped", false)] {
+        let png = dir.path().join(format!("{name}.png"));
+        let mut image = image::RgbImage::from_pixel(32, 32, image::Rgb([100, 100, 100]));
+        if clipped {
+            image.put_pixel(3, 4, image::Rgb([255, 10, 10]));
+        }
+        image.save(&png).unwrap();
+        let scene = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&scene, with_image(&cornell_scene_text(), "px.exr", &png)).unwrap();
+        let run = relume(
+            dir.path(),
+            &[
+                "bench",
+                "downsample",
+                path_str(&scene),
+                "--factor",
+                "2",
+                "--out",
+                name,
+            ],
+        );
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(0), "{stderr}");
+        let told = stderr.contains("view 'px': 1 pixel of")
+            && stderr.contains("clipped")
+            && stderr.contains("px.exr");
+        assert_eq!(told, clipped, "{name}: {stderr}");
+    }
+}
+
 /// `relume check` of a scene.toml `text` written in a folder of its own: its exit code,
 /// its stderr and its JSON report (`None` where it wrote none).
 fn check_scene(text: &str) -> (Option<i32>, String, Option<serde_json::Value>) {

@@ -665,7 +665,9 @@ fn run(command: Command) -> Result<(), Error> {
             bench::rays::run(&args).map(|_| ())
         }
         Command::Bench(BenchCommand::Downsample { scene, factor, out }) => {
-            downsample::downsample(&scene, factor, &out)?;
+            for w in downsample::downsample(&scene, factor, &out)? {
+                eprintln!("relume: warning: {w}");
+            }
             println!("wrote {}", out.join("scene.toml").display());
             Ok(())
         }

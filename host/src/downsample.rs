@@ -134,7 +134,8 @@ pub(crate) fn view_tables(scene: &Path, views: &[ViewDesc]) -> Result<String, Er
 
 /// Writes `out/scene.toml` and `out/views/<view>.exr`, the panorama of `scene` box-averaged
 /// by `factor`. Errors: a factor of 0, a view without image, a size not divisible.
-pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<(), Error> {
+/// Returns its warnings: the PNG views with clipped pixels.
+pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<Vec<String>, Error> {
     if factor == 0 {
         return Err(Error::Usage("--factor must be at least 1".into()));
     }
@@ -142,7 +143,39 @@ pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<(), Error> {
     // it was used.
     assemble::load_and_assemble(scene, MaterialSource::GeometryOnly)?;
     let desc = scene_file::load_scene(scene)?;
-    write_derived_scene(scene, desc, factor, out, "downsample", |_, _| {}).map(|_| ())
+    // A PNG's largest code reads as the view's exposure and holds every radiance from
+    // there up (clipped): `check` and `recover` tell such pixels, but averaged into the
+    // EXR written they read as radiance, and nothing told them.
+    let mut warnings = Vec::new();
+    for (vi, v) in desc.views.iter().enumerate() {
+        let Some(path) = v.image.as_ref() else {
+            continue;
+        };
+        if !path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        {
+            continue;
+        }
+        let path = desc.view_image(vi, "nothing to downsample")?;
+        let image = images::read_view_image(path, v.exposure, v.size)?;
+        let clipped = image
+            .pixels
+            .iter()
+            .filter(|p| p.iter().any(|&c| c >= v.exposure))
+            .count();
+        if clipped > 0 {
+            warnings.push(format!(
+                "view '{}': {} of {} are at the PNG's largest value in some channel (clipped): averaged into {}, they read as radiance, and check and recover of the derived scene cannot tell them (its colours there come out dark)",
+                v.name,
+                crate::text::counted(clipped as u64, "pixel"),
+                path.display(),
+                out.join("views").join(format!("{}.exr", v.name)).display()
+            ));
+        }
+    }
+    write_derived_scene(scene, desc, factor, out, "downsample", |_, _| {})?;
+    Ok(warnings)
 }
 
 /// Writes `desc` (read from `scene`) as `out/scene.toml`, every view's panorama read with
