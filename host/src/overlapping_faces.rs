@@ -249,8 +249,9 @@ pub fn overlapping_face_warnings(owned: &mut OwnedScene) -> Result<Vec<String>, 
     Ok(warnings)
 }
 
-/// The first of `views` that sees point `p` (in the scene's coordinates): `p` within its
-/// frame, and nothing nearer than `p` less `slack` on the line from its position.
+/// The first of `views` that sees point `p` (in the frame the scene's triangles and views
+/// were moved to): `p` within its frame, and nothing nearer than `p` less `slack` on the
+/// line from its position.
 fn seen_by(scene: &Scene, views: &[View], p: [f64; 3], slack: f64) -> Option<usize> {
     let p = Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32);
     views.iter().position(|view| {
