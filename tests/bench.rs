@@ -9,26 +9,46 @@ use std::path::PathBuf;
 
 use common::{path_str, relume, relume_ok, workspace};
 
+/// The arguments of `relume bench <command>` on the bundled scene, judged against
+/// `truth` (a path as given), into `out`, then `extra`.
+fn bench_on_cornell(
+    command: &str,
+    truth: &str,
+    out: &std::path::Path,
+    extra: &[&str],
+) -> Vec<String> {
+    let scene = workspace().join("scenes/cornell/scene.toml");
+    let mut args: Vec<String> = [
+        "bench",
+        command,
+        path_str(&scene),
+        "--truth",
+        truth,
+        "--out",
+        path_str(out),
+    ]
+    .map(String::from)
+    .to_vec();
+    args.extend(extra.iter().map(|a| a.to_string()));
+    args
+}
+
+/// [`bench_on_cornell`] judged against the scene's own materials.
+fn bench_on_cornell_truth(command: &str, out: &std::path::Path, extra: &[&str]) -> Vec<String> {
+    let truth = workspace().join("scenes/cornell/materials.toml");
+    bench_on_cornell(command, path_str(&truth), out, extra)
+}
+
+fn strs(args: &[String]) -> Vec<&str> {
+    args.iter().map(String::as_str).collect()
+}
+
 #[test]
 fn quick_tradeoff_writes_a_row_per_point_and_a_chart() {
-    let root = workspace();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("tradeoff");
-    let output = relume_ok(
-        tmp.path(),
-        &[
-            "bench",
-            "tradeoff",
-            path_str(&root.join("scenes/cornell/scene.toml")),
-            "--truth",
-            path_str(&root.join("scenes/cornell/materials.toml")),
-            "--out",
-            path_str(&out),
-            "--quick",
-            "--threads",
-            "2",
-        ],
-    );
+    let args = bench_on_cornell_truth("tradeoff", &out, &["--quick", "--threads", "2"]);
+    let output = relume_ok(tmp.path(), &strs(&args));
     let text = std::fs::read_to_string(out.join("tradeoff.csv")).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
@@ -111,39 +131,20 @@ fn quick_tradeoff_writes_a_row_per_point_and_a_chart() {
 
 #[test]
 fn a_missing_truth_is_an_error_naming_the_file() {
-    let root = workspace();
     let tmp = tempfile::tempdir().unwrap();
     for command in ["tradeoff", "stability"] {
-        let output = relume(
-            tmp.path(),
-            &[
-                "bench",
-                command,
-                path_str(&root.join("scenes/cornell/scene.toml")),
-                "--truth",
-                "no-such-truth.toml",
-                "--out",
-                path_str(&tmp.path().join("out")),
-            ],
-        );
+        let args = bench_on_cornell(command, "no-such-truth.toml", &tmp.path().join("out"), &[]);
+        let output = relume(tmp.path(), &strs(&args));
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert_eq!(output.status.code(), Some(4), "{stderr}");
         assert!(stderr.contains("no-such-truth.toml"), "{stderr}");
     }
-    let output = relume(
-        tmp.path(),
-        &[
-            "bench",
-            "stability",
-            path_str(&root.join("scenes/cornell/scene.toml")),
-            "--truth",
-            path_str(&root.join("scenes/cornell/materials.toml")),
-            "--out",
-            path_str(&tmp.path().join("out")),
-            "--group",
-            "no_such_group",
-        ],
+    let args = bench_on_cornell_truth(
+        "stability",
+        &tmp.path().join("out"),
+        &["--group", "no_such_group"],
     );
+    let output = relume(tmp.path(), &strs(&args));
     // A flag's value that names nothing is a usage error (2), as `render --view` is.
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(2), "{stderr}");
@@ -159,25 +160,11 @@ fn a_missing_truth_is_an_error_naming_the_file() {
 #[test]
 fn a_thread_count_out_of_range_is_refused_before_the_output_folder_is_made() {
     // Tradeoff told its first run and stability made --out before the pool refused it.
-    let root = workspace();
     let tmp = tempfile::tempdir().unwrap();
     for command in ["tradeoff", "stability"] {
         let out = tmp.path().join(command);
-        let output = relume(
-            tmp.path(),
-            &[
-                "bench",
-                command,
-                path_str(&root.join("scenes/cornell/scene.toml")),
-                "--truth",
-                path_str(&root.join("scenes/cornell/materials.toml")),
-                "--out",
-                path_str(&out),
-                "--quick",
-                "--threads",
-                "0",
-            ],
-        );
+        let args = bench_on_cornell_truth(command, &out, &["--quick", "--threads", "0"]);
+        let output = relume(tmp.path(), &strs(&args));
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert_eq!(output.status.code(), Some(2), "{command}: {stderr}");
         assert!(stderr.contains("--threads"), "{command}: {stderr}");
