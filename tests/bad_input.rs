@@ -1847,28 +1847,14 @@ fn views_apart_in_a_scene_far_from_its_origin_are_not_one_position() {
     let cornell = root.join("scenes/cornell");
     let dir = tempfile::tempdir().unwrap();
     let offset = [1e5f64, -2.5e5, 3e4];
-    let moved = |numbers: &str, dx: f64| -> String {
-        let moved: Vec<String> = numbers
-            .split([',', ' '])
-            .filter(|n| !n.is_empty())
-            .zip(offset)
-            .enumerate()
-            .map(|(k, (n, d))| {
-                let extra = if k == 0 { dx } else { 0.0 };
-                format!("{:?}", n.parse::<f64>().unwrap() + d + extra)
-            })
-            .collect();
-        moved.join(", ")
-    };
+    let moved =
+        |numbers: &str, dx: f64| common::shifted(numbers, [offset[0] + dx, offset[1], offset[2]]);
     let obj = std::fs::read_to_string(cornell.join("geometry.obj")).unwrap();
-    let obj: Vec<String> = obj
-        .lines()
-        .map(|l| match l.strip_prefix("v ") {
-            Some(xyz) => format!("v {}", moved(xyz, 0.0).replace(',', "")),
-            None => l.to_string(),
-        })
-        .collect();
-    std::fs::write(dir.path().join("geometry.obj"), obj.join("\n")).unwrap();
+    std::fs::write(
+        dir.path().join("geometry.obj"),
+        common::shifted_obj(&obj, offset),
+    )
+    .unwrap();
     let text = std::fs::read_to_string(cornell.join("scene.toml")).unwrap();
     let write_scene = |name: &str, px_dx: f64| -> std::path::PathBuf {
         let mut first = true;

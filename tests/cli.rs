@@ -575,24 +575,9 @@ fn a_scene_far_from_its_origin_renders_as_at_it() {
     let far = tmp.path().join("far");
     std::fs::create_dir(&far).unwrap();
     let offset = [1e6f64, -2e6, 5e5];
-    let moved = |numbers: &str| -> String {
-        let moved: Vec<String> = numbers
-            .split([',', ' '])
-            .filter(|n| !n.is_empty())
-            .zip(offset)
-            .map(|(n, d)| format!("{}", n.parse::<f64>().unwrap() + d))
-            .collect();
-        moved.join(", ")
-    };
+    let moved = |numbers: &str| common::shifted(numbers, offset);
     let obj = std::fs::read_to_string(cornell.join("geometry.obj")).unwrap();
-    let obj: Vec<String> = obj
-        .lines()
-        .map(|l| match l.strip_prefix("v ") {
-            Some(xyz) => format!("v {}", moved(xyz).replace(',', "")),
-            None => l.to_string(),
-        })
-        .collect();
-    std::fs::write(far.join("geometry.obj"), obj.join("\n")).unwrap();
+    std::fs::write(far.join("geometry.obj"), common::shifted_obj(&obj, offset)).unwrap();
     let scene = std::fs::read_to_string(cornell.join("scene.toml")).unwrap();
     let scene: Vec<String> = scene
         .lines()

@@ -92,3 +92,27 @@ pub fn copy_cornell(to: &Path) {
         std::fs::copy(cornell.join(&file), to.join(&file)).unwrap();
     }
 }
+
+/// Numbers separated by commas or spaces (an OBJ vertex's, a scene.toml position's), each
+/// moved by its entry of `offset`, joined by ", ".
+pub fn shifted(numbers: &str, offset: [f64; 3]) -> String {
+    let moved: Vec<String> = numbers
+        .split([',', ' '])
+        .filter(|n| !n.is_empty())
+        .zip(offset)
+        .map(|(n, d)| format!("{:?}", n.parse::<f64>().unwrap() + d))
+        .collect();
+    moved.join(", ")
+}
+
+/// An OBJ's text with every vertex moved by `offset`.
+pub fn shifted_obj(obj: &str, offset: [f64; 3]) -> String {
+    let lines: Vec<String> = obj
+        .lines()
+        .map(|l| match l.strip_prefix("v ") {
+            Some(xyz) => format!("v {}", shifted(xyz, offset).replace(',', "")),
+            None => l.to_string(),
+        })
+        .collect();
+    lines.join("\n")
+}
