@@ -264,25 +264,22 @@ pub(super) fn inspect(
         &input.clipped_at,
         &input.view_names,
     ));
-    for (name, _) in owned
-        .group_names
-        .iter()
-        .zip(&input.hidden)
-        .filter(|(_, &h)| h)
-    {
-        warnings.push(format!(
-            "group '{name}': every object of it is hidden (`hide` in the scene): it is not in the scene, so no view sees it and its material is not recovered"
-        ));
-    }
-    for (name, _) in owned
-        .group_names
-        .iter()
-        .zip(&input.no_area)
-        .filter(|(_, &n)| n)
-    {
-        warnings.push(format!(
-            "group '{name}': its faces have no area (every triangle degenerate: corners repeated or in a line), so no view sees it and its material is not recovered"
-        ));
+    // Groups no view can see for a reason of the scene's, not of the views'.
+    for (flags, why) in [
+        (
+            &input.hidden,
+            "every object of it is hidden (`hide` in the scene): it is not in the scene",
+        ),
+        (
+            &input.no_area,
+            "its faces have no area (every triangle degenerate: corners repeated or in a line)",
+        ),
+    ] {
+        for (name, _) in owned.group_names.iter().zip(flags).filter(|(_, &f)| f) {
+            warnings.push(format!(
+                "group '{name}': {why}, so no view sees it and its material is not recovered"
+            ));
+        }
     }
     let orientation_readings =
         orientation::read_orientations(&pure, &input.real, &input.view_names);
