@@ -162,7 +162,12 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
                 "group '{name}': its lobe's shape is from stage 2's ladder of roughnesses (rungs 1.5x apart, chosen on a weak gain): on glossy such lobes came out at roughness 0.005-0.3 for a true 0.2, the class right (docs/recovery.md, stage 2)"
             ));
         }
-        for c in &report.comparisons {
+        // A textured group's stage 2 and 4 comparisons weighed the lobe of its uniform
+        // stand-in, which stage 5 fits again under the map or drops: the textured warning
+        // above tells how far the lobe it kept can be trusted. (A curved picture added to
+        // cornell came out textured-diffuse and was told stage 2 "kept the isotropic model".)
+        let stand_in = matches!(model, GroupModel::Textured { .. });
+        for c in report.comparisons.iter().filter(|_| !stand_in) {
             // A comparison that passed its test and was still rejected was decided by
             // something else (the pattern test); another reading would not change the model.
             if c.passed_test && !c.kept_complex {
@@ -691,6 +696,38 @@ mod tests {
         );
         assert!(
             w.iter().all(|s| !s.contains("lights its surroundings")),
+            "{w:?}"
+        );
+    }
+
+    /// Stage 2's borderline comparison is told of a group that kept its isotropic model,
+    /// not of one that went on to a map: there it weighed the stand-in's lobe, which stage
+    /// 5 fits again or drops.
+    #[test]
+    fn a_textured_group_is_not_told_of_its_stand_ins_borderline_lobe() {
+        let borderline = || comparison(0.015, 0.015 / 3.5);
+        assert!(borderline().kept_complex);
+        let groups = [
+            group("picture", 900, vec![borderline()]),
+            group("box", 900, vec![borderline()]),
+        ];
+        let models = [
+            GroupModel::Textured {
+                map: 0,
+                lobe: crate::recover::model::MapLobe::None,
+            },
+            GroupModel::Isotropic {
+                kind: Kind::Plastic,
+                color: [0.3; 3],
+                specularity: 0.1,
+                roughness: 0.1,
+            },
+        ];
+        let w = warnings_for(&groups, &models, 0.025, 64, Effort::Default);
+        let borderline: Vec<&String> = w.iter().filter(|s| s.contains("borderline")).collect();
+        assert_eq!(borderline.len(), 1, "{w:?}");
+        assert!(
+            borderline[0].contains("'box': stage 2 isotropic kept the isotropic model"),
             "{w:?}"
         );
     }
