@@ -717,11 +717,14 @@ fn case_with_panorama_in(folder: &str) -> Case {
     case
 }
 
-/// Runs `relume recover` of `case` into `out` (relative to the case) at effort fast, with a
-/// group the scene does not have in `--limit-group-pixels`, an error recovery meets only
-/// after its first renders: an error that names no `nosuch` came before the work. Returns
-/// the exit code and stderr.
-fn recover_naming_no_group(case: &Case, out: &str) -> (Option<i32>, String) {
+/// The error a recovery of the tiny scene meets only after it has traced its views: its
+/// view sees the quad edge-on, so no pixel falls wholly on a group. An error of such a run
+/// without it came before the work.
+const LATE_ERROR: &str = "no view sees any group in whole pixels";
+
+/// Runs `relume recover` of `case` into `out` (relative to the case) at effort fast, with
+/// `extra` arguments. Returns the exit code and stderr.
+fn recover_tiny(case: &Case, out: &str, extra: &[&str]) -> (Option<i32>, String) {
     let scene = case.path("scene.toml");
     let args = [
         "recover",
@@ -731,28 +734,43 @@ fn recover_naming_no_group(case: &Case, out: &str) -> (Option<i32>, String) {
         "--effort",
         "fast",
     ];
-    let run = relume(
-        case.dir.path(),
-        &[&args[..], &["--limit-group-pixels", "nosuch=10"]].concat(),
-    );
+    let run = relume(case.dir.path(), &[&args[..], extra].concat());
     (
         run.status.code(),
         String::from_utf8_lossy(&run.stderr).into_owned(),
     )
 }
 
+/// `--limit-group-pixels` naming a group the scene does not have fails with the scene
+/// read, naming the scene file, the group and the groups it has; once it failed only after
+/// the inspection's renders. Nothing is written.
+#[test]
+fn a_pixel_limit_on_a_group_the_scene_lacks_fails_before_the_work() {
+    let case = case_with_panorama();
+    let (code, stderr) = recover_tiny(&case, "rec", &[]);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(stderr.contains(LATE_ERROR), "{stderr}");
+    let before = files_and_bytes(case.dir.path());
+    let (code, stderr) = recover_tiny(&case, "rec", &["--limit-group-pixels", "nosuch=10"]);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("scene.toml: --limit-group-pixels names group 'nosuch', which the scene does not have (its groups: 'floor')")
+            && !stderr.contains(LATE_ERROR),
+        "{stderr}"
+    );
+    assert!(files_and_bytes(case.dir.path()) == before);
+}
+
 /// An output folder that cannot be made (under a file) fails at the start of a recovery,
 /// before its minutes of work, naming the file in the way (bad input: once the system's
-/// bare "Not a directory", an I/O error); nothing is written. The run also names a group
-/// the scene does not have in `--limit-group-pixels`, an error recovery meets only after
-/// it has found the pure pixels: the folder's error comes first.
+/// bare "Not a directory", an I/O error); nothing is written.
 #[test]
 fn a_recovery_whose_output_folder_cannot_be_made_fails_at_once() {
     let case = case_with_panorama();
-    let (code, stderr) = recover_naming_no_group(&case, "m.toml/recovered");
+    let (code, stderr) = recover_tiny(&case, "m.toml/recovered", &[]);
     assert_eq!(code, Some(INPUT), "{stderr}");
     assert!(
-        stderr.contains("m.toml: is a file, not a folder") && !stderr.contains("nosuch"),
+        stderr.contains("m.toml: is a file, not a folder") && !stderr.contains(LATE_ERROR),
         "{stderr}"
     );
     assert_eq!(
@@ -810,11 +828,7 @@ fn no_output_replaces_an_input_of_its_run() {
             "the scene file",
         ),
     ];
-    for (mut args, file, what) in runs {
-        // A group recovery would refuse only after its first renders: the check comes first.
-        if args[0] == "recover" {
-            args.extend(["--limit-group-pixels", "nosuch=10"]);
-        }
+    for (args, file, what) in runs {
         let run = relume(case.dir.path(), &args);
         let stderr = String::from_utf8_lossy(&run.stderr);
         assert_eq!(run.status.code(), Some(INPUT), "{args:?}: {stderr}");
@@ -824,7 +838,7 @@ fn no_output_replaces_an_input_of_its_run() {
             "{args:?}: {stderr}"
         );
         assert!(
-            !stderr.contains("panicked") && !stderr.contains("nosuch"),
+            !stderr.contains("panicked") && !stderr.contains(LATE_ERROR),
             "{stderr}"
         );
         assert!(
@@ -836,8 +850,7 @@ fn no_output_replaces_an_input_of_its_run() {
 
 /// Which groups get a map is known only after a recovery, so a panorama image where a
 /// group's map would go (`textures/<group>.exr`) was refused only after the whole run: now
-/// every group's map files are checked before it (the `nosuch` group of
-/// `--limit-group-pixels` is an error met only after the first renders).
+/// every group's map files are checked before it (before [`LATE_ERROR`]).
 #[test]
 fn a_panorama_where_a_groups_map_would_go_is_refused_before_the_recovery() {
     let case = Case::new().scene(
@@ -852,12 +865,12 @@ fn a_panorama_where_a_groups_map_would_go_is_refused_before_the_recovery() {
     )
     .unwrap();
     let before = files_and_bytes(case.dir.path());
-    let (code, stderr) = recover_naming_no_group(&case, "rec");
+    let (code, stderr) = recover_tiny(&case, "rec", &[]);
     assert_eq!(code, Some(INPUT), "{stderr}");
     assert!(
         stderr.contains("rec/textures/floor.exr")
             && stderr.contains("would replace the image of view 'front', an input of this run")
-            && !stderr.contains("nosuch"),
+            && !stderr.contains(LATE_ERROR),
         "{stderr}"
     );
     assert!(files_and_bytes(case.dir.path()) == before);

@@ -46,7 +46,7 @@ mod uncertainty;
 mod unseen;
 mod warnings;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -723,9 +723,37 @@ fn mirror_test(model: &GroupModel) -> Option<String> {
     }
 }
 
+/// The index of group `name` among the scene's `groups`, for `--limit-group-pixels`; an
+/// input error naming the scene file and its groups if it has none of that name.
+fn group_named(scene: &Path, groups: &[String], name: &str) -> Result<usize, Error> {
+    groups.iter().position(|n| n == name).ok_or_else(|| {
+        const LISTED: usize = 20;
+        let mut listed: Vec<String> = groups
+            .iter()
+            .take(LISTED)
+            .map(|n| format!("'{n}'"))
+            .collect();
+        if groups.len() > LISTED {
+            listed.push(format!("... ({} in all)", groups.len()));
+        }
+        Error::input(
+            scene,
+            format!(
+                "--limit-group-pixels names group '{name}', which the scene does not have (its groups: {})",
+                listed.join(", ")
+            ),
+        )
+    })
+}
+
 pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let start = Instant::now();
     let mut input = inspect::read(&args.scene)?;
+    // Checked with the scene read, not after the inspection's renders.
+    let limited_group = match &args.limit_group_pixels {
+        Some((name, _)) => Some(group_named(&args.scene, &input.owned.group_names, name)?),
+        None => None,
+    };
     let pool = parallel::thread_pool(args.threads)?;
     let output = output::prepare(
         &args.out,
@@ -751,22 +779,14 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     let views = owned.views.clone();
     let n_groups = owned.group_names.len();
     let names = owned.group_names.clone();
-    let pure = match &args.limit_group_pixels {
-        Some((name, limit)) => {
-            let Some(g) = names.iter().position(|n| n == name) else {
-                return Err(Error::input(
-                    &args.scene,
-                    format!(
-                        "--limit-group-pixels names group '{name}', which the scene does not have"
-                    ),
-                ));
-            };
+    let pure = match (&args.limit_group_pixels, limited_group) {
+        (Some((name, limit)), Some(g)) => {
             warnings.push(format!(
                 "group '{name}': limited to {limit} pure pixels on request (--limit-group-pixels)"
             ));
             pixels::limit_group(pure, g as u16, *limit as usize)
         }
-        None => pure,
+        _ => pure,
     };
     let warnings_told = if args.tell_input_warnings {
         for w in &warnings {
