@@ -460,6 +460,7 @@ pub fn check(
         maps: Vec::new(),
         pool,
         seed: PREVIEW_SEED,
+        terms_memo: Default::default(),
     };
     let names = rec.owned.group_names.clone();
     let preview = stage1::preview_light(&mut rec, &names, PREVIEW_SPP)?;

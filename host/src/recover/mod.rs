@@ -40,6 +40,7 @@ mod stage2;
 mod stage3;
 mod stage4;
 mod stage5;
+mod terms_memo;
 mod texture;
 mod too_bright;
 mod uncertainty;
@@ -153,6 +154,8 @@ struct Recovery {
     maps: Vec<texture::RecoveredMap>,
     pool: rayon::ThreadPool,
     seed: u64,
+    /// The last paired measurements ([`Recovery::paired_terms`]).
+    terms_memo: terms_memo::TermsMemo,
 }
 
 impl Recovery {
@@ -272,9 +275,21 @@ impl Recovery {
         spp: u32,
         seed: u64,
     ) -> Result<Vec<([f64; 2], f64)>, Error> {
-        self.with_scene(spp, seed, |pool, scene, observed, settings| {
+        let key = terms_memo::MeasurementKey {
+            models: self.models.clone(),
+            maps: self.maps.clone(),
+            pixels: pixels.to_vec(),
+            spp,
+            seed,
+        };
+        if let Some(terms) = self.terms_memo.get(&key) {
+            return Ok(terms.to_vec());
+        }
+        let terms = self.with_scene(spp, seed, |pool, scene, observed, settings| {
             pixels::paired_cross_terms(pool, scene, observed, pixels, settings)
-        })
+        })?;
+        self.terms_memo.keep(key, terms.clone());
+        Ok(terms)
     }
 
     /// Every group's bias-only error with its standard error, with the current models, on
@@ -810,6 +825,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         maps: Vec::new(),
         pool,
         seed: args.seed,
+        terms_memo: Default::default(),
     };
     let mut reports: Vec<GroupReport> = (0..n_groups)
         .map(|g| GroupReport::new(&names[g], &format!("{:?}", kinds[g]).to_lowercase()))

@@ -769,6 +769,7 @@ objects = ["wrap"]
             maps: vec![map(0.2), map(0.7)],
             pool: crate::parallel::thread_pool(Some(1)).unwrap(),
             seed: 1,
+            terms_memo: Default::default(),
         }
     }
 

@@ -26,7 +26,7 @@ use crate::error::Error;
 const BORDER_MIN_ON: usize = 2;
 
 /// A recovered diffuse map (row 0 = v 1), square.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RecoveredMap {
     pub side: u32,
     pub texels: Vec<Vec3>,
