@@ -924,3 +924,36 @@ fn compare_views_of_some_views_needs_only_their_images() {
         &["--view c: scene.toml has no such view (its views: a, b)"],
     );
 }
+
+/// The scene's own panorama folder given as A (the README's `compare views scene.toml
+/// views out` of a reference) is read with its views' exposure, as check and recover read
+/// the panorama: read at exposure 1, a view of exposure 2 compared +100% off a render of
+/// the very radiance it holds, without a word. Given as B, the same.
+#[test]
+fn compare_views_reads_the_scenes_own_images_with_their_exposure() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = TWO_VIEWS
+        .replace(
+            "name = \"a\"\n",
+            "name = \"a\"\nimage = \"pano/a.exr\"\nexposure = 2.0\n",
+        )
+        .replace("name = \"b\"\n", "name = \"b\"\nimage = \"pano/b.exr\"\n");
+    std::fs::write(dir.path().join("scene.toml"), scene).unwrap();
+    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
+    for sub in ["pano", "render"] {
+        std::fs::create_dir(dir.path().join(sub)).unwrap();
+    }
+    flat(&dir.path().join("pano/a.exr"), 0.5);
+    flat(&dir.path().join("pano/b.exr"), 1.0);
+    flat(&dir.path().join("render/a.exr"), 1.0);
+    flat(&dir.path().join("render/b.exr"), 1.0);
+    for (a, b) in [("pano", "render"), ("render", "./pano/")] {
+        let run = relume(dir.path(), &["compare", "views", "scene.toml", a, b]);
+        let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+        assert!(run.status.success(), "{stdout}");
+        for row in ["floor ", "shelf ", "a ", "image "] {
+            let line = stdout.lines().find(|l| l.starts_with(row)).unwrap();
+            assert!(line.contains("+0.00%"), "{a} against {b}: {line}");
+        }
+    }
+}

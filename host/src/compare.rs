@@ -141,7 +141,8 @@ pub struct ViewsReport {
 /// Where a set of view images comes from.
 #[derive(Clone, Copy, Debug)]
 pub enum ViewImages<'a> {
-    /// `<folder>/<view>.exr`, as `relume render` writes them (exposure 1).
+    /// `<folder>/<view>.exr`, as `relume render` writes them (exposure 1); the scene's own
+    /// image of a view with the view's exposure.
     Folder(&'a Path),
     /// The images the scene file names for its views (the panorama), with their exposure.
     Scene,
@@ -160,7 +161,7 @@ impl ViewImages<'_> {
     /// The image of view `desc` of the scene at `scene_path`, checked as every view is.
     pub(crate) fn read(&self, desc: &ViewDesc, scene_path: &Path) -> Result<images::Image, Error> {
         match self {
-            ViewImages::Folder(dir) => images::read_folder_view_image(dir, &desc.name, desc.size),
+            ViewImages::Folder(dir) => images::read_folder_view_image(dir, desc),
             ViewImages::Scene => {
                 let path = desc.image.as_ref().ok_or_else(|| {
                     Error::input(scene_path, format!("view '{}' names no image", desc.name))

@@ -21,6 +21,7 @@ use relume_core::math;
 
 use crate::error::Error;
 use crate::fsutil::OutputSet;
+use crate::scene_file::ViewDesc;
 use crate::text;
 
 /// A linear RGB image, row-major, row 0 at the top.
@@ -437,11 +438,14 @@ fn reject_transparent(path: &Path, decoded: &DynamicImage) -> Result<(), Error> 
     }
 }
 
-/// The image of view `name` in `dir`, a folder of `<view>.exr` as `relume render` writes
-/// them (exposure 1), of the view's `size`. A `dir` that is a file is bad input, and a
-/// missing image names its view ("rA/px.exr/px.exr: Not a directory", "miss/nz.exr: No
-/// such file" were all that was said).
-pub fn read_folder_view_image(dir: &Path, name: &str, size: [u32; 2]) -> Result<Image, Error> {
+/// The image of `view` in `dir`, a folder of `<view>.exr` as `relume render` writes them
+/// (exposure 1), of the view's size. The scene's own image of the view (its panorama's
+/// folder given as `dir`) is read with the view's exposure, as every command reads the
+/// panorama: read at 1 it was compared and joined off by that factor, without a word. A
+/// `dir` that is a file is bad input, and a missing image names its view ("rA/px.exr/px.exr:
+/// Not a directory", "miss/nz.exr: No such file" were all that was said).
+pub fn read_folder_view_image(dir: &Path, view: &ViewDesc) -> Result<Image, Error> {
+    let (name, size) = (&view.name, view.size);
     if dir.is_file() {
         return Err(Error::input(
             dir,
@@ -458,7 +462,11 @@ pub fn read_folder_view_image(dir: &Path, name: &str, size: [u32; 2]) -> Result<
             ),
         ));
     }
-    read_view_image(&path, 1.0, size)
+    let own = view
+        .image
+        .as_ref()
+        .is_some_and(|image| crate::fsutil::same_file(image, &path));
+    read_view_image(&path, if own { view.exposure } else { 1.0 }, size)
 }
 
 /// [`read_image`], and the size must be the view's `[width, height]`.

@@ -356,7 +356,7 @@ pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
             .view()
             .map_err(|e| Error::core(format!("{}: view '{}'", args.scene.display(), v.name), e))?;
         let path = args.dir.join(format!("{}.exr", v.name));
-        let image = images::read_folder_view_image(&args.dir, &v.name, v.size)?;
+        let image = images::read_folder_view_image(&args.dir, v)?;
         inputs.push((path, format!("the image of view '{}'", v.name)));
         views.push((view, image));
     }
