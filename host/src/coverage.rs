@@ -40,8 +40,21 @@ pub struct CoverageRow {
     pub recovered: f64,
     pub sigma: f64,
     pub truth: f64,
-    /// `|recovered - truth| / sigma`.
+    /// `|recovered - truth| / sigma`: infinite for a sigma of 0 (or one that small) off
+    /// the truth, written `"inf"` in JSON.
+    #[serde(serialize_with = "z_json")]
     pub z: f64,
+}
+
+/// A z in JSON: a number, `"inf"` where a sigma of 0 claims a value the truth is not (JSON
+/// has no infinity, and serde_json would write `null`, which reads as no figure rather
+/// than as a claim outside every number of sigmas).
+fn z_json<S: serde::Serializer>(z: &f64, out: S) -> Result<S::Ok, S::Error> {
+    if z.is_infinite() {
+        out.serialize_str("inf")
+    } else {
+        out.serialize_f64(*z)
+    }
 }
 
 /// The parameters report.json gives uncertainties for, each with the materials.toml key
@@ -337,6 +350,14 @@ mod tests {
         assert!((z_score(0.3, 0.1, 0.5) - 2.0).abs() < 1e-12);
         assert_eq!(z_score(0.5, 0.0, 0.5), 0.0);
         assert_eq!(z_score(0.5, 0.0, 0.50001), f64::INFINITY);
+    }
+
+    #[test]
+    fn a_z_of_a_sigma_of_zero_off_the_truth_is_inf_in_json_not_null() {
+        let json = |z| serde_json::to_value(row("color_r", z)).unwrap();
+        assert_eq!(json(f64::INFINITY)["z"], "inf");
+        assert_eq!(json(1.5)["z"], 1.5);
+        assert_eq!(json(0.0)["z"], 0.0);
     }
 
     #[test]
