@@ -442,11 +442,13 @@ pub struct MaterialRow {
 }
 
 /// A PSNR in JSON: a number, `"inf"` for a map equal to the truth's (JSON has no
-/// infinity, and serde_json would write `null`, which here means "no map"), `null` when
-/// there is no map to compare.
+/// infinity, and serde_json would write `null`, which here means "no map"), `"-inf"` for
+/// a map that is not black against a black truth (a peak of 0; the table's `-infdB`),
+/// `null` when there is no map to compare.
 fn psnr_json<S: serde::Serializer>(psnr: &Option<f64>, out: S) -> Result<S::Ok, S::Error> {
     match psnr {
         Some(db) if db.is_infinite() && *db > 0.0 => out.serialize_str("inf"),
+        Some(db) if db.is_infinite() => out.serialize_str("-inf"),
         Some(db) => out.serialize_f64(*db),
         None => out.serialize_none(),
     }
@@ -1109,6 +1111,24 @@ mod tests {
         assert_eq!(coarse["diffuse_map_psnr_db"], 22.5);
         assert_eq!(coarse["diffuse_map_psnr_ceiling_db"], 25.75);
         assert!(json(row(None, None))["diffuse_map_psnr_db"].is_null());
+    }
+
+    /// A black truth map (a peak of 0) against one that is not reads -inf dB, as the table
+    /// says; the JSON wrote null, which there means that the group has no map.
+    #[test]
+    fn a_map_against_a_black_truth_is_written_minus_inf_in_json_not_the_null_of_no_map() {
+        let black = image(4, 4, |_, _| 0.0);
+        let psnr = map_psnr(&black, &image(4, 4, |_, _| 0.5));
+        assert_eq!(psnr, Some(f64::NEG_INFINITY));
+        assert_eq!(map_psnr(&black, &black), Some(f64::INFINITY));
+        let row = MaterialRow {
+            diffuse_map_psnr_db: psnr,
+            diffuse_map_psnr_ceiling_db: Some(f64::INFINITY),
+            ..MaterialRow::default()
+        };
+        let json = serde_json::to_value(row).unwrap();
+        assert_eq!(json["diffuse_map_psnr_db"], "-inf");
+        assert_eq!(json["diffuse_map_psnr_ceiling_db"], "inf");
     }
 
     #[test]
