@@ -156,6 +156,17 @@ impl OutputSet {
                 std::io::Error::other("a folder is in the way of this output file"),
             ));
         }
+        // An output is renamed into place: `--json /dev/stdout` or `/dev/null` replaced
+        // the device's entry (run as root) or failed after the work, and a pipe or socket
+        // was replaced by a file no reader of it sees.
+        if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+            return Err(Error::io(
+                path,
+                std::io::Error::other(
+                    "is a device, a pipe or a socket, not a file: outputs are written beside their name and renamed into place, which would replace it; name a file",
+                ),
+            ));
+        }
         let Some(target) = resolved(path) else {
             return Ok(()); // a folder not made yet holds no input
         };
@@ -641,6 +652,38 @@ mod tests {
         .unwrap();
         set.commit().unwrap();
         assert_eq!(std::fs::read(&a).unwrap(), b"whole");
+    }
+
+    /// A socket stands in for a device (`--json /dev/null`), which a test run as root
+    /// would replace were the check missing.
+    #[test]
+    fn an_output_that_is_a_device_pipe_or_socket_is_refused_before_the_work() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let socket = dir.path().join("out.json");
+        let _listener = std::os::unix::net::UnixListener::bind(&socket).unwrap();
+        let link = dir.path().join("link.json");
+        std::os::unix::fs::symlink(&socket, &link).unwrap();
+        let mut set = OutputSet::keeping(Vec::new());
+        for path in [&socket, &link] {
+            let e = set.check_target(path).unwrap_err();
+            assert_eq!(e.exit_code(), 4, "{e}");
+            assert!(
+                e.to_string()
+                    .contains("is a device, a pipe or a socket, not a file"),
+                "{e}"
+            );
+            assert!(set.add(path, b"{}").is_err());
+        }
+        assert!(std::fs::symlink_metadata(&socket)
+            .unwrap()
+            .file_type()
+            .is_socket());
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        set.check_target(&dir.path().join("new.json")).unwrap();
     }
 
     #[test]
