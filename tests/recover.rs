@@ -1436,3 +1436,129 @@ fn levelled_on(decision: &str) -> (u64, u64) {
     let subset = after(decision, " spp on ");
     (spp, subset)
 }
+
+/// A picture (textured's flowers) on a floor tile beside a uniform one, under a lamp, seen
+/// from above; the picture's texture coordinates span `0..scale` on each side.
+fn tiled_picture_scene(dir: &std::path::Path, scale: u32) {
+    let scene = r#"format = 1
+name = "a picture beside a floor tile"
+geometry = ["geo.obj"]
+hide = []
+
+[[view]]
+name = "down"
+image = "views/down.exr"
+position = [1.0, 0.5, 0.9]
+direction = [0.0, 0.0, -1.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = [90.0, 60.0]
+size = [48, 24]
+exposure = 1.0
+
+[[light]]
+object = "lamp"
+radiance = [10.0, 10.0, 10.0]
+
+[[group]]
+name = "picture"
+kind = "plastic"
+objects = ["picture"]
+
+[[group]]
+name = "floor"
+kind = "plastic"
+objects = ["floor"]
+"#;
+    let obj = format!(
+        "o picture\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt {scale} 0\nvt {scale} {scale}\nvt 0 {scale}\nf 1/1 2/2 3/3 4/4\n\
+         o floor\nv 1 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nf 5 6 7 8\n\
+         o lamp\nv 0.7 0.2 1\nv 1.3 0.2 1\nv 1.0 0.8 1\nf 9 11 10\n"
+    );
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    std::fs::write(dir.join("geo.obj"), obj).unwrap();
+}
+
+/// Texture coordinates beyond [0, 1] (a texture tiled twice over the picture) have no map
+/// of the clamped lookup a map is read with: the pixels past 1 would all read its last
+/// column. A picture whose panorama shows its texture is then told so, naming the object
+/// and its coordinates' span, and keeps a uniform model, where the same picture with
+/// coordinates within [0, 1] gets its map. (Once it got a map solved over the clamped
+/// coordinates without a word.)
+#[test]
+fn a_texture_tiled_beyond_a_maps_coordinates_is_told_not_mapped() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    tiled_picture_scene(dir, 1);
+    let flowers = shared().join("bench/textured/textures/picture_flowers.exr");
+    let truth = format!(
+        "format = 1\n\n[[material]]\ngroup = \"picture\"\nmodel = \"textured-diffuse\"\ndiffuse_map = {:?}\n\n[[material]]\ngroup = \"floor\"\nmodel = \"diffuse\"\ncolor = [0.5, 0.4, 0.3]\n",
+        path_str(&flowers)
+    );
+    std::fs::write(dir.join("truth.toml"), truth).unwrap();
+    relume_ok(
+        dir,
+        &[
+            "render",
+            "scene.toml",
+            "--materials",
+            "truth.toml",
+            "--out",
+            "views",
+            "--spp",
+            "256",
+        ],
+    );
+    let model_of_picture = |materials: &[u8]| {
+        let text = String::from_utf8_lossy(materials).into_owned();
+        let table: toml::Table = text.parse().unwrap();
+        let picture = table["material"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|m| m["group"].as_str() == Some("picture"))
+            .unwrap()
+            .clone();
+        picture["model"].as_str().unwrap().to_string()
+    };
+    let mapped = recover(
+        &dir.join("scene.toml"),
+        &dir.join("mapped"),
+        &["--effort", "fast"],
+    );
+    assert_eq!(model_of_picture(&mapped), "textured-diffuse");
+
+    tiled_picture_scene(dir, 2);
+    let out = dir.join("tiled");
+    let run = relume_ok(
+        dir,
+        &[
+            "recover",
+            "scene.toml",
+            "--out",
+            "tiled",
+            "--effort",
+            "fast",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    let tiled = std::fs::read(out.join("materials.toml")).unwrap();
+    assert!(
+        !model_of_picture(&tiled).starts_with("textured"),
+        "{}",
+        String::from_utf8_lossy(&tiled)
+    );
+    assert!(
+        stderr.contains("warning: group 'picture': its pixels show a texture")
+            && stderr
+                .contains("object 'picture' has texture coordinates u 0..2, v 0..2, beyond [0, 1]"),
+        "{stderr}"
+    );
+    let picture = group_report(&out, "picture");
+    assert!(
+        decisions(&picture)
+            .iter()
+            .any(|d| d.starts_with("stage 3: textured:") && d.contains("no map is recovered")),
+        "{picture}"
+    );
+    assert!(!out.join("textures/picture.exr").exists());
+}

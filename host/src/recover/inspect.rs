@@ -23,7 +23,7 @@ use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::obj::ObjObject;
 use crate::parallel;
-use crate::scene_file::GroupKind;
+use crate::scene_file::{GroupDesc, GroupKind, SceneDesc};
 
 /// A scene read for recovery: its geometry assembled (no materials yet) and its panorama.
 pub(super) struct Input {
@@ -42,6 +42,9 @@ pub(super) struct Input {
     pub kinds: Vec<GroupKind>,
     /// Whether every object of a group has texture coordinates, as a diffuse map needs.
     pub mapped: Vec<bool>,
+    /// For a group with texture coordinates beyond [0, 1], which object and how far
+    /// ([`coordinates_beyond_a_map`]).
+    pub beyond_a_map: Vec<Option<String>>,
     /// Whether every object of a group is hidden (`hide`): it is not in the scene.
     pub hidden: Vec<bool>,
     /// Whether a group's faces (those not hidden) have no area, every triangle degenerate:
@@ -75,6 +78,11 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         .iter()
         .map(|g| assemble::unmapped_object(&desc, &objects, g).is_none())
         .collect();
+    let beyond_a_map: Vec<Option<String>> = desc
+        .groups
+        .iter()
+        .map(|g| coordinates_beyond_a_map(&desc, &objects, g))
+        .collect();
     let hidden: Vec<bool> = desc
         .groups
         .iter()
@@ -100,8 +108,46 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         clipped_at,
         kinds,
         mapped,
+        beyond_a_map,
         hidden,
         no_area,
+    })
+}
+
+/// How far past [0, 1] a texture coordinate may reach, from an exporter's rounding, before
+/// a map laid over the group reads its border texels where the group has more to show.
+const UV_SLACK: f32 = 1e-3;
+
+/// The first object of `group` (not hidden) whose OBJ texture coordinates reach beyond
+/// [0, 1], where a map is clamped to its border texels (scene-format.md's lookup), and how
+/// far they reach. A texture tiled over a floor by coordinates from 0 to 4 has no map of
+/// that lookup: the floor's pixels past 1 would all read the map's last column.
+fn coordinates_beyond_a_map(
+    desc: &SceneDesc,
+    objects: &[ObjObject],
+    group: &GroupDesc,
+) -> Option<String> {
+    let shown = |o: &&ObjObject| group.objects.contains(&o.name) && !desc.hide.contains(&o.name);
+    objects.iter().filter(shown).find_map(|o| {
+        let corners = o.uvs.iter().flatten().flatten();
+        let (mut low, mut high) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+        for uv in corners {
+            for k in 0..2 {
+                low[k] = low[k].min(uv[k]);
+                high[k] = high[k].max(uv[k]);
+            }
+        }
+        let beyond = (0..2).any(|k| low[k] < -UV_SLACK || high[k] > 1.0 + UV_SLACK);
+        beyond.then(|| {
+            format!(
+                "object '{}' has texture coordinates u {}..{}, v {}..{}, beyond [0, 1], where a map is clamped to its border texels (a texture tiled over the group is not modelled)",
+                o.name,
+                crate::text::significant(low[0] as f64),
+                crate::text::significant(high[0] as f64),
+                crate::text::significant(low[1] as f64),
+                crate::text::significant(high[1] as f64)
+            )
+        })
     })
 }
 

@@ -789,6 +789,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         header_divisors,
         kinds,
         mapped,
+        beyond_a_map,
         ..
     } = input;
     let views = owned.views.clone();
@@ -861,15 +862,22 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
 
     // Stage 3's textured groups get their maps in stage 5, after stage 4, which may give
     // the untextured stand-in an anisotropic lobe.
-    let (stage3_report, textured, noise_bound) = stage3::run(
+    let stage3::Stage3 {
+        report: stage3_report,
+        textured,
+        noise_bound,
+        warnings: texture_warnings,
+    } = stage3::run(
         &mut rec,
         &mut reports,
         &kinds,
         &mapped,
+        &beyond_a_map,
         verify_spp,
         args.seed,
     )?;
     stages.push(stage3_report);
+    warnings.extend(texture_warnings);
 
     stages.push(stage4::run(
         &mut rec,

@@ -13,17 +13,30 @@ use super::{progress_bar, texture, GroupReport, Recovery, StageReport};
 use crate::error::Error;
 use crate::scene_file::GroupKind;
 
+/// Stage 3's outcome.
+pub(super) struct Stage3 {
+    pub report: StageReport,
+    /// Which groups are textured (and get a map in stage 5).
+    pub textured: Vec<bool>,
+    /// The panorama's noise bound the contrasts were corrected by.
+    pub noise_bound: f64,
+    /// Groups that show a texture no map can be laid over (`beyond_a_map`).
+    pub warnings: Vec<String>,
+}
+
 /// Runs stage 3 with renders at `4 * verify_spp` on `seed`, recording each tested group's
-/// contrast and decision in `reports`. Returns the stage's report, which groups are
-/// textured, and the panorama's noise bound the contrasts were corrected by.
+/// contrast and decision in `reports`. Groups without texture coordinates (`mapped`
+/// false) are not tested; one that shows a texture where its coordinates reach beyond a
+/// map (`beyond_a_map`) keeps its uniform model, and is warned of.
 pub(super) fn run(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
     kinds: &[GroupKind],
     mapped: &[bool],
+    beyond_a_map: &[Option<String>],
     verify_spp: u32,
     seed: u64,
-) -> Result<(StageReport, Vec<bool>, f64), Error> {
+) -> Result<Stage3, Error> {
     let n_groups = reports.len();
     let stage_start = Instant::now();
     let mut evaluations = 0;
@@ -66,6 +79,7 @@ pub(super) fn run(
     )
     .unwrap_or(0.0);
     let mut textured = vec![false; n_groups];
+    let mut warnings = Vec::new();
     let bar = progress_bar(tested.len() as u64, "3 textures");
     for g in tested {
         let raw = texture::texture_contrast(rec, g, 4 * verify_spp, seed ^ 0x7E57)?;
@@ -89,11 +103,25 @@ pub(super) fn run(
             ));
             continue;
         }
-        textured[g] = true;
-        r.decisions.push(format!(
+        let decision = format!(
             "stage 3: textured: {measured} > TEXTURE_CONTRAST_THRESHOLD {}",
             fit::TEXTURE_CONTRAST_THRESHOLD
-        ));
+        );
+        // A map clamped over a tiled texture would be wrong wherever the tiles repeat: the
+        // texture is told rather than modelled wrong.
+        if let Some(why) = &beyond_a_map[g] {
+            r.decisions.push(format!(
+                "{decision}, but {why}: no map is recovered, and its uniform model stays"
+            ));
+            warnings.push(format!(
+                "group '{}': its pixels show a texture (stage 3's step contrast {contrast:.4} > TEXTURE_CONTRAST_THRESHOLD {}), but {why}: no map is recovered, so its uniform model stays and the texture is left in its error; give its faces texture coordinates within [0, 1] for a map",
+                r.group,
+                fit::TEXTURE_CONTRAST_THRESHOLD
+            ));
+            continue;
+        }
+        textured[g] = true;
+        r.decisions.push(decision);
     }
     bar.finish_and_clear();
     notes.push(format!(
@@ -114,5 +142,10 @@ pub(super) fn run(
         seconds: stage_start.elapsed().as_secs_f64(),
         notes,
     };
-    Ok((report, textured, noise_bound))
+    Ok(Stage3 {
+        report,
+        textured,
+        noise_bound,
+        warnings,
+    })
 }
