@@ -271,12 +271,16 @@ fn prepare(args: &BenchRaysArgs, reference: Option<&Path>) -> Result<OutputSet, 
 /// input is read and checked before the timing: the rays, the reference hits (given, or
 /// the .hits beside the .rays when there is one) and the scene.
 pub fn run(args: &BenchRaysArgs) -> Result<BenchRaysResult, Error> {
-    let reference_path = args
-        .reference_hits
-        .clone()
-        .unwrap_or_else(|| args.rays.with_extension("hits"));
-    let reference_path =
-        (args.reference_hits.is_some() || reference_path.is_file()).then_some(reference_path);
+    // The .hits beside the .rays when there is one by that name: one that is no file (a
+    // folder, a broken link) is named as a given one is, where the run went on without a
+    // word of the check it had left out.
+    let reference_path = match &args.reference_hits {
+        Some(path) => Some(path.clone()),
+        None => {
+            let beside = args.rays.with_extension("hits");
+            std::fs::symlink_metadata(&beside).is_ok().then_some(beside)
+        }
+    };
     let mut set = prepare(args, reference_path.as_deref())?;
     let rays = read_rays(&args.rays)?;
     let reference = match &reference_path {
@@ -504,6 +508,37 @@ mod tests {
         ray_file(&path, &[[0.0, 0.0, 0.0]]);
         let e = read_rays(&path).unwrap_err().to_string();
         assert!(e.contains("ray 0 has a direction of length 0"), "{e}");
+    }
+
+    #[test]
+    fn hits_beside_the_rays_that_are_no_file_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let rays = dir.path().join("x.rays");
+        ray_file(&rays, &[[1.0, 0.0, 0.0]]);
+        let args = BenchRaysArgs {
+            scene: cornell(),
+            rays: rays.clone(),
+            hits_out: None,
+            json_out: None,
+            reference_hits: None,
+            threads: Some(1),
+            repeats: 1,
+        };
+        let beside = dir.path().join("x.hits");
+        std::fs::create_dir(&beside).unwrap();
+        let e = run(&args).err().unwrap();
+        assert_eq!(e.exit_code(), 3, "{e}");
+        assert!(
+            e.to_string().contains("x.hits") && e.to_string().contains("is a folder"),
+            "{e}"
+        );
+        std::fs::remove_dir(&beside).unwrap();
+        std::os::unix::fs::symlink(dir.path().join("gone.hits"), &beside).unwrap();
+        let e = run(&args).err().unwrap().to_string();
+        assert!(e.contains("x.hits"), "{e}");
+        // No entry of that name: no reference, and no error.
+        std::fs::remove_file(&beside).unwrap();
+        assert_eq!(run(&args).unwrap().agreement, None);
     }
 
     fn cornell() -> PathBuf {
