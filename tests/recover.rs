@@ -1438,8 +1438,9 @@ fn levelled_on(decision: &str) -> (u64, u64) {
 }
 
 /// A picture (textured's flowers) on a floor tile beside a uniform one, under a lamp, seen
-/// from above; the picture's texture coordinates span `0..scale` on each side.
-fn tiled_picture_scene(dir: &std::path::Path, scale: u32) {
+/// from above; the picture's corners have texture coordinates `vt` (counter-clockwise from
+/// its corner at the origin).
+fn picture_scene(dir: &std::path::Path, vt: [[u32; 2]; 4]) {
     let scene = r#"format = 1
 name = "a picture beside a floor tile"
 geometry = ["geo.obj"]
@@ -1469,8 +1470,9 @@ name = "floor"
 kind = "plastic"
 objects = ["floor"]
 "#;
+    let vt: String = vt.iter().map(|[u, v]| format!("vt {u} {v}\n")).collect();
     let obj = format!(
-        "o picture\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt {scale} 0\nvt {scale} {scale}\nvt 0 {scale}\nf 1/1 2/2 3/3 4/4\n\
+        "o picture\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n{vt}f 1/1 2/2 3/3 4/4\n\
          o floor\nv 1 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nf 5 6 7 8\n\
          o lamp\nv 0.7 0.2 1\nv 1.3 0.2 1\nv 1.0 0.8 1\nf 9 11 10\n"
     );
@@ -1478,17 +1480,17 @@ objects = ["floor"]
     std::fs::write(dir.join("geo.obj"), obj).unwrap();
 }
 
-/// Texture coordinates beyond [0, 1] (a texture tiled twice over the picture) have no map
-/// of the clamped lookup a map is read with: the pixels past 1 would all read its last
-/// column. A picture whose panorama shows its texture is then told so, naming the object
-/// and its coordinates' span, and keeps a uniform model, where the same picture with
-/// coordinates within [0, 1] gets its map. (Once it got a map solved over the clamped
-/// coordinates without a word.)
+/// Texture coordinates no map can be laid over: beyond [0, 1] (a texture tiled twice over
+/// the picture), where a map is read clamped and the pixels past 1 would all read its last
+/// column, and coordinates that cover no area (an exporter's `vt 0 0` at every corner). A
+/// picture whose panorama shows its texture is then told so, naming the object and its
+/// coordinates, and keeps a uniform model, where the same picture with coordinates over
+/// [0, 1] gets its map. (Once each got a map solved over those coordinates without a word.)
 #[test]
-fn a_texture_tiled_beyond_a_maps_coordinates_is_told_not_mapped() {
+fn a_texture_over_coordinates_no_map_fits_is_told_not_mapped() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    tiled_picture_scene(dir, 1);
+    picture_scene(dir, [[0, 0], [1, 0], [1, 1], [0, 1]]);
     let flowers = shared().join("bench/textured/textures/picture_flowers.exr");
     let truth = format!(
         "format = 1\n\n[[material]]\ngroup = \"picture\"\nmodel = \"textured-diffuse\"\ndiffuse_map = {:?}\n\n[[material]]\ngroup = \"floor\"\nmodel = \"diffuse\"\ncolor = [0.5, 0.4, 0.3]\n",
@@ -1527,38 +1529,43 @@ fn a_texture_tiled_beyond_a_maps_coordinates_is_told_not_mapped() {
     );
     assert_eq!(model_of_picture(&mapped), "textured-diffuse");
 
-    tiled_picture_scene(dir, 2);
-    let out = dir.join("tiled");
-    let run = relume_ok(
-        dir,
-        &[
-            "recover",
-            "scene.toml",
-            "--out",
-            "tiled",
-            "--effort",
-            "fast",
-        ],
-    );
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    let tiled = std::fs::read(out.join("materials.toml")).unwrap();
-    assert!(
-        !model_of_picture(&tiled).starts_with("textured"),
-        "{}",
-        String::from_utf8_lossy(&tiled)
-    );
-    assert!(
-        stderr.contains("warning: group 'picture': its pixels show a texture")
-            && stderr
-                .contains("object 'picture' has texture coordinates u 0..2, v 0..2, beyond [0, 1]"),
-        "{stderr}"
-    );
-    let picture = group_report(&out, "picture");
-    assert!(
-        decisions(&picture)
-            .iter()
-            .any(|d| d.starts_with("stage 3: textured:") && d.contains("no map is recovered")),
-        "{picture}"
-    );
-    assert!(!out.join("textures/picture.exr").exists());
+    let cases = [
+        (
+            [[0, 0], [2, 0], [2, 2], [0, 2]],
+            "texture coordinates u 0..2, v 0..2, beyond [0, 1]",
+        ),
+        (
+            [[0, 0]; 4],
+            "texture coordinates that cover no area of a map (u 0..0, v 0..0",
+        ),
+    ];
+    for (i, (vt, why)) in cases.into_iter().enumerate() {
+        picture_scene(dir, vt);
+        let name = format!("unfit{i}");
+        let out = dir.join(&name);
+        let run = relume_ok(
+            dir,
+            &["recover", "scene.toml", "--out", &name, "--effort", "fast"],
+        );
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        let materials = std::fs::read(out.join("materials.toml")).unwrap();
+        assert!(
+            !model_of_picture(&materials).starts_with("textured"),
+            "{why}: {}",
+            String::from_utf8_lossy(&materials)
+        );
+        assert!(
+            stderr.contains("warning: group 'picture': its pixels show a texture")
+                && stderr.contains(&format!("object 'picture' has {why}")),
+            "{stderr}"
+        );
+        let picture = group_report(&out, "picture");
+        assert!(
+            decisions(&picture)
+                .iter()
+                .any(|d| d.starts_with("stage 3: textured:") && d.contains("no map is recovered")),
+            "{picture}"
+        );
+        assert!(!out.join("textures/picture.exr").exists());
+    }
 }

@@ -42,9 +42,9 @@ pub(super) struct Input {
     pub kinds: Vec<GroupKind>,
     /// Whether every object of a group has texture coordinates, as a diffuse map needs.
     pub mapped: Vec<bool>,
-    /// For a group with texture coordinates beyond [0, 1], which object and how far
-    /// ([`coordinates_beyond_a_map`]).
-    pub beyond_a_map: Vec<Option<String>>,
+    /// For a group with texture coordinates no map can be laid over, which object and why
+    /// ([`coordinates_unfit_for_a_map`]).
+    pub unfit_for_a_map: Vec<Option<String>>,
     /// Whether every object of a group is hidden (`hide`): it is not in the scene.
     pub hidden: Vec<bool>,
     /// Whether a group's faces (those not hidden) have no area, every triangle degenerate:
@@ -78,10 +78,10 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         .iter()
         .map(|g| assemble::unmapped_object(&desc, &objects, g).is_none())
         .collect();
-    let beyond_a_map: Vec<Option<String>> = desc
+    let unfit_for_a_map: Vec<Option<String>> = desc
         .groups
         .iter()
-        .map(|g| coordinates_beyond_a_map(&desc, &objects, g))
+        .map(|g| coordinates_unfit_for_a_map(&desc, &objects, g))
         .collect();
     let hidden: Vec<bool> = desc
         .groups
@@ -108,7 +108,7 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         clipped_at,
         kinds,
         mapped,
-        beyond_a_map,
+        unfit_for_a_map,
         hidden,
         no_area,
     })
@@ -118,36 +118,56 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
 /// a map laid over the group reads its border texels where the group has more to show.
 const UV_SLACK: f32 = 1e-3;
 
-/// The first object of `group` (not hidden) whose OBJ texture coordinates reach beyond
-/// [0, 1], where a map is clamped to its border texels (scene-format.md's lookup), and how
-/// far they reach. A texture tiled over a floor by coordinates from 0 to 4 has no map of
-/// that lookup: the floor's pixels past 1 would all read the map's last column.
-fn coordinates_beyond_a_map(
+/// The first object of `group` (not hidden) whose OBJ texture coordinates no map can be
+/// laid over, and why:
+/// - coordinates beyond [0, 1], where a map is clamped to its border texels
+///   (scene-format.md's lookup): a texture tiled over a floor by coordinates from 0 to 4
+///   has no map of that lookup, the floor's pixels past 1 would all read its last column;
+/// - coordinates that cover no area (an exporter's `vt 0 0` at every corner): every pixel
+///   would read one texel, or one line of them.
+fn coordinates_unfit_for_a_map(
     desc: &SceneDesc,
     objects: &[ObjObject],
     group: &GroupDesc,
 ) -> Option<String> {
     let shown = |o: &&ObjObject| group.objects.contains(&o.name) && !desc.hide.contains(&o.name);
     objects.iter().filter(shown).find_map(|o| {
-        let corners = o.uvs.iter().flatten().flatten();
+        let faces = o.uvs.as_deref()?;
         let (mut low, mut high) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-        for uv in corners {
-            for k in 0..2 {
-                low[k] = low[k].min(uv[k]);
-                high[k] = high[k].max(uv[k]);
+        let mut area = 0.0f64;
+        for [a, b, c] in faces {
+            for uv in [a, b, c] {
+                for k in 0..2 {
+                    low[k] = low[k].min(uv[k]);
+                    high[k] = high[k].max(uv[k]);
+                }
             }
+            let (e1, e2) = (
+                [(b[0] - a[0]) as f64, (b[1] - a[1]) as f64],
+                [(c[0] - a[0]) as f64, (c[1] - a[1]) as f64],
+            );
+            area += 0.5 * (e1[0] * e2[1] - e1[1] * e2[0]).abs();
         }
-        let beyond = (0..2).any(|k| low[k] < -UV_SLACK || high[k] > 1.0 + UV_SLACK);
-        beyond.then(|| {
-            format!(
-                "object '{}' has texture coordinates u {}..{}, v {}..{}, beyond [0, 1], where a map is clamped to its border texels (a texture tiled over the group is not modelled)",
-                o.name,
-                crate::text::significant(low[0] as f64),
-                crate::text::significant(high[0] as f64),
-                crate::text::significant(low[1] as f64),
-                crate::text::significant(high[1] as f64)
-            )
-        })
+        let span = format!(
+            "u {}..{}, v {}..{}",
+            crate::text::significant(low[0] as f64),
+            crate::text::significant(high[0] as f64),
+            crate::text::significant(low[1] as f64),
+            crate::text::significant(high[1] as f64)
+        );
+        if (0..2).any(|k| low[k] < -UV_SLACK || high[k] > 1.0 + UV_SLACK) {
+            Some(format!(
+                "object '{}' has texture coordinates {span}, beyond [0, 1], where a map is clamped to its border texels (a texture tiled over the group is not modelled)",
+                o.name
+            ))
+        } else if !(area > 0.0) {
+            Some(format!(
+                "object '{}' has texture coordinates that cover no area of a map ({span}: every face's corners on one point or line), so all its pixels would read one texel or one line of them",
+                o.name
+            ))
+        } else {
+            None
+        }
     })
 }
 

@@ -789,7 +789,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         header_divisors,
         kinds,
         mapped,
-        beyond_a_map,
+        unfit_for_a_map,
         ..
     } = input;
     let views = owned.views.clone();
@@ -872,7 +872,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &mut reports,
         &kinds,
         &mapped,
-        &beyond_a_map,
+        &unfit_for_a_map,
         verify_spp,
         args.seed,
     )?;

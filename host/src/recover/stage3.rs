@@ -20,20 +20,20 @@ pub(super) struct Stage3 {
     pub textured: Vec<bool>,
     /// The panorama's noise bound the contrasts were corrected by.
     pub noise_bound: f64,
-    /// Groups that show a texture no map can be laid over (`beyond_a_map`).
+    /// Groups that show a texture no map can be laid over (`unfit_for_a_map`).
     pub warnings: Vec<String>,
 }
 
 /// Runs stage 3 with renders at `4 * verify_spp` on `seed`, recording each tested group's
 /// contrast and decision in `reports`. Groups without texture coordinates (`mapped`
-/// false) are not tested; one that shows a texture where its coordinates reach beyond a
-/// map (`beyond_a_map`) keeps its uniform model, and is warned of.
+/// false) are not tested; one that shows a texture over coordinates no map can be laid
+/// over (`unfit_for_a_map`) keeps its uniform model, and is warned of.
 pub(super) fn run(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
     kinds: &[GroupKind],
     mapped: &[bool],
-    beyond_a_map: &[Option<String>],
+    unfit_for_a_map: &[Option<String>],
     verify_spp: u32,
     seed: u64,
 ) -> Result<Stage3, Error> {
@@ -107,14 +107,14 @@ pub(super) fn run(
             "stage 3: textured: {measured} > TEXTURE_CONTRAST_THRESHOLD {}",
             fit::TEXTURE_CONTRAST_THRESHOLD
         );
-        // A map clamped over a tiled texture would be wrong wherever the tiles repeat: the
+        // A map clamped over a tiled texture, or read at one point, would be wrong: the
         // texture is told rather than modelled wrong.
-        if let Some(why) = &beyond_a_map[g] {
+        if let Some(why) = &unfit_for_a_map[g] {
             r.decisions.push(format!(
                 "{decision}, but {why}: no map is recovered, and its uniform model stays"
             ));
             warnings.push(format!(
-                "group '{}': its pixels show a texture (stage 3's step contrast {contrast:.4} > TEXTURE_CONTRAST_THRESHOLD {}), but {why}: no map is recovered, so its uniform model stays and the texture is left in its error; give its faces texture coordinates within [0, 1] for a map",
+                "group '{}': its pixels show a texture (stage 3's step contrast {contrast:.4} > TEXTURE_CONTRAST_THRESHOLD {}), but {why}: no map is recovered, so its uniform model stays and the texture is left in its error; give it texture coordinates that lay its texture once over [0, 1] for a map",
                 r.group,
                 fit::TEXTURE_CONTRAST_THRESHOLD
             ));
