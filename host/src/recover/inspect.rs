@@ -160,7 +160,7 @@ fn coordinates_unfit_for_a_map(
                 "object '{}' has texture coordinates {span}, beyond [0, 1], where a map is clamped to its border texels (a texture tiled over the group is not modelled)",
                 o.name
             ))
-        } else if !(area > 0.0) {
+        } else if area.is_nan() || area <= 0.0 {
             Some(format!(
                 "object '{}' has texture coordinates that cover no area of a map ({span}: every face's corners on one point or line), so all its pixels would read one texel or one line of them",
                 o.name
