@@ -620,6 +620,15 @@ impl SceneLines {
     }
 }
 
+/// An input error about the scene file `scene`'s `hide`, at the line of its first object:
+/// for a command that needs the geometry whole (bench rays).
+pub fn hide_error(scene: &Path, msg: String) -> Error {
+    match SceneLines::read(scene).hide(0) {
+        Some(line) => Error::at_line(scene, line, msg),
+        None => Error::input(scene, msg),
+    }
+}
+
 /// Which line of a view an error found after loading points at.
 #[derive(Clone, Copy)]
 pub enum ViewKey {

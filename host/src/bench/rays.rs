@@ -251,7 +251,21 @@ fn prepare(args: &BenchRaysArgs, reference: Option<&Path>) -> Result<OutputSet, 
     if args.repeats == 0 {
         return Err(Error::Usage("--repeats must be at least 1".into()));
     }
-    let mut inputs = scene_file::load_scene(&args.scene)?.input_files();
+    let desc = scene_file::load_scene(&args.scene)?;
+    // The ray sets name a hit's triangle by its index in the OBJ files, in file order,
+    // which the scene's triangles keep only when none is left out: with objects hidden,
+    // the hits written and those compared named other triangles, without a word.
+    if !desc.hide.is_empty() {
+        let hidden: Vec<String> = desc.hide.iter().map(|h| format!("'{h}'")).collect();
+        return Err(scene_file::hide_error(
+            &args.scene,
+            format!(
+                "hides {}: bench rays names a hit's triangle by its index in the OBJ files, which hidden objects would shift; give it the scene with `hide = []`",
+                hidden.join(", ")
+            ),
+        ));
+    }
+    let mut inputs = desc.input_files();
     inputs.push((args.rays.clone(), "the ray file".into()));
     inputs.extend(reference.map(|r| (r.to_path_buf(), "the reference hits".into())));
     let set = OutputSet::keeping(inputs);
@@ -508,6 +522,41 @@ mod tests {
         ray_file(&path, &[[0.0, 0.0, 0.0]]);
         let e = read_rays(&path).unwrap_err().to_string();
         assert!(e.contains("ray 0 has a direction of length 0"), "{e}");
+    }
+
+    #[test]
+    fn a_scene_that_hides_objects_is_refused_at_its_hide_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let rays = dir.path().join("x.rays");
+        ray_file(&rays, &[[1.0, 0.0, 0.0]]);
+        let cornell_dir = cornell().parent().unwrap().to_path_buf();
+        let text = std::fs::read_to_string(cornell())
+            .unwrap()
+            .replace("hide = []", "hide = [\"box\"]")
+            .replace(
+                "\"geometry.obj\"",
+                &format!("{:?}", cornell_dir.join("geometry.obj")),
+            );
+        let scene = dir.path().join("scene.toml");
+        std::fs::write(&scene, &text).unwrap();
+        let args = BenchRaysArgs {
+            scene: scene.clone(),
+            rays,
+            hits_out: Some(dir.path().join("x.hits")),
+            json_out: None,
+            reference_hits: None,
+            threads: Some(1),
+            repeats: 1,
+        };
+        let e = run(&args).err().unwrap();
+        assert_eq!(e.exit_code(), 3, "{e}");
+        let line = text.lines().position(|l| l.starts_with("hide")).unwrap() + 1;
+        assert!(
+            e.to_string().contains(&format!("scene.toml:{line}"))
+                && e.to_string().contains("hides 'box'"),
+            "{e}"
+        );
+        assert!(!dir.path().join("x.hits").exists());
     }
 
     #[test]
