@@ -957,3 +957,64 @@ fn compare_views_reads_the_scenes_own_images_with_their_exposure() {
         }
     }
 }
+
+/// An image linked into both folders (or hard-linked) compared with itself as the folders
+/// are refused for: its view read 0 on every row, and B's image as B2's gave its whole RMS
+/// as the misfit. Refused, naming the view and both files.
+#[test]
+fn compare_views_refuses_one_image_in_both_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), TWO_VIEWS).unwrap();
+    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
+    for sub in ["A", "B", "B2"] {
+        std::fs::create_dir(dir.path().join(sub)).unwrap();
+    }
+    flat(&dir.path().join("A/a.exr"), 1.0);
+    flat(&dir.path().join("A/b.exr"), 1.0);
+    flat(&dir.path().join("B/a.exr"), 1.1);
+    std::os::unix::fs::symlink("../A/b.exr", dir.path().join("B/b.exr")).unwrap();
+    let run = relume(dir.path(), &["compare", "views", "scene.toml", "A", "B"]);
+    fails(&run, USAGE, &["A/b.exr and B/b.exr are one file: view 'b'"]);
+    assert!(run.stdout.is_empty());
+
+    std::fs::remove_file(dir.path().join("B/b.exr")).unwrap();
+    flat(&dir.path().join("B/b.exr"), 1.1);
+    std::fs::hard_link(dir.path().join("B/a.exr"), dir.path().join("B2/a.exr")).unwrap();
+    flat(&dir.path().join("B2/b.exr"), 1.2);
+    let run = relume(
+        dir.path(),
+        &[
+            "compare",
+            "views",
+            "scene.toml",
+            "A",
+            "B",
+            "--independent",
+            "B2",
+        ],
+    );
+    fails(
+        &run,
+        USAGE,
+        &["--independent's image of view 'a', B2/a.exr, is B's (B/a.exr)"],
+    );
+    std::fs::remove_file(dir.path().join("B2/a.exr")).unwrap();
+    flat(&dir.path().join("B2/a.exr"), 1.2);
+    let run = relume(
+        dir.path(),
+        &[
+            "compare",
+            "views",
+            "scene.toml",
+            "A",
+            "B",
+            "--independent",
+            "B2",
+        ],
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}

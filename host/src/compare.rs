@@ -372,6 +372,29 @@ pub fn compare_views(
         .filter(|v| SceneDesc::view_selected(views, &v.name))
     {
         let image = format!("{}.exr", v.name);
+        // As for the folders, image by image: one linked into both read 0 on its rows.
+        let (a, b) = (dir_a.join(&image), dir_b.join(&image));
+        if fsutil::same_file(&a, &b) {
+            return Err(Error::Usage(format!(
+                "{} and {} are one file: view '{}' would read 0 everywhere; give the reference images as A and the render to judge as B",
+                a.display(),
+                b.display(),
+                v.name
+            )));
+        }
+        for (other, whose) in [(&b, "B's"), (&a, "A's, the reference")] {
+            if let Some(b2) = dir_b2
+                .map(|d| d.join(&image))
+                .filter(|b2| fsutil::same_file(b2, other))
+            {
+                return Err(Error::Usage(format!(
+                    "--independent's image of view '{}', {}, is {whose} ({}): the misfit needs a render of B's materials on another seed",
+                    v.name,
+                    b2.display(),
+                    other.display()
+                )));
+            }
+        }
         inputs.push((
             dir_a.join(&image),
             format!("the reference image of view '{}' (A)", v.name),
