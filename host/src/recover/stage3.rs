@@ -71,13 +71,30 @@ pub(super) fn run(
             "stage 3: not tested for texture: some of its objects have no texture coordinates (vt on every face), which a diffuse map needs".into(),
         );
     }
-    let noise_bound = texture_stage::panorama_noise_bound(
-        reports
-            .iter()
-            .filter(|r| r.pure_pixels >= fit::MIN_PIXELS_FOR_TEXTURE)
-            .flat_map(|r| r.error_measurements.iter().copied()),
-    )
-    .unwrap_or(0.0);
+    // Each well-seen group's own bound on the panorama's noise; the tightest is the bound.
+    let bound_of: Vec<Option<f64>> = reports
+        .iter()
+        .map(|r| {
+            let seen = r.pure_pixels >= fit::MIN_PIXELS_FOR_TEXTURE;
+            let measured = r.error_measurements.iter().copied().filter(|_| seen);
+            texture_stage::panorama_noise_bound(measured)
+        })
+        .collect();
+    let noise_bound = bound_of
+        .iter()
+        .flatten()
+        .copied()
+        .reduce(f64::min)
+        .unwrap_or(0.0);
+    // Whether group `g`'s own error gives the bound, no other group's as tight: a texture
+    // there is then in the bound it is corrected by.
+    let bound_is_own = |g: usize| {
+        let others = (bound_of.iter().enumerate())
+            .filter(|&(h, _)| h != g)
+            .filter_map(|(_, b)| *b)
+            .reduce(f64::min);
+        bound_of[g] == Some(noise_bound) && others.is_none_or(|b| b > noise_bound)
+    };
     let mut textured = vec![false; n_groups];
     let mut warnings = Vec::new();
     let bar = progress_bar(tested.len() as u64, "3 textures");
@@ -97,10 +114,24 @@ pub(super) fn run(
             "step contrast {contrast:.4} (measured {raw:.4}, less the panorama's noise bound {noise_bound:.4})"
         );
         if !texture_stage::has_texture_contrast(contrast) {
+            let own = texture_stage::has_texture_contrast(raw) && bound_is_own(g);
             r.decisions.push(format!(
-                "stage 3: untextured: {measured} <= TEXTURE_CONTRAST_THRESHOLD {}",
-                fit::TEXTURE_CONTRAST_THRESHOLD
+                "stage 3: untextured: {measured} <= TEXTURE_CONTRAST_THRESHOLD {}{}",
+                fit::TEXTURE_CONTRAST_THRESHOLD,
+                if own {
+                    "; the bound is this group's own error"
+                } else {
+                    ""
+                }
             ));
+            if own {
+                warnings.push(format!(
+                    "group '{}': its step contrast {raw:.4} would read as a texture (> TEXTURE_CONTRAST_THRESHOLD {}), but the panorama's noise bound it is corrected by is its own error {noise_bound:.4}, no other group of at least MIN_PIXELS_FOR_TEXTURE {} pixels measured lower: stage 3 cannot tell a texture of it from the panorama's noise, and it keeps a uniform model; uniform groups in the views (a wall, a ceiling) give the bound",
+                    r.group,
+                    fit::TEXTURE_CONTRAST_THRESHOLD,
+                    fit::MIN_PIXELS_FOR_TEXTURE
+                ));
+            }
             continue;
         }
         let decision = format!(
