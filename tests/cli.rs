@@ -615,3 +615,45 @@ fn a_scene_far_from_its_origin_renders_as_at_it() {
         100.0 * rms
     );
 }
+
+/// `panorama join` of the scene's own panorama folder reads each face with its view's
+/// exposure, as check and recover read the panorama (it was read at 1: a capture of
+/// exposure 2 joined at half its radiance); a folder of renders is read at 1.
+#[test]
+fn panorama_join_reads_the_scenes_own_faces_with_their_exposure() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = tmp.path().join("c");
+    common::copy_cornell(&c);
+    let scene = c.join("scene.toml");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    std::fs::write(&scene, text.replace("exposure = 1.0", "exposure = 2.0")).unwrap();
+    let renders = tmp.path().join("renders");
+    std::fs::create_dir(&renders).unwrap();
+    for view in ["px", "nx", "py", "ny", "pz", "nz"] {
+        let file = format!("{view}.exr");
+        std::fs::copy(c.join("views").join(&file), renders.join(&file)).unwrap();
+    }
+    let join = |dir: &Path, out: &str| {
+        relume_ok(
+            tmp.path(),
+            &[
+                "panorama",
+                "join",
+                path_str(&scene),
+                path_str(dir),
+                "--out",
+                out,
+                "--width",
+                "64",
+            ],
+        );
+        relume::images::read_image(&tmp.path().join(out), 1.0).unwrap()
+    };
+    let own = join(&c.join("views"), "own.exr");
+    let rendered = join(&renders, "rendered.exr");
+    let sum =
+        |i: &relume::images::Image| -> f64 { i.pixels.iter().flatten().map(|&v| v as f64).sum() };
+    assert!(sum(&rendered) > 0.0);
+    let ratio = sum(&own) / sum(&rendered);
+    assert!((ratio - 2.0).abs() < 1e-4, "{ratio}");
+}
