@@ -350,7 +350,11 @@ pub fn run(args: &BenchRaysArgs) -> Result<BenchRaysResult, Error> {
         agreement,
     };
 
-    println!("{}: {} rays", args.rays.display(), result.rays);
+    println!(
+        "{}: {}",
+        args.rays.display(),
+        crate::text::counted(result.rays as u64, "ray")
+    );
     println!("  1 thread:  {:8.3} Mrays/s", result.mrays_1);
     // With one thread in all, the second timing is of the same work: not printed twice.
     if threads_all > 1 {
