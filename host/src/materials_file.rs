@@ -297,7 +297,7 @@ impl MaterialDesc {
             match (self.model.rules()[k], v) {
             (Rule::Zero, Some(x)) if x != 0.0 => Err((
                 k,
-                format!("group '{g}': model \"{model}\" has no specular part, so `{}` must be 0, got {x}", KEYS[k]),
+                format!("group '{g}': model \"{model}\" has no specular part, so `{}` must be 0, got {x:?}", KEYS[k]),
             )),
             _ => Ok(()),
         }
@@ -318,7 +318,7 @@ impl MaterialDesc {
             if !(s.is_finite() && (0.0..=1.0).contains(&s)) {
                 return Err((
                     1,
-                    format!("group '{g}': specularity must be in [0, 1], got {s}"),
+                    format!("group '{g}': specularity must be in [0, 1], got {s:?}"),
                 ));
             }
         }
@@ -334,7 +334,7 @@ impl MaterialDesc {
                 if !must_be_zero && !in_range {
                     return Err((
                         k,
-                        format!("group '{g}': {} must be in (0, 1], got {r}", KEYS[k]),
+                        format!("group '{g}': {} must be in (0, 1], got {r:?}", KEYS[k]),
                     ));
                 }
             }
@@ -836,6 +836,13 @@ mod tests {
                 &text,
                 line_of(&text, "roughness"),
                 &["has no specular part", "`roughness` must be 0, got 0.1"],
+            );
+            // A value far from 1 is written with its exponent, not 47 digits.
+            let tiny = text.replace("roughness = 0.1", "roughness = 1e-45");
+            bad(
+                &tiny,
+                line_of(&tiny, "roughness"),
+                &["`roughness` must be 0, got 1e-45"],
             );
             let text = file_text(model, &body(model, None, None))
                 .replace("specularity = 0.0", "specularity = 0.2");
