@@ -787,7 +787,8 @@ fn compare_views_says_where_the_reference_is_zero_instead_of_printing_nan() {
 /// them -10% (under the noise); a group whose reference is 0 has none, as it has no RMS;
 /// the JSON has it beside the RMS, and leaves it out without B2. B's own folder given as
 /// B2 (which would read the RMS as the misfit), A's (a misfit of 0), A's folder as B, and
-/// a B2 missing a view's image are refused, naming them.
+/// a B2 missing a view's image are refused, naming them. A B2 image of the same bytes as
+/// B's (two renders on one seed) is warned of.
 #[test]
 fn compare_views_with_an_independent_render_gives_the_misfit() {
     let dir = tempfile::tempdir().unwrap();
@@ -811,12 +812,13 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
     let compare = |b2: &str| {
         let run = views(&["--independent", b2, "--json", &format!("{b2}.json")]);
         let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
         assert!(run.status.success(), "{stdout}");
         let json: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(dir.path().join(format!("{b2}.json"))).unwrap(),
         )
         .unwrap();
-        (stdout, json)
+        (stdout, json, stderr)
     };
     // The last two figures of a group's line: its relative RMS and misfit.
     let last_two = |stdout: &str, group: &str| -> Vec<String> {
@@ -830,7 +832,19 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
         words.reverse();
         words
     };
-    let (stdout, json) = compare("same");
+    // B2 the same bytes as B, as two renders on one seed are: the misfit is the RMS (right
+    // for these noise-free images), and the run says so of each view.
+    let (stdout, json, stderr) = compare("same");
+    for view in ["a", "b"] {
+        assert!(
+            stderr.contains(&format!(
+                "warning: view '{view}': same{}{view}.exr holds the same bytes as B{}{view}.exr",
+                std::path::MAIN_SEPARATOR,
+                std::path::MAIN_SEPARATOR
+            )),
+            "{stderr}"
+        );
+    }
     assert!(
         stdout.lines().next().unwrap().ends_with("misfit"),
         "{stdout}"
@@ -848,7 +862,10 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
     );
     assert!(json["groups"][0]["rel_misfit"].is_null());
 
-    let (stdout, _) = compare("dark");
+    let (stdout, _, stderr) = compare("dark");
+    // Its view b differs from B's; its view a is B's flat 0.5 again.
+    assert!(!stderr.contains("view 'b'"), "{stderr}");
+    assert!(stderr.contains("warning: view 'a'"), "{stderr}");
     assert_eq!(
         last_two(&stdout, "shelf "),
         ["10.00%", "-10.00%"],

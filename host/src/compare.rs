@@ -395,6 +395,19 @@ pub fn compare_views(
                 )));
             }
         }
+        // Two renders on one seed are the same bytes, and their "independent" noise is one.
+        if let Some(b2) = dir_b2.map(|d| d.join(&image)) {
+            if let (Ok(x), Ok(y)) = (std::fs::read(&b), std::fs::read(&b2)) {
+                if x == y {
+                    eprintln!(
+                        "relume: warning: view '{}': {} holds the same bytes as {}: renders on one seed are identical, and the misfit of such a pair is their whole RMS; render B2 with another --seed",
+                        v.name,
+                        b2.display(),
+                        b.display()
+                    );
+                }
+            }
+        }
         inputs.push((
             dir_a.join(&image),
             format!("the reference image of view '{}' (A)", v.name),
