@@ -1440,7 +1440,7 @@ fn levelled_on(decision: &str) -> (u64, u64) {
 /// A picture (textured's flowers) on a floor tile beside a uniform one, under a lamp, seen
 /// from above; the picture's corners have texture coordinates `vt` (counter-clockwise from
 /// its corner at the origin).
-fn picture_scene(dir: &std::path::Path, vt: [[u32; 2]; 4]) {
+fn picture_scene(dir: &std::path::Path, vt: [[f32; 2]; 4]) {
     let scene = r#"format = 1
 name = "a picture beside a floor tile"
 geometry = ["geo.obj"]
@@ -1490,7 +1490,7 @@ objects = ["floor"]
 fn a_texture_over_coordinates_no_map_fits_is_told_not_mapped() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    picture_scene(dir, [[0, 0], [1, 0], [1, 1], [0, 1]]);
+    picture_scene(dir, [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
     render_picture_panorama(dir);
     let model_of_picture = |materials: &[u8]| model_of(materials, "picture");
     let mapped = recover(
@@ -1502,11 +1502,11 @@ fn a_texture_over_coordinates_no_map_fits_is_told_not_mapped() {
 
     let cases = [
         (
-            [[0, 0], [2, 0], [2, 2], [0, 2]],
+            [[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]],
             "texture coordinates u 0..2, v 0..2, beyond [0, 1]",
         ),
         (
-            [[0, 0]; 4],
+            [[0.0, 0.0]; 4],
             "texture coordinates that cover no area of a map (u 0..0, v 0..0",
         ),
     ];
@@ -1579,7 +1579,7 @@ fn model_of(materials: &[u8], group: &str) -> String {
 fn a_texture_judged_against_its_own_error_is_told() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    picture_scene(dir, [[0, 0], [1, 0], [1, 1], [0, 1]]);
+    picture_scene(dir, [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
     // The view sees the picture alone.
     let scene = std::fs::read_to_string(dir.join("scene.toml")).unwrap();
     let scene = scene
@@ -1608,4 +1608,33 @@ fn a_texture_judged_against_its_own_error_is_told() {
                 && d.ends_with("the bound is this group's own error")),
         "{picture}"
     );
+}
+
+/// A picture laid over a quarter of its map's [0, 1]^2 (a corner of a texture atlas) gets
+/// a map twice as fine, as many texels where it lies (two a pixel) as one over the whole
+/// square, and its map explains its pixels as well: before, the map's side followed the
+/// pixel count alone, the picture had a quarter of the texels, and its final error was
+/// 8.3% where the same picture over the whole square left 1.7% (1.2% now).
+#[test]
+fn a_picture_over_a_corner_of_its_map_gets_a_map_as_fine_where_it_lies() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    picture_scene(dir, [[0.0, 0.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]]);
+    render_picture_panorama(dir);
+    let materials = recover(
+        &dir.join("scene.toml"),
+        &dir.join("rec"),
+        &["--effort", "fast"],
+    );
+    assert_eq!(model_of(&materials, "picture"), "textured-diffuse");
+    let picture = group_report(&dir.join("rec"), "picture");
+    let pure = picture["pure_pixels"].as_f64().unwrap();
+    let side = libm::round(libm::sqrt(2.0 * pure / 0.25)) as u32;
+    let map = format!("map {side}x{side} from {pure} pure pixels");
+    assert!(
+        decisions(&picture).iter().any(|d| d.contains(&map)),
+        "{map}: {picture}"
+    );
+    let error = picture["error_final"].as_f64().unwrap();
+    assert!(error < 0.03, "final error {error}");
 }

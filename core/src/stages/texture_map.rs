@@ -59,13 +59,26 @@ pub struct MapObservation {
     pub weight: f32,
 }
 
-/// The side of the square map for a group seen in `pixels` pure pixels. Square, so that
-/// RADIANCE's `colorpict` (which scales a picture's shorter side to 1) maps it as the
-/// truth maps are mapped, with one remapping for both axes.
-pub fn map_side(pixels: usize) -> u32 {
-    let texels = (pixels as f64 * TEXELS_PER_PIXEL).max(1.0);
+/// The side of the square map for a group seen in `pixels` pure pixels whose texture
+/// coordinates cover `uv_coverage` of the map's [0, 1]^2 (its faces' areas in (u, v),
+/// taken as 1 above 1 and as [`MIN_UV_COVERAGE`] below it): [`TEXELS_PER_PIXEL`] texels a
+/// pixel where the group lies. A group laid over a corner of its map (a texture atlas)
+/// needs a finer map for as many: over a quarter of [0, 1]^2 it had a quarter of the
+/// texels. Square, so that RADIANCE's `colorpict` (which scales a picture's shorter side
+/// to 1) maps it as the truth maps are mapped, with one remapping for both axes.
+pub fn map_side(pixels: usize, uv_coverage: f64) -> u32 {
+    let coverage = if uv_coverage >= 1.0 {
+        1.0
+    } else {
+        uv_coverage.max(MIN_UV_COVERAGE)
+    };
+    let texels = (pixels as f64 * TEXELS_PER_PIXEL / coverage).max(1.0);
     (libm::round(libm::sqrt(texels)) as u32).clamp(MIN_SIDE, MAX_SIDE)
 }
+
+/// The least coverage [`map_side`] counts with (a NaN too): below it the map would reach
+/// `MAX_SIDE` from a handful of pixels.
+pub const MIN_UV_COVERAGE: f64 = 1e-4;
 
 /// Solves for the `width x height` map in `texels` (row 0 = v 1), starting from its
 /// content, clamped to reflectances in `[0, max_reflectance]`. `numerator` and
@@ -361,9 +374,19 @@ mod tests {
 
     #[test]
     fn sides_follow_the_pixel_count_within_bounds() {
-        assert_eq!(map_side(5_000), 100);
-        assert_eq!(map_side(3), MIN_SIDE);
-        assert_eq!(map_side(usize::MAX / 2), MAX_SIDE);
+        assert_eq!(map_side(5_000, 1.0), 100);
+        assert_eq!(map_side(3, 1.0), MIN_SIDE);
+        assert_eq!(map_side(usize::MAX / 2, 1.0), MAX_SIDE);
+    }
+
+    #[test]
+    fn a_group_over_part_of_its_map_gets_as_many_texels_where_it_lies() {
+        // Over a quarter of [0, 1]^2: twice the side, the same texels over the group.
+        assert_eq!(map_side(5_000, 0.25), 200);
+        // Faces given twice over one region count once; no coverage counts as the least.
+        assert_eq!(map_side(5_000, 2.0), 100);
+        assert_eq!(map_side(5_000, f64::NAN), map_side(5_000, MIN_UV_COVERAGE));
+        assert_eq!(map_side(5_000, 0.0), MAX_SIDE);
     }
 
     #[test]
@@ -457,6 +480,8 @@ mod tests {
     #[test]
     fn two_texels_per_pixel_hold_more_of_a_picture_than_one() {
         let one_per_pixel = |pure: usize| libm::roundf(libm::sqrtf(pure as f32)) as u32;
+        // The picture covers the map's whole square.
+        let map_side = |pure: usize| map_side(pure, 1.0);
         let error = |angle, side: &dyn Fn(usize) -> u32| map_error_from_pixels(40, angle, side);
         // The picture turned against the pixels: the texel and pixel grids beat.
         for angle in [0.13, 0.4] {

@@ -200,6 +200,7 @@ pub fn recover_map(
         g,
         map,
         pure_count,
+        uv_coverage: uv_coverage(rec.owned.triangles(), g as u16),
         pixels: &pixels,
         uvs: &uvs,
         start,
@@ -263,6 +264,20 @@ pub fn lobe_share(specular: &[Vec3], real: &[Vec3]) -> f64 {
     specular.iter().map(|v| luminance(*v) as f64).sum::<f64>() / total
 }
 
+/// The area in (u, v) of group `g`'s faces among `triangles`: how much of its map's
+/// [0, 1]^2 the group lies over (past 1 where faces share a region of it).
+fn uv_coverage(triangles: &[Triangle], g: u16) -> f64 {
+    triangles
+        .iter()
+        .filter(|t| t.surface == Surface::Group(g))
+        .map(|t| {
+            let [a, b, c] = t.uv.map(|p| [p.x as f64, p.y as f64]);
+            let (e1, e2) = ([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]]);
+            0.5 * (e1[0] * e2[1] - e1[1] * e2[0]).abs()
+        })
+        .sum()
+}
+
 /// One solve of a group's map under its current lobe: what [`MapSolve::run`] needs.
 struct MapSolve<'a> {
     g: usize,
@@ -270,6 +285,8 @@ struct MapSolve<'a> {
     map: usize,
     /// `pixels` holds the group's pure pixels first, this many, then its border's.
     pure_count: usize,
+    /// How much of the map's [0, 1]^2 the group lies over ([`uv_coverage`]).
+    uv_coverage: f64,
     pixels: &'a [PurePixel],
     uvs: &'a [Option<[Vec2; FOOTPRINT_SAMPLES]>],
     /// The constant map E is rendered against.
@@ -376,7 +393,7 @@ impl MapSolve<'_> {
                 })
             })
             .collect();
-        let side = texture_map::map_side(self.pure_count);
+        let side = texture_map::map_side(self.pure_count, self.uv_coverage);
         let n = (side * side) as usize;
         let mut texels = vec![self.start; n];
         let (mut numerator, mut denominator) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
