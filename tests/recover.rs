@@ -1510,8 +1510,21 @@ fn a_texture_over_coordinates_no_map_fits_is_told_not_mapped() {
             "texture coordinates that cover no area of a map (u 0..0, v 0..0",
         ),
     ];
+    // `check` names them before any recovery, and names none over [0, 1].
+    let check = || {
+        let run = relume_ok(dir, &["check", "scene.toml"]);
+        String::from_utf8_lossy(&run.stdout).into_owned()
+    };
+    assert!(!check().contains("texture coordinates:"));
     for (i, (vt, why)) in cases.into_iter().enumerate() {
         picture_scene(dir, vt);
+        let stdout = check();
+        assert!(
+            stdout.contains(&format!(
+                "texture coordinates: group 'picture': object 'picture' has {why}"
+            )),
+            "{stdout}"
+        );
         let name = format!("unfit{i}");
         let out = dir.join(&name);
         let run = relume_ok(

@@ -434,6 +434,11 @@ fn print_check(report: &recover_cmd::CheckReport) {
             crate::recover::FEW_PIXELS
         );
     }
+    for (group, why) in &report.unfit_for_a_map {
+        println!(
+            "texture coordinates: group '{group}': {why}: a texture it shows is told, and it keeps a uniform model"
+        );
+    }
     for w in &report.warnings {
         eprintln!("relume: warning: {w}");
     }

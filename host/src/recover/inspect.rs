@@ -424,6 +424,9 @@ pub struct CheckReport {
     /// The groups seen, but in fewer than `warnings::FEW_PIXELS` pure pixels: a lobe
     /// recovered on them was seen to change with the seed.
     pub few_pixels: Vec<(String, u32)>,
+    /// The groups whose texture coordinates no map can be laid over, and why
+    /// ([`coordinates_unfit_for_a_map`]): a texture they show is told, not mapped.
+    pub unfit_for_a_map: Vec<(String, String)>,
     /// Each view's pixels of the preview rendered under its colours against the
     /// panorama: a view off the others by more than `VIEW_GROSS_FACTOR` is warned of.
     pub view_readings: Vec<ViewReading>,
@@ -562,6 +565,9 @@ pub fn check(
         .filter(|g| (1..warnings::FEW_PIXELS).contains(&g.total()))
         .map(|g| (g.group.clone(), g.total()))
         .collect();
+    let unfit_for_a_map = (names.iter().zip(&input.unfit_for_a_map))
+        .filter_map(|(name, why)| Some((name.clone(), why.clone()?)))
+        .collect();
     let report = CheckReport {
         views: input.view_names,
         groups,
@@ -569,6 +575,7 @@ pub fn check(
         orientation_readings,
         warnings,
         few_pixels,
+        unfit_for_a_map,
         view_readings,
         preview_spp: PREVIEW_SPP,
         preview_renders: preview.evaluations + view_renders,
