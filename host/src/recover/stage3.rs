@@ -20,7 +20,8 @@ pub(super) struct Stage3 {
     pub textured: Vec<bool>,
     /// The panorama's noise bound the contrasts were corrected by.
     pub noise_bound: f64,
-    /// Groups that show a texture no map can be laid over (`unfit_for_a_map`).
+    /// Groups that show a texture no map can be laid over (`unfit_for_a_map`), or that
+    /// stage 3 could only judge against their own error.
     pub warnings: Vec<String>,
 }
 
