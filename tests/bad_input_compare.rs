@@ -712,24 +712,38 @@ fn flat(path: &Path, value: f32) {
     relume::images::write_exr(path, &image).unwrap();
 }
 
+/// A temp folder with the [`TWO_VIEWS`] scene, the `folders` made in it, and each of
+/// `images` (a path in it and a value) a flat image of that value.
+fn two_views_with(folders: &[&str], images: &[(&str, f32)]) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), TWO_VIEWS).unwrap();
+    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
+    for sub in folders {
+        std::fs::create_dir(dir.path().join(sub)).unwrap();
+    }
+    for (path, value) in images {
+        flat(&dir.path().join(path), *value);
+    }
+    dir
+}
+
 /// A reference whose mean over a group and a view is 0 printed `NaN%` (JSON null, no
 /// word why) with exit 0. The table has `-` there and a note naming the group and the
 /// view; the JSON has null and the same reason; a reference black over every pixel
 /// compared is an error naming it.
 #[test]
 fn compare_views_says_where_the_reference_is_zero_instead_of_printing_nan() {
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("scene.toml"), TWO_VIEWS).unwrap();
-    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
-    for sub in ["A", "B", "black"] {
-        std::fs::create_dir(dir.path().join(sub)).unwrap();
-    }
-    flat(&dir.path().join("A/a.exr"), 0.0);
-    flat(&dir.path().join("A/b.exr"), 1.0);
-    flat(&dir.path().join("B/a.exr"), 0.5);
-    flat(&dir.path().join("B/b.exr"), 1.1);
-    flat(&dir.path().join("black/a.exr"), 0.0);
-    flat(&dir.path().join("black/b.exr"), 0.0);
+    let dir = two_views_with(
+        &["A", "B", "black"],
+        &[
+            ("A/a.exr", 0.0),
+            ("A/b.exr", 1.0),
+            ("B/a.exr", 0.5),
+            ("B/b.exr", 1.1),
+            ("black/a.exr", 0.0),
+            ("black/b.exr", 0.0),
+        ],
+    );
     let run = relume(
         dir.path(),
         &[
@@ -791,19 +805,19 @@ fn compare_views_says_where_the_reference_is_zero_instead_of_printing_nan() {
 /// B's (two renders on one seed) is warned of.
 #[test]
 fn compare_views_with_an_independent_render_gives_the_misfit() {
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("scene.toml"), TWO_VIEWS).unwrap();
-    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
-    for (sub, a, b) in [
-        ("A", 0.0, 1.0),
-        ("B", 0.5, 1.1),
-        ("same", 0.5, 1.1),
-        ("dark", 0.5, 0.9),
-    ] {
-        std::fs::create_dir(dir.path().join(sub)).unwrap();
-        flat(&dir.path().join(sub).join("a.exr"), a);
-        flat(&dir.path().join(sub).join("b.exr"), b);
-    }
+    let dir = two_views_with(
+        &["A", "B", "same", "dark"],
+        &[
+            ("A/a.exr", 0.0),
+            ("A/b.exr", 1.0),
+            ("B/a.exr", 0.5),
+            ("B/b.exr", 1.1),
+            ("same/a.exr", 0.5),
+            ("same/b.exr", 1.1),
+            ("dark/a.exr", 0.5),
+            ("dark/b.exr", 0.9),
+        ],
+    );
     // `compare views scene.toml A B`, then `more`.
     let views = |more: &[&str]| {
         let args = [&["compare", "views", "scene.toml", "A", "B"][..], more].concat();
@@ -908,15 +922,10 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
 /// scene lists the views it has.
 #[test]
 fn compare_views_of_some_views_needs_only_their_images() {
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("scene.toml"), TWO_VIEWS).unwrap();
-    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
-    for sub in ["A", "B"] {
-        std::fs::create_dir(dir.path().join(sub)).unwrap();
-    }
-    flat(&dir.path().join("A/a.exr"), 1.0);
-    flat(&dir.path().join("A/b.exr"), 1.0);
-    flat(&dir.path().join("B/b.exr"), 1.1);
+    let dir = two_views_with(
+        &["A", "B"],
+        &[("A/a.exr", 1.0), ("A/b.exr", 1.0), ("B/b.exr", 1.1)],
+    );
     let views = |more: &[&str]| {
         let args = [&["compare", "views", "scene.toml", "A", "B"][..], more].concat();
         relume(dir.path(), &args)
@@ -980,15 +989,10 @@ fn compare_views_reads_the_scenes_own_images_with_their_exposure() {
 /// as the misfit. Refused, naming the view and both files.
 #[test]
 fn compare_views_refuses_one_image_in_both_folders() {
-    let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("scene.toml"), TWO_VIEWS).unwrap();
-    std::fs::write(dir.path().join("geo.obj"), TWO_QUADS).unwrap();
-    for sub in ["A", "B", "B2"] {
-        std::fs::create_dir(dir.path().join(sub)).unwrap();
-    }
-    flat(&dir.path().join("A/a.exr"), 1.0);
-    flat(&dir.path().join("A/b.exr"), 1.0);
-    flat(&dir.path().join("B/a.exr"), 1.1);
+    let dir = two_views_with(
+        &["A", "B", "B2"],
+        &[("A/a.exr", 1.0), ("A/b.exr", 1.0), ("B/a.exr", 1.1)],
+    );
     std::os::unix::fs::symlink("../A/b.exr", dir.path().join("B/b.exr")).unwrap();
     let run = relume(dir.path(), &["compare", "views", "scene.toml", "A", "B"]);
     fails(&run, USAGE, &["A/b.exr and B/b.exr are one file: view 'b'"]);
