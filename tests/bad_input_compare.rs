@@ -1002,9 +1002,8 @@ fn compare_views_refuses_one_image_in_both_folders() {
     flat(&dir.path().join("B/b.exr"), 1.1);
     std::fs::hard_link(dir.path().join("B/a.exr"), dir.path().join("B2/a.exr")).unwrap();
     flat(&dir.path().join("B2/b.exr"), 1.2);
-    let run = relume(
-        dir.path(),
-        &[
+    let with_b2 = || {
+        let args = [
             "compare",
             "views",
             "scene.toml",
@@ -1012,8 +1011,10 @@ fn compare_views_refuses_one_image_in_both_folders() {
             "B",
             "--independent",
             "B2",
-        ],
-    );
+        ];
+        relume(dir.path(), &args)
+    };
+    let run = with_b2();
     fails(
         &run,
         USAGE,
@@ -1021,18 +1022,7 @@ fn compare_views_refuses_one_image_in_both_folders() {
     );
     std::fs::remove_file(dir.path().join("B2/a.exr")).unwrap();
     flat(&dir.path().join("B2/a.exr"), 1.2);
-    let run = relume(
-        dir.path(),
-        &[
-            "compare",
-            "views",
-            "scene.toml",
-            "A",
-            "B",
-            "--independent",
-            "B2",
-        ],
-    );
+    let run = with_b2();
     assert!(
         run.status.success(),
         "{}",
