@@ -162,6 +162,36 @@ impl ErrorEstimate {
         ))
     }
 
+    /// [`ErrorEstimate::from_cross_terms`] over an even sample of a group's `population`
+    /// pixels, each term with the pixel's `|T|^2` beside it: the sample's estimate, whose
+    /// standard error also counts how far the sample's ratio of sums may lie from the whole
+    /// group's (a ratio estimator's variance with the finite-population correction, as for
+    /// a simple random sample: an even spread over a smooth surface does no worse). Its
+    /// residuals hold the terms' own render noise as well, so the widening errs on the
+    /// safe side. With every pixel measured it is `from_cross_terms`, to the bit.
+    pub fn from_sampled_cross_terms(terms: &[([f64; 2], f64)], population: usize) -> Option<Self> {
+        let sum_sq_real: f64 = terms.iter().map(|t| t.1).sum();
+        let estimate = Self::from_cross_terms(terms.iter().map(|t| t.0), sum_sq_real)?;
+        let m = terms.len();
+        if m >= population || m < 2 {
+            return Some(estimate);
+        }
+        let q = |t: &([f64; 2], f64)| 0.5 * (t.0[0] + t.0[1]);
+        let ratio = terms.iter().map(q).sum::<f64>() / sum_sq_real;
+        let residuals: f64 = terms
+            .iter()
+            .map(|t| {
+                let d = q(t) - ratio * t.1;
+                d * d
+            })
+            .sum();
+        let (m, n) = (m as f64, population as f64);
+        let sampling_variance =
+            (1.0 - m / n) * m / (m - 1.0) * residuals / (sum_sq_real * sum_sq_real);
+        let sigma = libm::sqrt(estimate.squared_sigma * estimate.squared_sigma + sampling_variance);
+        Some(Self::from_squared(ratio, sigma))
+    }
+
     /// From a measured squared relative error (negative when noise outweighs it, read as
     /// 0) and its standard error.
     pub fn from_squared(squared_error: f64, squared_sigma: f64) -> Self {
@@ -572,6 +602,63 @@ mod tests {
             (reported / spread - 1.0).abs() < 0.15,
             "reported {reported}, spread {spread}"
         );
+    }
+
+    #[test]
+    fn a_sampled_error_estimates_standard_error_covers_the_whole_groups_error() {
+        // A group of 6000 pixels whose bias varies over it (a lobe on some of them, none
+        // on others), measured on every third pixel. The sample's standard error must
+        // account for how far the sample's error lies from the whole group's: over many
+        // groups, the sampled and the whole errors differ by about that much, where the
+        // render noise's part alone covers a fraction of it.
+        let (trials, pixels) = (300u32, 6000usize);
+        let (mut z2_full, mut z2_noise) = (0.0, 0.0);
+        for trial in 0..trials {
+            let mut rng = crate::rng::Sampler::for_pixel_sample(12, trial, 0, 0);
+            let terms: std::vec::Vec<([f64; 2], f64)> = (0..pixels)
+                .map(|_| {
+                    let [a, b] = rng.next_2d();
+                    let bias = if a < 0.2 { 0.4 * b as f64 } else { 0.02 };
+                    let [c, d] = rng.next_2d();
+                    let noise = |u: f32| 0.01 * (2.0 * u as f64 - 1.0);
+                    let t = 0.5 + a as f64;
+                    ([bias * bias * t + noise(c), bias * bias * t + noise(d)], t)
+                })
+                .collect();
+            let whole = ErrorEstimate::from_sampled_cross_terms(&terms, pixels).unwrap();
+            let every_third: std::vec::Vec<_> = terms.iter().copied().step_by(3).collect();
+            let sampled = ErrorEstimate::from_sampled_cross_terms(&every_third, pixels).unwrap();
+            let noise_only = ErrorEstimate::from_cross_terms(
+                every_third.iter().map(|t| t.0),
+                every_third.iter().map(|t| t.1).sum(),
+            )
+            .unwrap();
+            assert_eq!(sampled.error, noise_only.error);
+            let d = sampled.error - whole.error;
+            z2_full += d * d / (sampled.sigma * sampled.sigma);
+            z2_noise += d * d / (noise_only.sigma * noise_only.sigma);
+        }
+        let rms_full = libm::sqrt(z2_full / trials as f64);
+        let rms_noise = libm::sqrt(z2_noise / trials as f64);
+        // The difference from the whole group's estimate is what the finite-population
+        // correction measures, so its z has a spread of about 1 (0.96 here).
+        assert!((0.8..1.2).contains(&rms_full), "z with sampling {rms_full}");
+        assert!(rms_noise > 2.0, "z with render noise only {rms_noise}");
+    }
+
+    #[test]
+    fn a_sampled_error_estimate_of_every_pixel_is_the_plain_one() {
+        let terms: std::vec::Vec<([f64; 2], f64)> = (0..50)
+            .map(|i| {
+                let x = i as f64 * 0.01;
+                ([x * x + 0.001, x * x - 0.001], 1.0 + x)
+            })
+            .collect();
+        let plain = ErrorEstimate::from_cross_terms(
+            terms.iter().map(|t| t.0),
+            terms.iter().map(|t| t.1).sum(),
+        );
+        assert_eq!(ErrorEstimate::from_sampled_cross_terms(&terms, 50), plain);
     }
 
     #[test]

@@ -293,20 +293,25 @@ impl Recovery {
     }
 
     /// Every group's bias-only error with its standard error, with the current models, on
-    /// the decisions' seed (see [`fit::ErrorEstimate`]). `None` for a group without lit
+    /// the decisions' seed (see [`fit::ErrorEstimate`]), over at most
+    /// [`ERROR_GROUP_PIXELS`] pure pixels of each group. `None` for a group without lit
     /// pure pixels.
     fn error_estimates(&mut self, spp: u32) -> Result<Vec<Option<fit::ErrorEstimate>>, Error> {
         let seed = self.decision_seed();
-        let mut by_group = vec![Vec::new(); self.n_groups()];
+        let n = self.n_groups();
+        let measured = pixels::spread_subset(&self.pure, n, ERROR_GROUP_PIXELS);
+        let population = pixels::group_counts(&self.pure, n);
+        let mut by_group = vec![Vec::new(); n];
         self.with_scene(spp, seed, |pool, scene, observed, settings| {
-            let terms = pixels::paired_cross_terms(pool, scene, observed, observed.pure, settings);
-            for (p, t) in observed.pure.iter().zip(terms) {
+            let terms = pixels::paired_cross_terms(pool, scene, observed, &measured, settings);
+            for (p, t) in measured.iter().zip(terms) {
                 by_group[p.group as usize].push(t);
             }
         })?;
         Ok(by_group
             .iter()
-            .map(|terms| error_estimate_of(terms))
+            .zip(population)
+            .map(|(terms, all)| fit::ErrorEstimate::from_sampled_cross_terms(terms, all as usize))
             .collect())
     }
 
@@ -662,6 +667,20 @@ const POLISH_NEWTON_MAX_GROUPS: usize = 32;
 /// every pixel, and their sums keep their bits; at 256 px, where its walls and floor have
 /// 60000-130000 pixels, a step costs about a quarter.
 const DIFFUSE_GROUP_PIXELS: usize = 1 << 14;
+
+/// Pure pixels per group that stage 1's bias-only errors ([`Recovery::error_estimates`])
+/// render at most, spread evenly over a larger group (`pixels::spread_subset`).
+///
+/// That error is a ratio of sums over the group's pixels, and what it decides (diffuse, or
+/// on to stage 2) needs a precise ratio, not every pixel. Without a cap its cost grew with
+/// the panorama: at 512 px a face the living room's floor, ceiling, walls and accent wall
+/// (213,479-434,499 pixels) made half of stage 1's 40 s. Spread over 131072 of their
+/// pixels, their errors moved by 0.5-1.6% of themselves (0.0502 to 0.0508 on the floor),
+/// a few of the render noise's standard errors; the estimate's standard error counts that
+/// part too (`fit::ErrorEstimate::from_sampled_cross_terms`). Every group of the
+/// references at 256 px but textured's walls (193,735 pixels) is under the cap and keeps
+/// its bits (docs/recovery.md, "Stage 1's gate on large groups").
+const ERROR_GROUP_PIXELS: usize = 1 << 17;
 
 /// A group's transport cache holds at least this many pixel samples: a small group's
 /// lobe is seen in a few pixels, and a cache of the effort level's samples per pixel
