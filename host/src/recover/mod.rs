@@ -258,6 +258,15 @@ impl Recovery {
         pixels::spread_subset(&self.pure, self.n_groups(), DIFFUSE_GROUP_PIXELS)
     }
 
+    /// [`DIFFUSE_GROUP_PIXELS`] of group `g`'s pure pixels, spread as in
+    /// [`Recovery::diffuse_subset`]; `None` for a group of no more, to be measured on
+    /// [`Recovery::pure`] as it is (whose sums then keep their bits).
+    fn diffuse_subset_of(&self, g: usize) -> Option<Vec<PurePixel>> {
+        let of_g = pixels::of_group(&self.pure, g);
+        (of_g.len() > DIFFUSE_GROUP_PIXELS)
+            .then(|| pixels::spread_subset(&of_g, self.n_groups(), DIFFUSE_GROUP_PIXELS))
+    }
+
     /// The bias-only fit of group `g` (see [`pixels::evaluate_cross`]).
     fn evaluate_cross(&mut self, spp: u32, seed: u64, g: usize) -> Result<GroupFit, Error> {
         let n = self.n_groups();
@@ -648,9 +657,10 @@ const POLISH_RESPONSE_STEP: f64 = 0.05;
 /// rather than more renders than its whole iteration. The references have 4-7.
 const POLISH_NEWTON_MAX_GROUPS: usize = 32;
 
-/// Pure pixels per group that the renders of the diffuse iteration and its polish step
-/// take at most: a larger group is rendered on that many, spread evenly over it
-/// (`pixels::spread_subset`), at the effort's samples per pixel.
+/// Pure pixels per group that the renders of the diffuse iteration and its polish step,
+/// and stage 2's re-fit of a diffuse alternative, take at most: a larger group is rendered
+/// on that many, spread evenly over it (`pixels::spread_subset`), at the samples per pixel
+/// it would have had.
 ///
 /// The update `rho <- rho * mean(real) / mean(rendered)` needs the group's mean, and the
 /// mean of `N` pixel samples whose relative deviation per sample is `sigma` has a relative
