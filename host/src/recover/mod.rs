@@ -258,13 +258,13 @@ impl Recovery {
         pixels::spread_subset(&self.pure, self.n_groups(), DIFFUSE_GROUP_PIXELS)
     }
 
-    /// [`DIFFUSE_GROUP_PIXELS`] of group `g`'s pure pixels, spread as in
-    /// [`Recovery::diffuse_subset`]; `None` for a group of no more, to be measured on
-    /// [`Recovery::pure`] as it is (whose sums then keep their bits).
-    fn diffuse_subset_of(&self, g: usize) -> Option<Vec<PurePixel>> {
+    /// [`MEASURED_GROUP_PIXELS`] of group `g`'s pure pixels, spread evenly; `None` for a
+    /// group of no more, to be measured on [`Recovery::pure`] as it is (whose sums then
+    /// keep their bits).
+    fn measured_subset_of(&self, g: usize) -> Option<Vec<PurePixel>> {
         let of_g = pixels::of_group(&self.pure, g);
-        (of_g.len() > DIFFUSE_GROUP_PIXELS)
-            .then(|| pixels::spread_subset(&of_g, self.n_groups(), DIFFUSE_GROUP_PIXELS))
+        (of_g.len() > MEASURED_GROUP_PIXELS)
+            .then(|| pixels::spread_subset(&of_g, self.n_groups(), MEASURED_GROUP_PIXELS))
     }
 
     /// The bias-only fit of group `g` (see [`pixels::evaluate_cross`]).
@@ -303,12 +303,12 @@ impl Recovery {
 
     /// Every group's bias-only error with its standard error, with the current models, on
     /// the decisions' seed (see [`fit::ErrorEstimate`]), over at most
-    /// [`ERROR_GROUP_PIXELS`] pure pixels of each group. `None` for a group without lit
+    /// [`MEASURED_GROUP_PIXELS`] pure pixels of each group. `None` for a group without lit
     /// pure pixels.
     fn error_estimates(&mut self, spp: u32) -> Result<Vec<Option<fit::ErrorEstimate>>, Error> {
         let seed = self.decision_seed();
         let n = self.n_groups();
-        let measured = pixels::spread_subset(&self.pure, n, ERROR_GROUP_PIXELS);
+        let measured = pixels::spread_subset(&self.pure, n, MEASURED_GROUP_PIXELS);
         let population = pixels::group_counts(&self.pure, n);
         let mut by_group = vec![Vec::new(); n];
         self.with_scene(spp, seed, |pool, scene, observed, settings| {
@@ -657,10 +657,9 @@ const POLISH_RESPONSE_STEP: f64 = 0.05;
 /// rather than more renders than its whole iteration. The references have 4-7.
 const POLISH_NEWTON_MAX_GROUPS: usize = 32;
 
-/// Pure pixels per group that the renders of the diffuse iteration and its polish step,
-/// and stage 2's re-fit of a diffuse alternative, take at most: a larger group is rendered
-/// on that many, spread evenly over it (`pixels::spread_subset`), at the samples per pixel
-/// it would have had.
+/// Pure pixels per group that the renders of the diffuse iteration and its polish step
+/// take at most: a larger group is rendered on that many, spread evenly over it
+/// (`pixels::spread_subset`), at the effort's samples per pixel.
 ///
 /// The update `rho <- rho * mean(real) / mean(rendered)` needs the group's mean, and the
 /// mean of `N` pixel samples whose relative deviation per sample is `sigma` has a relative
@@ -678,19 +677,24 @@ const POLISH_NEWTON_MAX_GROUPS: usize = 32;
 /// 60000-130000 pixels, a step costs about a quarter.
 const DIFFUSE_GROUP_PIXELS: usize = 1 << 14;
 
-/// Pure pixels per group that stage 1's bias-only errors ([`Recovery::error_estimates`])
-/// render at most, spread evenly over a larger group (`pixels::spread_subset`).
+/// Pure pixels per group that a measurement of a whole group renders at most, spread
+/// evenly over a larger group (`pixels::spread_subset`): stage 1's bias-only errors
+/// ([`Recovery::error_estimates`]) and stage 2's re-fit of a diffuse alternative's colour
+/// (`stage2::refit_diffuse`). Without a cap their cost grew with the panorama: at 512 px a
+/// face the living room's floor, ceiling, walls and accent wall (213,479-434,499 pixels)
+/// made half of stage 1's 40 s, and at 1024 px the re-fit took 25 s for the floor alone.
 ///
-/// That error is a ratio of sums over the group's pixels, and what it decides (diffuse, or
-/// on to stage 2) needs a precise ratio, not every pixel. Without a cap its cost grew with
-/// the panorama: at 512 px a face the living room's floor, ceiling, walls and accent wall
-/// (213,479-434,499 pixels) made half of stage 1's 40 s. Spread over 131072 of their
-/// pixels, their errors moved by 0.5-1.6% of themselves (0.0502 to 0.0508 on the floor),
-/// a few of the render noise's standard errors; the estimate's standard error counts that
-/// part too (`fit::ErrorEstimate::from_sampled_cross_terms`). Every group of the
-/// references at 256 px but textured's walls (193,735 pixels) is under the cap and keeps
-/// its bits (docs/recovery.md, "Stage 1's gate on large groups").
-const ERROR_GROUP_PIXELS: usize = 1 << 17;
+/// Stage 1's error is a ratio of sums over the group's pixels. Spread over 131072 of
+/// their pixels, those four groups' errors moved by 0.5-1.6% of themselves (0.0502 to
+/// 0.0508 on the floor), a few of the render noise's standard errors; the estimate's
+/// standard error counts that part too (`fit::ErrorEstimate::from_sampled_cross_terms`).
+/// The re-fit needs a mean, which far fewer pixels would give, as the diffuse iteration's
+/// [`DIFFUSE_GROUP_PIXELS`] do; but on those the walls' colours moved enough during stage
+/// 2 to turn glossy's white sphere, a weak lobe at the 1% rule, diffuse at 256 px (effort
+/// default, seed 1). Every group of the references at 256 px but textured's walls
+/// (193,735 pixels, diffuse after stage 1) is under this cap and keeps its bits
+/// (docs/recovery.md, "Stage 1's gate on large groups").
+const MEASURED_GROUP_PIXELS: usize = 1 << 17;
 
 /// A group's transport cache holds at least this many pixel samples: a small group's
 /// lobe is seen in a few pixels, and a cache of the effort level's samples per pixel

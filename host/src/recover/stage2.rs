@@ -69,11 +69,10 @@ fn refit_diffuse(
     // the specular side's race (a small group's mean at the loop's samples carries the
     // fireflies of a sharp lobe nearby: the living room's pedestal, under the statue, came
     // out 10% off on seed 6).
-    // A mean needs samples, not pixels: a group larger than the diffuse iteration's cap is
-    // rendered on that many of its pixels, as there (a wall at 1024 px a face took 25 s
-    // here on all of its 1.6 million).
+    // A very large group is rendered on MEASURED_GROUP_PIXELS of its pixels (a wall at
+    // 1024 px a face took 25 s here on all of its 1.6 million).
     let refit_spp = min_samples_spp(verify_spp, pure_pixels, refine::RACE_MIN_SAMPLES);
-    let subset = rec.diffuse_subset_of(g);
+    let subset = rec.measured_subset_of(g);
     let only_g = |h: u16| h as usize == g;
     let (mut previous, mut evaluations) = (None, 0);
     for _ in 0..REFIT_MAX_STEPS {
