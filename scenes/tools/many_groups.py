@@ -10,25 +10,16 @@ Usage: many_groups.py N L DIR
 """
 import math, os, sys, random
 
+# Cornell's room, its OBJ writer and its boxes, from the bundled scene's generator.
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cornell"))
+from make_geometry import ObjWriter, room, box, H  # noqa: E402
+
 def main(n, n_lights, out_dir):
     os.makedirs(out_dir, exist_ok=True)
     rnd = random.Random(1234 + n)
-    out = [f"# synthetic: {n} boxes, {n_lights} lights"]
-    nv = [0]
-    def obj(name, faces):
-        out.append(f"o {name}")
-        for face in faces:
-            for v in face:
-                out.append("v %.6f %.6f %.6f" % v)
-            out.append("f " + " ".join(str(nv[0] + 1 + i) for i in range(len(face))))
-            nv[0] += len(face)
-    W, D, H = 3.0, 3.0, 2.5
-    obj("floor", [[(0, 0, 0), (W, 0, 0), (W, D, 0), (0, D, 0)]])
-    obj("ceiling", [[(0, 0, H), (0, D, H), (W, D, H), (W, 0, H)]])
-    obj("wall_left", [[(0, 0, 0), (0, D, 0), (0, D, H), (0, 0, H)]])
-    obj("wall_right", [[(W, 0, 0), (W, 0, H), (W, D, H), (W, D, 0)]])
-    obj("wall_back", [[(0, D, 0), (W, D, 0), (W, D, H), (0, D, H)]])
-    obj("wall_front", [[(0, 0, 0), (0, 0, H), (W, 0, H), (W, 0, 0)]])
+    w = ObjWriter(f"# synthetic: {n} boxes, {n_lights} lights")
+    obj = w.obj
+    room(w)
     lz = H - 0.01
     lights = []
     if n_lights == 1:
@@ -46,15 +37,6 @@ def main(n, n_lights, out_dir):
                 name = f"light_{i}_{j}"
                 obj(name, [[(x0, y0, lz), (x0, y1, lz), (x1, y1, lz), (x1, y0, lz)]])
                 lights.append(name)
-    def box(x0, y0, x1, y1, z1):
-        p = lambda x, y, z: (x, y, z)
-        return [
-            [p(x0, y0, z1), p(x1, y0, z1), p(x1, y1, z1), p(x0, y1, z1)],
-            [p(x0, y0, 0), p(x1, y0, 0), p(x1, y0, z1), p(x0, y0, z1)],
-            [p(x1, y0, 0), p(x1, y1, 0), p(x1, y1, z1), p(x1, y0, z1)],
-            [p(x1, y1, 0), p(x0, y1, 0), p(x0, y1, z1), p(x1, y1, z1)],
-            [p(x0, y1, 0), p(x0, y0, 0), p(x0, y0, z1), p(x0, y1, z1)],
-        ]
     cols = math.ceil(math.sqrt(n)); rows = math.ceil(n / cols)
     lo, hi = 0.2, 2.8
     px, py = (hi - lo) / cols, (hi - lo) / rows
@@ -72,7 +54,7 @@ def main(n, n_lights, out_dir):
             mats.append((f"box_{b}", "plastic", "isotropic", col, 0.06, 0.08))
         else:
             mats.append((f"box_{b}", "plastic", "diffuse", col, 0.0, 0.0))
-    open(os.path.join(out_dir, "geometry.obj"), "w").write("\n".join(out) + "\n")
+    open(os.path.join(out_dir, "geometry.obj"), "w").write(w.text())
     pos = [1.5, 1.5, 1.3]
     views = [("px", [1, 0, 0], [0, 0, 1]), ("nx", [-1, 0, 0], [0, 0, 1]),
              ("py", [0, 1, 0], [0, 0, 1]), ("ny", [0, -1, 0], [0, 0, 1]),
@@ -85,9 +67,9 @@ def main(n, n_lights, out_dir):
               "exposure = 1.0", ""]
     for l in lights:
         s += ["[[light]]", f'object = "{l}"', "radiance = [30.0, 28.0, 24.0]", ""]
-    room = [("floor", ["floor"]), ("ceiling", ["ceiling"]), ("wall_red", ["wall_left"]),
+    room_groups = [("floor", ["floor"]), ("ceiling", ["ceiling"]), ("wall_red", ["wall_left"]),
             ("wall_green", ["wall_right"]), ("walls_white", ["wall_back", "wall_front"])]
-    for g, objs in room:
+    for g, objs in room_groups:
         s += ["[[group]]", f'name = "{g}"', 'kind = "plastic"', "objects = [" + ", ".join(f'"{o}"' for o in objs) + "]", ""]
     for g, kind, *_ in mats:
         s += ["[[group]]", f'name = "{g}"', f'kind = "{kind}"', f'objects = ["{g}"]', ""]
