@@ -94,9 +94,8 @@ pub fn render_pixel_with_variance(
 }
 
 /// [`render_pixel_with_variance`], the same bits, and the part of the pixel's radiance
-/// that `group`'s diffuse lobe reflects where the pixel's rays meet it first, from the
-/// same samples (see [`radiance_with_diffuse_part`]): `(mean, variance, diffuse part's
-/// mean)`.
+/// that comes by way of `group`'s diffuse lobe, from the same samples (see
+/// [`radiance_with_diffuse_part`]): `(mean, variance, diffuse part's mean)`.
 pub fn render_pixel_with_diffuse_part(
     scene: &Scene,
     view: &View,
@@ -175,11 +174,13 @@ pub fn radiance(scene: &Scene, ray: Ray, sampler: &mut Sampler, settings: &Rende
     path_radiance(scene, ray, sampler, settings, None, None)
 }
 
-/// [`radiance`] and the part of it that `group`'s diffuse lobe reflects where `ray` meets
-/// it first (zero where it meets something else first): every light reaching that point
-/// is split by [`Bsdf::diffuse_share`] of the direction it arrives from. The path is
-/// [`radiance`]'s, to the bit, so the rest is what the group's specular lobe reflects
-/// there and what does not come by way of the group at all.
+/// [`radiance`] and the part of it that comes by way of `group`'s diffuse lobe, at any of
+/// the path's vertices: the rest is what the same path carries with the group's colour
+/// black, each vertex on the group weighing what it reflects by `1 -`
+/// [`Bsdf::diffuse_share`] of the direction it arrives from. Its mean is a render with
+/// that colour black, as the two renders it replaces had it: the group's light sent back
+/// to itself by way of other surfaces (a sphere lit by what it reflected onto the floor,
+/// a picture by its frame) is the colour's. The path is [`radiance`]'s, to the bit.
 pub fn radiance_with_diffuse_part(
     scene: &Scene,
     ray: Ray,
@@ -225,15 +226,16 @@ fn path_radiance(
     sampler: &mut Sampler,
     settings: &RenderSettings,
     after_sample: Option<f32>,
-    mut diffuse_first: Option<(u16, &mut Vec3)>,
+    diffuse_of: Option<(u16, &mut Vec3)>,
 ) -> Vec3 {
-    // Where the first vertex is on the group asked for: the diffuse part to add to, the
-    // radiance gathered at that vertex (its own light samples, split as they are taken)
-    // and the diffuse share of the direction its BSDF sample continues in, which every
-    // later contribution arrives by.
-    let mut diffuse_part: Option<&mut Vec3> = None;
-    let mut gathered_first = Vec3::ZERO;
-    let mut share_after_first = Vec3::ZERO;
+    // With `diffuse_of`, the light that does not come by way of that group's diffuse lobe
+    // (`lobe_total`): each contribution times `lobe_fraction`, the product over the
+    // path's vertices on the group so far of `1 - diffuse share` of the direction the
+    // path went on in (the share of the direction a light sample arrives from, for that
+    // sample). Its mean is a render of the same scene with the group's colour black.
+    let split_group = diffuse_of.as_ref().map(|(g, _)| *g);
+    let mut lobe_total = Vec3::ZERO;
+    let mut lobe_fraction = Vec3::ONE;
     let mut total = Vec3::ZERO;
     let mut throughput = Vec3::ONE;
     // The pdf of the BSDF sample that produced `ray`, and whether it was a Dirac sample
@@ -285,17 +287,15 @@ fn path_radiance(
                         }
                         (true, None) => 1.0,
                     };
-                    total += throughput * le * weight;
+                    let light = throughput * le * weight;
+                    total += light;
+                    lobe_total += light * lobe_fraction;
                 }
                 break;
             }
             Surface::Group(g) => g,
         };
-        if let Some((wanted, part)) = diffuse_first.take() {
-            if wanted == group {
-                diffuse_part = Some(part);
-            }
-        }
+        let on_split_group = split_group == Some(group);
         let Some(surface) = scene.materials.get(group as usize) else {
             break;
         };
@@ -322,19 +322,19 @@ fn path_radiance(
                     origin,
                     throughput,
                 };
-                let split = |light: Vec3, wi: Vec3, part: &mut Option<&mut Vec3>| {
-                    if let (0, Some(d)) = (depth, part.as_deref_mut()) {
-                        *d += light * bsdf.diffuse_share(wo, wi);
+                let mut gather = |light: Vec3, wi: Vec3| {
+                    total += light;
+                    if split_group.is_some() {
+                        lobe_total +=
+                            light * lobe_fraction * lobe_share(&bsdf, on_split_group, wo, wi);
                     }
                 };
                 if let Some((light, wi)) = direct_light(scene, &at, &ls) {
-                    total += light;
-                    split(light, wi, &mut diffuse_part);
+                    gather(light, wi);
                 }
                 for mirror in scene.mirror_planes().as_slice() {
                     if let Some((light, wi)) = light_in_mirror(scene, mirror, &at, &ls) {
-                        total += light;
-                        split(light, wi, &mut diffuse_part);
+                        gather(light, wi);
                     }
                 }
             }
@@ -346,9 +346,8 @@ fn path_radiance(
         let Some(sample) = bsdf.sample(wo, u_lobe, u_dir) else {
             break;
         };
-        if depth == 0 && diffuse_part.is_some() {
-            gathered_first = total;
-            share_after_first = bsdf.diffuse_share(wo, sample.wi);
+        if on_split_group {
+            lobe_fraction *= lobe_share(&bsdf, true, wo, sample.wi);
         }
         via_mirror = if sample.delta && !delta && scene.mirror_planes().contains(group) {
             Some((bsdf_pdf, hit.t))
@@ -371,10 +370,21 @@ fn path_radiance(
         }
         ray = Ray::new(origin, sample.wi);
     }
-    if let Some(d) = diffuse_part {
-        *d += (total - gathered_first) * share_after_first;
+    if let Some((_, d)) = diffuse_of {
+        *d += total - lobe_total;
     }
     total
+}
+
+/// What of the light a vertex reflects from `wi` towards `wo` is not its diffuse lobe's:
+/// `1 - Bsdf::diffuse_share` at a vertex on the group being split (`on_group`), all of
+/// it elsewhere.
+fn lobe_share(bsdf: &Bsdf, on_group: bool, wo: Vec3, wi: Vec3) -> Vec3 {
+    if on_group {
+        (Vec3::ONE - bsdf.diffuse_share(wo, wi)).max(Vec3::ZERO)
+    } else {
+        Vec3::ONE
+    }
 }
 
 /// A non-delta path vertex where next-event estimation happens.
@@ -1132,6 +1142,81 @@ pub(crate) mod tests {
         assert!(
             (rest - lobe).abs() < 4.0 * libm::sqrt(rest_se * rest_se + lobe_se * lobe_se),
             "the rest {rest} +- {rest_se}, the tile with a black colour {lobe} +- {lobe_se}"
+        );
+    }
+
+    /// Light the group sends back to itself is its colour's: with the wall beside the tile
+    /// made part of the tile's group (a diffuse wall now, where it was a mirror), what a
+    /// path carries less its diffuse part matches a render with the group's colour black,
+    /// which darkens the wall too. A split at the first vertex alone left the wall's light
+    /// in the lobe's part, 38% over the black render's here.
+    #[test]
+    fn the_diffuse_part_holds_the_light_the_group_sends_back_to_itself() {
+        let glossy = |rho_d: f32| Material::Ward {
+            rho_d: Vec3::splat(rho_d),
+            rho_s: Vec3::splat(0.3),
+            alpha: 0.15,
+        };
+        let settings = RenderSettings {
+            seed: 23,
+            ..RenderSettings::default()
+        };
+        // The tile seen at 45 degrees from the light's side: its highlight is the wall.
+        let ray = || Ray::new(v(0.5, 0.0, 0.5), v(-0.5, 0.0, -0.5).normalize());
+        let n = 100_000;
+        let tile_and_wall = |rho_d: f32| {
+            let mut parts = TileBesideAMirror::new(glossy(rho_d), false);
+            for t in parts.triangles.iter_mut() {
+                if t.surface == Surface::Group(1) {
+                    t.surface = Surface::Group(0);
+                }
+            }
+            parts
+        };
+        let parts = tile_and_wall(0.6);
+        let mut storage = parts.storage();
+        let scene = parts.scene(&mut storage);
+        let (mut totals, mut rest) = (Vec::new(), Vec::new());
+        for k in 0..n {
+            let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+            let (total, part) =
+                radiance_with_diffuse_part(&scene, ray(), &mut sampler, &settings, 0);
+            totals.push(total.y as f64);
+            rest.push((total - part).y as f64);
+        }
+        let black_parts = tile_and_wall(0.0);
+        let mut black_storage = black_parts.storage();
+        let black = black_parts.scene(&mut black_storage);
+        let (lobe, lobe_se) = mean_and_standard_error((0..n).map(|k| {
+            let mut sampler = Sampler::for_pixel_sample(settings.seed + 1, 0, k, 0);
+            radiance(&black, ray(), &mut sampler, &settings).y as f64
+        }));
+        let (rest, rest_se) = mean_and_standard_error(rest.into_iter());
+        let (total, _) = mean_and_standard_error(totals.into_iter());
+        assert!(
+            lobe > 0.05 * total,
+            "the lobe must be in view: {lobe} of {total}"
+        );
+        assert!(
+            (rest - lobe).abs() < 4.0 * libm::sqrt(rest_se * rest_se + lobe_se * lobe_se),
+            "the rest {rest} +- {rest_se}, the group with a black colour {lobe} +- {lobe_se}"
+        );
+
+        // What the tile's lobe reflects of the wall's colour: the light a split at the
+        // first vertex alone counted in the lobe's part. It must stand well above the
+        // noise, or the test above could not tell the two splits apart.
+        let mut lit_wall = TileBesideAMirror::new(glossy(0.0), false);
+        lit_wall.materials[1].material = glossy(0.6);
+        let mut lit_storage = lit_wall.storage();
+        let lit = lit_wall.scene(&mut lit_storage);
+        let (with_wall, with_wall_se) = mean_and_standard_error((0..n).map(|k| {
+            let mut sampler = Sampler::for_pixel_sample(settings.seed + 2, 0, k, 0);
+            radiance(&lit, ray(), &mut sampler, &settings).y as f64
+        }));
+        let wall = with_wall - lobe;
+        assert!(
+            wall > 8.0 * libm::sqrt(with_wall_se * with_wall_se + lobe_se * lobe_se),
+            "the wall's light by way of the tile's lobe {wall}, tile {total}"
         );
     }
 

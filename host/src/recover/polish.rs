@@ -130,11 +130,10 @@ pub(super) fn polish_colours(
 /// pixels that also tells, sample by sample, what the lobe reflects there. `None` when no
 /// diffuse part is left to scale.
 ///
-/// The lobe's part comes from the same paths as the whole (split at the group by the
-/// diffuse lobe's share of each direction light arrives from), not from a second render
-/// with the colour at black, which cost as much again. The two differ by the light the
-/// group sends back to itself by way of other surfaces; that changes the step's size, not
-/// where the colour settles (where the render matches the panorama, the colour stays).
+/// The lobe's part comes from the same paths as the whole (split at each of the group's
+/// vertices by the diffuse lobe's share of the direction light arrives from,
+/// `render::radiance_with_diffuse_part`), not from a second render with the colour at
+/// black, which cost as much again; its mean is that render's.
 fn plastic_colour_step(
     rec: &mut Recovery,
     g: usize,
