@@ -385,8 +385,8 @@ pub fn evaluate(
 }
 
 /// Like [`evaluate`], the same fits to the bit, and beside them the fits of the part of
-/// each pixel's radiance that its group's diffuse lobe does not reflect, from the same
-/// samples (the radiance less that diffuse part,
+/// each pixel's radiance that does not come by way of its group's diffuse lobe, from the
+/// same samples (the radiance less that diffuse part,
 /// [`render::render_pixel_with_diffuse_part`]): what the lobe reflects there.
 pub fn evaluate_with_lobe_part(
     pool: &rayon::ThreadPool,
@@ -582,6 +582,27 @@ pub fn render_pixels(
     map_in_order(pool, pixels, |p| {
         let view = &views[p.view as usize];
         render::render_pixel(scene, view, p.view, p.x, p.y, settings)
+    })
+}
+
+/// Each of `pixels`, in order, rendered as [`render_pixels`] renders it (the same bits),
+/// and beside it the part of its radiance that comes by way of group `g`'s diffuse lobe
+/// ([`render::render_pixel_with_diffuse_part`]): what scales with `g`'s colour, where the
+/// pixel sees `g` (on `g`'s border, the share of the footprint `g` covers) and where it
+/// sees what `g` lights.
+pub fn render_pixels_with_diffuse_part(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    views: &[View],
+    pixels: &[PurePixel],
+    settings: &RenderSettings,
+    g: u16,
+) -> Vec<(Vec3, Vec3)> {
+    map_in_order(pool, pixels, |p| {
+        let view = &views[p.view as usize];
+        let (value, _, diffuse) =
+            render::render_pixel_with_diffuse_part(scene, view, p.view, p.x, p.y, settings, g);
+        (value, diffuse)
     })
 }
 

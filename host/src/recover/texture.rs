@@ -308,9 +308,9 @@ enum Highlights {
     Kept,
 }
 
-/// The renders a map is solved from, per pixel of `MapSolve::pixels`: the group under a
-/// constant map (`MapSolve::start`) and under a black one (its lobe alone), on the same
-/// paths.
+/// The render a map is solved from, per pixel of `MapSolve::pixels`: the group under a
+/// constant map (`MapSolve::start`), and the part of it that is not the map's (the lobe's,
+/// and whatever else the pixel sees), from the same samples.
 struct Observed {
     full: Vec<Vec3>,
     specular: Vec<Vec3>,
@@ -328,19 +328,36 @@ struct Solved {
 }
 
 impl MapSolve<'_> {
-    /// Renders the group under the constant map and under the lobe alone: what E and
-    /// the specular part come from, for the lobe the group has now.
+    /// Renders the group under the constant map, splitting each pixel's light into what
+    /// the map reflects where the pixel's rays meet the group and the rest (its lobe's,
+    /// and the light of whatever else the pixel sees): what E and the specular part come
+    /// from, for the lobe the group has now. One render, where a second of the same pixels
+    /// with a black map took as long again (docs/recovery.md, "Stage 5 from one render").
     fn observe(&self, rec: &mut Recovery) -> Result<Observed, Error> {
         let (map, pixels) = (self.map, self.pixels);
         rec.maps[map] = RecoveredMap {
             side: 1,
             texels: vec![self.start],
         };
-        let settings_seed = self.seed ^ 0x7E47;
-        let full = render_once(rec, pixels, self.spp, settings_seed)?;
-        // The specular part alone: the same paths (same seed) with a black map.
-        rec.maps[map].texels[0] = Vec3::ZERO;
-        let specular = render_once(rec, pixels, self.spp, settings_seed)?;
+        let g = self.g as u16;
+        let split = rec.with_scene(
+            self.spp,
+            self.seed ^ 0x7E47,
+            |pool, scene, observed, settings| {
+                pixels::render_pixels_with_diffuse_part(
+                    pool,
+                    scene,
+                    observed.views,
+                    pixels,
+                    settings,
+                    g,
+                )
+            },
+        )?;
+        let (full, specular) = split
+            .into_iter()
+            .map(|(value, diffuse)| (value, (value - diffuse).max(Vec3::ZERO)))
+            .unzip();
         Ok(Observed { full, specular })
     }
 
@@ -510,17 +527,6 @@ fn lobe_with_map(
         sse_before: sums_at(roughness).sse(specularity),
         sse_after,
     }))
-}
-
-fn render_once(
-    rec: &mut Recovery,
-    pixels: &[PurePixel],
-    spp: u32,
-    seed: u64,
-) -> Result<Vec<Vec3>, Error> {
-    rec.with_scene(spp, seed, |pool, scene, observed, settings| {
-        pixels::render_pixels(pool, scene, observed.views, pixels, settings)
-    })
 }
 
 /// The texture coordinates of group `g` as an affine function of the surface point,
