@@ -119,14 +119,11 @@ fn pixel_moments(
     settings: &RenderSettings,
     split: Option<u16>,
 ) -> (Vec3, Vec3, Vec3) {
-    let pixel = y * view.width + x;
     let mut sum = Vec3::ZERO;
     let mut sum_sq = Vec3::ZERO;
     let mut sum_diffuse = Vec3::ZERO;
     for s in 0..settings.spp {
-        let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, s);
-        let [jx, jy] = sampler.next_2d();
-        let ray = view.ray(x as f32 + jx, y as f32 + jy);
+        let (ray, mut sampler) = camera_sample(view, view_index, x, y, settings.seed, s);
         let l = match split {
             Some(group) => {
                 let (l, diffuse) =
@@ -147,6 +144,46 @@ fn pixel_moments(
         Vec3::ZERO
     };
     (mean, variance, sum_diffuse / n)
+}
+
+/// Sample `s` of pixel `(x, y)`: its ray through a jittered point of the pixel, and the
+/// sampler the rest of its path draws from.
+fn camera_sample(
+    view: &View,
+    view_index: u32,
+    x: u32,
+    y: u32,
+    seed: u64,
+    s: u32,
+) -> (Ray, Sampler) {
+    let mut sampler = Sampler::for_pixel_sample(seed, view_index, y * view.width + x, s);
+    let [jx, jy] = sampler.next_2d();
+    (view.ray(x as f32 + jx, y as f32 + jy), sampler)
+}
+
+/// [`render_pixel`], the same bits, and into `gradient` (one entry per group, which it
+/// overwrites) the derivative of the pixel's radiance with respect to the log of each
+/// group's diffuse colour, from the same samples ([`radiance_with_colour_gradient`]).
+pub fn render_pixel_with_colour_gradient(
+    scene: &Scene,
+    view: &View,
+    view_index: u32,
+    x: u32,
+    y: u32,
+    settings: &RenderSettings,
+    gradient: &mut [Vec3],
+) -> Vec3 {
+    gradient.fill(Vec3::ZERO);
+    let mut sum = Vec3::ZERO;
+    for s in 0..settings.spp {
+        let (ray, mut sampler) = camera_sample(view, view_index, x, y, settings.seed, s);
+        sum += radiance_with_colour_gradient(scene, ray, &mut sampler, settings, gradient);
+    }
+    let n = settings.spp.max(1) as f32;
+    for d in gradient.iter_mut() {
+        *d /= n;
+    }
+    sum / n
 }
 
 /// Renders rows `rows` of a view into `out` (row-major, `width` pixels a row).
@@ -171,7 +208,62 @@ pub fn render_rows(
 
 /// Radiance arriving along `ray`, estimated with one path.
 pub fn radiance(scene: &Scene, ray: Ray, sampler: &mut Sampler, settings: &RenderSettings) -> Vec3 {
-    path_radiance(scene, ray, sampler, settings, None, None)
+    path_radiance(scene, ray, sampler, settings, None, None, None)
+}
+
+/// [`radiance`], the same bits, and added to `gradient[h]` the derivative of this sample
+/// with respect to `ln rho_h`, the log of group `h`'s diffuse colour (a map's scale, for a
+/// textured group), for every group `h < gradient.len()`. A reflection's `f` responds to
+/// it by its diffuse share (`d ln f / d ln rho_d = (rho_d / pi) / f`,
+/// [`Bsdf::diffuse_share`]), so each contribution adds itself times the diffuse share of
+/// every vertex on `h` it came by. The sampling is held as it is, which leaves the
+/// estimate unbiased: its mean is the derivative of the pixel's mean. One render gives the
+/// response of every pixel to every colour, where finite differences took a render per
+/// colour.
+pub fn radiance_with_colour_gradient(
+    scene: &Scene,
+    ray: Ray,
+    sampler: &mut Sampler,
+    settings: &RenderSettings,
+    gradient: &mut [Vec3],
+) -> Vec3 {
+    let mut path = GradientPath {
+        gradient,
+        vertices: [(0, Vec3::ZERO); config::MAX_PATH_DEPTH as usize],
+        len: 0,
+    };
+    path_radiance(scene, ray, sampler, settings, None, None, Some(&mut path))
+}
+
+/// The colour gradient of one path ([`radiance_with_colour_gradient`]): the vertices so
+/// far whose diffuse lobe carries the light that follows them, each with its group and
+/// the diffuse share of the direction the path went on in.
+struct GradientPath<'g> {
+    gradient: &'g mut [Vec3],
+    vertices: [(u16, Vec3); config::MAX_PATH_DEPTH as usize],
+    len: usize,
+}
+
+impl GradientPath<'_> {
+    /// Adds `light`, which came by way of the vertices so far and, when `last` is given,
+    /// a last reflection at a vertex of that group and diffuse share.
+    fn add(&mut self, light: Vec3, last: Option<(u16, Vec3)>) {
+        let vertices = self.vertices.get(..self.len).unwrap_or_default();
+        for &(group, share) in vertices.iter().chain(last.iter()) {
+            if let Some(d) = self.gradient.get_mut(group as usize) {
+                *d += light * share;
+            }
+        }
+    }
+
+    /// The path went on from a vertex of `group` whose diffuse lobe carries `share` of
+    /// what follows.
+    fn push(&mut self, group: u16, share: Vec3) {
+        if let Some(v) = self.vertices.get_mut(self.len) {
+            *v = (group, share);
+            self.len += 1;
+        }
+    }
 }
 
 /// [`radiance`] and the part of it that comes by way of `group`'s diffuse lobe, at any of
@@ -196,6 +288,7 @@ pub fn radiance_with_diffuse_part(
         settings,
         None,
         Some((group, &mut diffuse)),
+        None,
     );
     (total, diffuse)
 }
@@ -212,7 +305,7 @@ pub fn radiance_after_sample(
     settings: &RenderSettings,
     pdf: f32,
 ) -> Vec3 {
-    path_radiance(scene, ray, sampler, settings, Some(pdf), None)
+    path_radiance(scene, ray, sampler, settings, Some(pdf), None, None)
 }
 
 /// One path's radiance along `ray`; `after_sample` is the pdf of the non-delta sample
@@ -227,6 +320,7 @@ fn path_radiance(
     settings: &RenderSettings,
     after_sample: Option<f32>,
     diffuse_of: Option<(u16, &mut Vec3)>,
+    mut gradient: Option<&mut GradientPath>,
 ) -> Vec3 {
     // With `diffuse_of`, the light that does not come by way of that group's diffuse lobe
     // (`lobe_total`): each contribution times `lobe_fraction`, the product over the
@@ -290,6 +384,9 @@ fn path_radiance(
                     let light = throughput * le * weight;
                     total += light;
                     lobe_total += light * lobe_fraction;
+                    if let Some(path) = gradient.as_deref_mut() {
+                        path.add(light, None);
+                    }
                 }
                 break;
             }
@@ -328,6 +425,9 @@ fn path_radiance(
                         lobe_total +=
                             light * lobe_fraction * lobe_share(&bsdf, on_split_group, wo, wi);
                     }
+                    if let Some(path) = gradient.as_deref_mut() {
+                        path.add(light, Some((group, bsdf.diffuse_share(wo, wi))));
+                    }
                 };
                 if let Some((light, wi)) = direct_light(scene, &at, &ls) {
                     gather(light, wi);
@@ -348,6 +448,12 @@ fn path_radiance(
         };
         if on_split_group {
             lobe_fraction *= lobe_share(&bsdf, true, wo, sample.wi);
+        }
+        if let Some(path) = gradient.as_deref_mut() {
+            let share = bsdf.diffuse_share(wo, sample.wi);
+            if share != Vec3::ZERO {
+                path.push(group, share);
+            }
         }
         via_mirror = if sample.delta && !delta && scene.mirror_planes().contains(group) {
             Some((bsdf_pdf, hit.t))
@@ -1218,6 +1324,86 @@ pub(crate) mod tests {
             wall > 8.0 * libm::sqrt(with_wall_se * with_wall_se + lobe_se * lobe_se),
             "the wall's light by way of the tile's lobe {wall}, tile {total}"
         );
+    }
+
+    /// The colour gradient is each colour's derivative. The tile (glossy) beside a diffuse
+    /// wall (group 1, where the mirror was): neither sees itself, so the pixel is linear in
+    /// the wall's colour and nearly so in the tile's, and `d R / d ln rho` of each is the
+    /// pixel less the pixel with that colour black, rendered on independent samples.
+    #[test]
+    fn the_colour_gradient_is_what_each_colour_adds() {
+        let glossy = |rho_d: f32| Material::Ward {
+            rho_d: Vec3::splat(rho_d),
+            rho_s: Vec3::splat(0.1),
+            alpha: 0.15,
+        };
+        let settings = RenderSettings {
+            seed: 29,
+            ..RenderSettings::default()
+        };
+        let ray = || Ray::new(v(0.5, 0.0, 0.5), v(-0.5, 0.0, -0.5).normalize());
+        let n = 100_000;
+        let tile_by_a_wall = |tile: f32, wall: f32| {
+            let mut parts = TileBesideAMirror::new(glossy(tile), false);
+            parts.materials[1].material = Material::Diffuse {
+                rho_d: Vec3::splat(wall),
+            };
+            parts
+        };
+        let render_mean = |parts: &TileBesideAMirror, seed: u64| {
+            let mut storage = parts.storage();
+            let scene = parts.scene(&mut storage);
+            mean_and_standard_error((0..n).map(|k| {
+                let mut sampler = Sampler::for_pixel_sample(seed, 0, k, 0);
+                radiance(&scene, ray(), &mut sampler, &settings).y as f64
+            }))
+        };
+        let parts = tile_by_a_wall(0.4, 0.6);
+        let mut storage = parts.storage();
+        let scene = parts.scene(&mut storage);
+        let mut per_group: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+        for k in 0..n {
+            // Two entries: group 1 is the wall; a third would stay zero.
+            let mut gradient = [Vec3::ZERO; 3];
+            let mut sampler = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+            let total = radiance_with_colour_gradient(
+                &scene,
+                ray(),
+                &mut sampler,
+                &settings,
+                &mut gradient,
+            );
+            let mut again = Sampler::for_pixel_sample(settings.seed, 0, k, 0);
+            let plain = radiance(&scene, ray(), &mut again, &settings);
+            assert_eq!(
+                total.to_array().map(f32::to_bits),
+                plain.to_array().map(f32::to_bits)
+            );
+            assert_eq!(gradient[2], Vec3::ZERO);
+            for (g, values) in per_group.iter_mut().enumerate() {
+                values.push(gradient[g].y as f64);
+            }
+        }
+        let (all, all_se) = render_mean(&parts, settings.seed + 1);
+        for (g, black) in [tile_by_a_wall(0.0, 0.6), tile_by_a_wall(0.4, 0.0)]
+            .iter()
+            .enumerate()
+        {
+            let (gradient, gradient_se) =
+                mean_and_standard_error(core::mem::take(&mut per_group[g]).into_iter());
+            let (without, without_se) = render_mean(black, settings.seed + 2 + g as u64);
+            let added = all - without;
+            let se =
+                libm::sqrt(gradient_se * gradient_se + all_se * all_se + without_se * without_se);
+            assert!(
+                added > 10.0 * se,
+                "group {g} must add light: {added} +- {se}"
+            );
+            assert!(
+                (gradient - added).abs() < 4.0 * se,
+                "group {g}: gradient {gradient} +- {gradient_se}, what its colour adds {added} +- {se}"
+            );
+        }
     }
 
     /// A group made a mirror over storage built while it was diffuse is sampled through

@@ -640,21 +640,21 @@ const POLISH_MIN_SAMPLES: u64 = 1 << 19;
 const VIEW_MIN_SAMPLES: u64 = 1 << 19;
 
 /// The diffuse refinement's last step is a Newton step: besides its render at
-/// [`POLISH_SPP_FACTOR`] times the samples, it renders at the loop's samples once as the
-/// colours are and once with each diffuse group's colour this much higher, on the same
-/// samples, for the matrix of how every group's mean responds to every colour
-/// (`stage1::newton_steps`). The plain ratio step treats each group alone, but groups
-/// light each other: on textured at 256 px the iteration ended with the floor, walls and
-/// ceiling all 0.1-0.3% bright, each of their renders moved 1.7-2.7 times as much as the
-/// colours did together, and the ratio step left them 0.2-0.6% dark (every view of the
-/// final render 0.15-0.5% dark, 4-6 standard errors; docs/recovery.md, "The diffuse
-/// polish"). A change of 5% is far above the noise of the difference of two renders on
-/// the same samples, and small enough to measure the local response.
-const POLISH_RESPONSE_STEP: f64 = 0.05;
-
-/// The most diffuse groups the polish takes a Newton step for: it renders once per group,
-/// and a scene with many diffuse groups (up to `MAX_GROUPS`) takes the ratio step instead
-/// rather than more renders than its whole iteration. The references have 4-7.
+/// [`POLISH_SPP_FACTOR`] times the samples, it renders once at the loop's samples with
+/// every pixel's derivative with respect to every diffuse group's log colour
+/// (`render::radiance_with_colour_gradient`), for the matrix of how every group's mean
+/// responds to every colour (`stage1::newton_steps`). The plain ratio step treats each
+/// group alone, but groups light each other: on textured at 256 px the iteration ended
+/// with the floor, walls and ceiling all 0.1-0.3% bright, each of their renders moved
+/// 1.7-2.7 times as much as the colours did together, and the ratio step left them
+/// 0.2-0.6% dark (every view of the final render 0.15-0.5% dark, 4-6 standard errors;
+/// docs/recovery.md, "The diffuse polish"). The matrix took a render per group, each
+/// colour raised 5% on the same samples, before "Colour gradients in one render".
+///
+/// The most diffuse groups the polish takes a Newton step for: past them, the ratio step.
+/// The matrix has a row and a column per group, each measured on the group's share of the
+/// polish's pixels; the references have 4-7 diffuse groups, and larger matrices were
+/// measured only by finite differences, when a render per group made them costly.
 const POLISH_NEWTON_MAX_GROUPS: usize = 32;
 
 /// Pure pixels per group that the renders of the diffuse iteration and its polish step

@@ -417,6 +417,73 @@ pub fn evaluate_with_lobe_part(
     both.into_iter().unzip()
 }
 
+/// A group's fit (its render without variance) and, per group `h`, the sum over its
+/// pixels of the derivative of the rendered value with respect to `ln rho_h`, the log of
+/// `h`'s diffuse colour ([`evaluate_with_colour_gradients`]).
+#[derive(Clone, Debug, Default)]
+pub struct GradientFit {
+    pub fit: GroupFit,
+    /// Per group `h`, per channel; empty for a group with no pixel.
+    pub gradient: Vec<[f64; 3]>,
+}
+
+impl GradientFit {
+    fn add_gradient(&mut self, gradient: &[[f64; 3]]) {
+        if self.gradient.len() < gradient.len() {
+            self.gradient.resize(gradient.len(), [0.0; 3]);
+        }
+        for (sum, d) in self.gradient.iter_mut().zip(gradient) {
+            for c in 0..3 {
+                sum[c] += d[c];
+            }
+        }
+    }
+}
+
+/// Renders the pure pixels of the groups `wanted` once, each with the derivative of its
+/// value with respect to every group's log colour from the same samples
+/// ([`render::render_pixel_with_colour_gradient`]), and sums both by group: how each
+/// group's render responds to each colour, where a render per colour took finite
+/// differences.
+pub fn evaluate_with_colour_gradients(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    observed: Observed,
+    settings: &RenderSettings,
+    n_groups: usize,
+    wanted: &(dyn Fn(u16) -> bool + Sync),
+) -> Vec<GradientFit> {
+    let Observed { views, real, pure } = observed;
+    sum_by_group(
+        pool,
+        pure,
+        n_groups,
+        wanted,
+        |p| {
+            let view = &views[p.view as usize];
+            let mut gradient = vec![Vec3::ZERO; n_groups];
+            let value = render::render_pixel_with_colour_gradient(
+                scene,
+                view,
+                p.view,
+                p.x,
+                p.y,
+                settings,
+                &mut gradient,
+            );
+            let gradient: Vec<[f64; 3]> = gradient
+                .iter()
+                .map(|d| d.to_array().map(f64::from))
+                .collect();
+            (real_value(real, views, p), value, gradient)
+        },
+        |(t, value, gradient), fit: &mut GradientFit| {
+            fit.fit.add(t, value, Vec3::ZERO);
+            fit.add_gradient(&gradient);
+        },
+    )
+}
+
 /// A group's sums, which [`sum_by_group`] adds up part by part in a fixed order.
 trait Sums: Default + Clone {
     fn merge(&mut self, other: &Self);
@@ -425,6 +492,13 @@ trait Sums: Default + Clone {
 impl Sums for GroupFit {
     fn merge(&mut self, other: &Self) {
         GroupFit::merge(self, other);
+    }
+}
+
+impl Sums for GradientFit {
+    fn merge(&mut self, other: &Self) {
+        self.fit.merge(&other.fit);
+        self.add_gradient(&other.gradient);
     }
 }
 

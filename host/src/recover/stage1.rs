@@ -11,7 +11,7 @@ use super::model::{GroupModel, NEUTRAL_STAND_IN};
 use super::warnings::brighter_at_bound;
 use super::{
     min_samples_spp, pixels, progress_bar, GroupReport, Recovery, StageReport, CACHE_MIN_SAMPLES,
-    POLISH_MIN_SAMPLES, POLISH_NEWTON_MAX_GROUPS, POLISH_RESPONSE_STEP, POLISH_SPP_FACTOR,
+    POLISH_MIN_SAMPLES, POLISH_NEWTON_MAX_GROUPS, POLISH_SPP_FACTOR,
 };
 use crate::error::Error;
 use crate::text::counted;
@@ -382,8 +382,7 @@ pub(super) fn refine_diffuse_groups(
     let (fits, group_spp, renders) = polish_fits(rec, &subset, polish_spp, polish_seed, &active)?;
     evaluations += renders;
     // A Newton step on how every group's render responds to each group's colour (see
-    // POLISH_RESPONSE_STEP); more groups than POLISH_NEWTON_MAX_GROUPS take the ratio
-    // step: a render each would cost more than the iteration did.
+    // POLISH_NEWTON_MAX_GROUPS, past which the ratio step is taken).
     // The diffuse groups the polish renders, with their colours.
     let groups: Vec<(usize, [f64; 3])> = (0..fits.len())
         .filter_map(|g| match rec.models[g] {
@@ -394,10 +393,9 @@ pub(super) fn refine_diffuse_groups(
     let indices: Vec<usize> = groups.iter().map(|&(g, _)| g).collect();
     let newton = groups.len() <= POLISH_NEWTON_MAX_GROUPS;
     let steps = if newton {
-        let (unraised, responses) =
-            polish_responses(rec, &groups, &subset, spp, polish_seed, &wanted)?;
-        evaluations += 1 + responses.len() as u32;
-        newton_steps(&indices, &fits, &unraised, &responses)
+        let gradients = colour_gradients(rec, &subset, spp, polish_seed, &wanted)?;
+        evaluations += 1;
+        newton_steps(&indices, &fits, &gradients)
     } else {
         [None, None, None]
     };
@@ -468,64 +466,47 @@ fn polish_fits(
     Ok((fits, group_spp, renders))
 }
 
-/// One group's response for the polish's Newton step: its colour, the colour raised, and
-/// every group's fit with it raised.
-type Response = ([f64; 3], [f64; 3], Vec<fit::GroupFit>);
-
-/// What the polish's Newton step measures, at `spp` on `seed` over `subset`: every
-/// group's fit with the colours as they are, and per diffuse group of `groups` (index and
-/// colour) its colour, the colour raised by `POLISH_RESPONSE_STEP` and every group's fit
-/// with it raised (the same samples, so the differences hold little noise). `rec`'s
-/// models are left as they were.
-fn polish_responses(
+/// Every group's fit over `subset` at `spp` on `seed`, with how its render responds to
+/// each group's colour, from one render ([`pixels::evaluate_with_colour_gradients`]).
+fn colour_gradients(
     rec: &mut Recovery,
-    groups: &[(usize, [f64; 3])],
     subset: &[pixels::PurePixel],
     spp: u32,
     seed: u64,
     wanted: &(dyn Fn(u16) -> bool + Sync),
-) -> Result<(Vec<fit::GroupFit>, Vec<Response>), Error> {
-    let unraised = rec.evaluate_pixels(subset, spp, seed, wanted)?;
-    let mut responses = Vec::with_capacity(groups.len());
-    for &(h, color) in groups {
-        let raised =
-            color.map(|c| (c * (1.0 + POLISH_RESPONSE_STEP)).min(diffuse::MAX_DIFFUSE_REFLECTANCE));
-        rec.models[h] = GroupModel::Diffuse { color: raised };
-        let fits_raised = rec.evaluate_pixels(subset, spp, seed, wanted);
-        rec.models[h] = GroupModel::Diffuse { color };
-        responses.push((color, raised, fits_raised?));
-    }
-    Ok((unraised, responses))
+) -> Result<Vec<pixels::GradientFit>, Error> {
+    let n = rec.n_groups();
+    rec.with_scene(spp, seed, |pool, scene, observed, settings| {
+        let observed = pixels::Observed {
+            pure: subset,
+            ..observed
+        };
+        pixels::evaluate_with_colour_gradients(pool, scene, observed, settings, n, wanted)
+    })
 }
 
 /// The polish's Newton step per channel: the change of each group's log colour (in the
 /// order of `groups`) that brings every group's rendered mean to the panorama's, from the
-/// log ratios of `fits` and the response matrix `J[g][h] = d ln R_g / d ln rho_h` that
-/// `responses` measured (group `h`'s colour and raised colour, and the fits with it
-/// raised) against `unraised` (the same samples, every colour as it is). `None` for a
+/// log ratios of `fits` and the response matrix `J[g][h] = d ln R_g / d ln rho_h` of
+/// `gradients` (group `g`'s summed derivatives over its summed render). `None` for a
 /// channel whose matrix cannot be inverted or whose step is not finite; the caller then
 /// takes the plain ratio step.
 fn newton_steps(
     groups: &[usize],
     fits: &[fit::GroupFit],
-    unraised: &[fit::GroupFit],
-    responses: &[Response],
+    gradients: &[pixels::GradientFit],
 ) -> [Option<Vec<f64>>; 3] {
     core::array::from_fn(|c| {
-        if responses.len() != groups.len() {
-            return None;
-        }
         let log = |v: f64| (v > 0.0).then(|| libm::log(v));
         let mut jacobian = vec![vec![0.0; groups.len()]; groups.len()];
-        for (col, (color, raised, raised_fits)) in responses.iter().enumerate() {
-            let step = log(raised[c] / color[c])?;
-            if step <= 0.0 {
+        for (row, &g) in groups.iter().enumerate() {
+            let at = gradients.get(g)?;
+            let rendered = at.fit.sum_rendered[c];
+            if rendered.is_nan() || rendered <= 0.0 {
                 return None;
             }
-            for (row, &g) in groups.iter().enumerate() {
-                let moved =
-                    log(raised_fits[g].mean_rendered()[c] / unraised[g].mean_rendered()[c])?;
-                jacobian[row][col] = moved / step;
+            for (col, &h) in groups.iter().enumerate() {
+                jacobian[row][col] = at.gradient.get(h)?[c] / rendered;
             }
         }
         let inverse = super::uncertainty::invert(&jacobian)?;
@@ -570,15 +551,14 @@ mod tests {
         let colour = [truth[0] * 1.02, truth[1] * 1.02];
         let real = [render(truth, 0), render(truth, 1)];
         let fits: Vec<fit::GroupFit> = (0..2).map(|g| fit_of(real[g], render(colour, g))).collect();
-        let responses: Vec<Response> = (0..2)
-            .map(|h| {
-                let mut raised = colour;
-                raised[h] *= 1.0 + POLISH_RESPONSE_STEP;
-                let fits_raised = (0..2).map(|g| fit_of(real[g], render(raised, g))).collect();
-                ([colour[h]; 3], [raised[h]; 3], fits_raised)
+        // d R_g / d ln rho_h = J[g][h] R_g, as a render's colour gradient measures it.
+        let gradients: Vec<pixels::GradientFit> = (0..2)
+            .map(|g| pixels::GradientFit {
+                fit: fits[g],
+                gradient: (0..2).map(|h| [j[g][h] * render(colour, g); 3]).collect(),
             })
             .collect();
-        let steps = newton_steps(&[0, 1], &fits, &fits, &responses);
+        let steps = newton_steps(&[0, 1], &fits, &gradients);
         for channel in &steps {
             let step = channel.as_ref().expect("an invertible response");
             for g in 0..2 {
@@ -599,16 +579,25 @@ mod tests {
         );
     }
 
-    /// A response that does not depend on a group's colour (a singular matrix) leaves the
-    /// caller the ratio step rather than a step to infinity.
+    /// A response that tells the groups' colours apart nowhere (a singular matrix), or a
+    /// group with no measured response, leaves the caller the ratio step rather than a
+    /// step to infinity.
     #[test]
     fn a_singular_response_falls_back_to_the_ratio_step() {
         let fits = vec![fit_of(1.0, 1.1), fit_of(2.0, 2.1)];
-        let responses: Vec<Response> = (0..2)
-            .map(|_| ([0.5; 3], [0.525; 3], fits.clone()))
+        let alike: Vec<pixels::GradientFit> = fits
+            .iter()
+            .map(|f| pixels::GradientFit {
+                fit: *f,
+                gradient: vec![f.sum_rendered; 2],
+            })
             .collect();
+        assert_eq!(newton_steps(&[0, 1], &fits, &alike), [None, None, None]);
+        let mut unmeasured = alike.clone();
+        unmeasured[0].gradient.clear();
+        unmeasured[1].gradient = vec![[2.1, 0.0, 0.0], [0.0; 3]];
         assert_eq!(
-            newton_steps(&[0, 1], &fits, &fits, &responses),
+            newton_steps(&[0, 1], &fits, &unmeasured),
             [None, None, None]
         );
     }
