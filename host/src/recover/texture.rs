@@ -329,10 +329,11 @@ struct Solved {
 
 impl MapSolve<'_> {
     /// Renders the group under the constant map, splitting each pixel's light into what
-    /// the map reflects where the pixel's rays meet the group and the rest (its lobe's,
-    /// and the light of whatever else the pixel sees): what E and the specular part come
-    /// from, for the lobe the group has now. One render, where a second of the same pixels
-    /// with a black map took as long again (docs/recovery.md, "Stage 5 from one render").
+    /// comes by way of the map (at any vertex on the group: the frame a picture lights
+    /// lights it back) and the rest (its lobe's, and the light of whatever else the pixel
+    /// sees): what E and the specular part come from, for the lobe the group has now. One
+    /// render, where a second of the same pixels with a black map took as long again
+    /// (docs/recovery.md, "Stage 5 from one render").
     fn observe(&self, rec: &mut Recovery) -> Result<Observed, Error> {
         let (map, pixels) = (self.map, self.pixels);
         rec.maps[map] = RecoveredMap {
