@@ -1189,11 +1189,7 @@ pub(crate) mod tests {
     /// radiance the same bits as [`radiance`]'s.
     #[test]
     fn the_diffuse_part_of_a_path_is_the_diffuse_lobes_light() {
-        let glossy = |rho_d: f32| Material::Ward {
-            rho_d: Vec3::splat(rho_d),
-            rho_s: Vec3::splat(0.1),
-            alpha: 0.15,
-        };
+        let glossy = |rho_d: f32| ward_tile(rho_d, 0.1);
         let settings = RenderSettings {
             seed: 17,
             ..RenderSettings::default()
@@ -1251,6 +1247,38 @@ pub(crate) mod tests {
         );
     }
 
+    /// A Ward plastic of diffuse colour `rho_d` and specularity `rho_s`, roughness 0.15.
+    fn ward_tile(rho_d: f32, rho_s: f32) -> Material {
+        Material::Ward {
+            rho_d: Vec3::splat(rho_d),
+            rho_s: Vec3::splat(rho_s),
+            alpha: 0.15,
+        }
+    }
+
+    /// A camera ray at the tile's centre, 45 degrees from the light's side: the tile's
+    /// highlight is the wall.
+    fn tile_at_45_degrees() -> Ray {
+        Ray::new(v(0.5, 0.0, 0.5), v(-0.5, 0.0, -0.5).normalize())
+    }
+
+    /// The mean green radiance along `ray` in `parts`' scene over `n` paths drawn on
+    /// `seed`, and its standard error.
+    fn mean_radiance(
+        parts: &TileBesideAMirror,
+        ray: Ray,
+        settings: &RenderSettings,
+        seed: u64,
+        n: u32,
+    ) -> (f64, f64) {
+        let mut storage = parts.storage();
+        let scene = parts.scene(&mut storage);
+        mean_and_standard_error((0..n).map(|k| {
+            let mut sampler = Sampler::for_pixel_sample(seed, 0, k, 0);
+            radiance(&scene, ray, &mut sampler, settings).y as f64
+        }))
+    }
+
     /// Light the group sends back to itself is its colour's: with the wall beside the tile
     /// made part of the tile's group (a diffuse wall now, where it was a mirror), what a
     /// path carries less its diffuse part matches a render with the group's colour black,
@@ -1258,17 +1286,12 @@ pub(crate) mod tests {
     /// in the lobe's part, 38% over the black render's here.
     #[test]
     fn the_diffuse_part_holds_the_light_the_group_sends_back_to_itself() {
-        let glossy = |rho_d: f32| Material::Ward {
-            rho_d: Vec3::splat(rho_d),
-            rho_s: Vec3::splat(0.3),
-            alpha: 0.15,
-        };
+        let glossy = |rho_d: f32| ward_tile(rho_d, 0.3);
         let settings = RenderSettings {
             seed: 23,
             ..RenderSettings::default()
         };
-        // The tile seen at 45 degrees from the light's side: its highlight is the wall.
-        let ray = || Ray::new(v(0.5, 0.0, 0.5), v(-0.5, 0.0, -0.5).normalize());
+        let ray = tile_at_45_degrees;
         let n = 100_000;
         let tile_and_wall = |rho_d: f32| {
             let mut parts = TileBesideAMirror::new(glossy(rho_d), false);
@@ -1290,13 +1313,8 @@ pub(crate) mod tests {
             totals.push(total.y as f64);
             rest.push((total - part).y as f64);
         }
-        let black_parts = tile_and_wall(0.0);
-        let mut black_storage = black_parts.storage();
-        let black = black_parts.scene(&mut black_storage);
-        let (lobe, lobe_se) = mean_and_standard_error((0..n).map(|k| {
-            let mut sampler = Sampler::for_pixel_sample(settings.seed + 1, 0, k, 0);
-            radiance(&black, ray(), &mut sampler, &settings).y as f64
-        }));
+        let (lobe, lobe_se) =
+            mean_radiance(&tile_and_wall(0.0), ray(), &settings, settings.seed + 1, n);
         let (rest, rest_se) = mean_and_standard_error(rest.into_iter());
         let (total, _) = mean_and_standard_error(totals.into_iter());
         assert!(
@@ -1313,12 +1331,8 @@ pub(crate) mod tests {
         // noise, or the test above could not tell the two splits apart.
         let mut lit_wall = TileBesideAMirror::new(glossy(0.0), false);
         lit_wall.materials[1].material = glossy(0.6);
-        let mut lit_storage = lit_wall.storage();
-        let lit = lit_wall.scene(&mut lit_storage);
-        let (with_wall, with_wall_se) = mean_and_standard_error((0..n).map(|k| {
-            let mut sampler = Sampler::for_pixel_sample(settings.seed + 2, 0, k, 0);
-            radiance(&lit, ray(), &mut sampler, &settings).y as f64
-        }));
+        let (with_wall, with_wall_se) =
+            mean_radiance(&lit_wall, ray(), &settings, settings.seed + 2, n);
         let wall = with_wall - lobe;
         assert!(
             wall > 8.0 * libm::sqrt(with_wall_se * with_wall_se + lobe_se * lobe_se),
@@ -1332,31 +1346,18 @@ pub(crate) mod tests {
     /// pixel less the pixel with that colour black, rendered on independent samples.
     #[test]
     fn the_colour_gradient_is_what_each_colour_adds() {
-        let glossy = |rho_d: f32| Material::Ward {
-            rho_d: Vec3::splat(rho_d),
-            rho_s: Vec3::splat(0.1),
-            alpha: 0.15,
-        };
         let settings = RenderSettings {
             seed: 29,
             ..RenderSettings::default()
         };
-        let ray = || Ray::new(v(0.5, 0.0, 0.5), v(-0.5, 0.0, -0.5).normalize());
+        let ray = tile_at_45_degrees;
         let n = 100_000;
         let tile_by_a_wall = |tile: f32, wall: f32| {
-            let mut parts = TileBesideAMirror::new(glossy(tile), false);
+            let mut parts = TileBesideAMirror::new(ward_tile(tile, 0.1), false);
             parts.materials[1].material = Material::Diffuse {
                 rho_d: Vec3::splat(wall),
             };
             parts
-        };
-        let render_mean = |parts: &TileBesideAMirror, seed: u64| {
-            let mut storage = parts.storage();
-            let scene = parts.scene(&mut storage);
-            mean_and_standard_error((0..n).map(|k| {
-                let mut sampler = Sampler::for_pixel_sample(seed, 0, k, 0);
-                radiance(&scene, ray(), &mut sampler, &settings).y as f64
-            }))
         };
         let parts = tile_by_a_wall(0.4, 0.6);
         let mut storage = parts.storage();
@@ -1384,14 +1385,15 @@ pub(crate) mod tests {
                 values.push(gradient[g].y as f64);
             }
         }
-        let (all, all_se) = render_mean(&parts, settings.seed + 1);
+        let (all, all_se) = mean_radiance(&parts, ray(), &settings, settings.seed + 1, n);
         for (g, black) in [tile_by_a_wall(0.0, 0.6), tile_by_a_wall(0.4, 0.0)]
             .iter()
             .enumerate()
         {
             let (gradient, gradient_se) =
                 mean_and_standard_error(core::mem::take(&mut per_group[g]).into_iter());
-            let (without, without_se) = render_mean(black, settings.seed + 2 + g as u64);
+            let (without, without_se) =
+                mean_radiance(black, ray(), &settings, settings.seed + 2 + g as u64, n);
             let added = all - without;
             let se =
                 libm::sqrt(gradient_se * gradient_se + all_se * all_se + without_se * without_se);
