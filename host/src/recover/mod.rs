@@ -242,12 +242,26 @@ impl Recovery {
         wanted: &(dyn Fn(u16) -> bool + Sync),
     ) -> Result<Vec<GroupFit>, Error> {
         let n = self.n_groups();
+        self.with_pixels(pixels, spp, seed, |pool, scene, observed, settings| {
+            pixels::evaluate(pool, scene, observed, settings, n, wanted)
+        })
+    }
+
+    /// [`Recovery::with_scene`] with the observed pure pixels narrowed to `pixels` (a
+    /// subset of [`Recovery::pure`]).
+    fn with_pixels<T>(
+        &mut self,
+        pixels: &[PurePixel],
+        spp: u32,
+        seed: u64,
+        measure: impl FnOnce(&rayon::ThreadPool, &Scene, pixels::Observed, &RenderSettings) -> T,
+    ) -> Result<T, Error> {
         self.with_scene(spp, seed, |pool, scene, observed, settings| {
             let observed = pixels::Observed {
                 pure: pixels,
                 ..observed
             };
-            pixels::evaluate(pool, scene, observed, settings, n, wanted)
+            measure(pool, scene, observed, settings)
         })
     }
 

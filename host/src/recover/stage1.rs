@@ -476,11 +476,7 @@ fn colour_gradients(
     wanted: &(dyn Fn(u16) -> bool + Sync),
 ) -> Result<Vec<pixels::GradientFit>, Error> {
     let n = rec.n_groups();
-    rec.with_scene(spp, seed, |pool, scene, observed, settings| {
-        let observed = pixels::Observed {
-            pure: subset,
-            ..observed
-        };
+    rec.with_pixels(subset, spp, seed, |pool, scene, observed, settings| {
         pixels::evaluate_with_colour_gradients(pool, scene, observed, settings, n, wanted)
     })
 }
