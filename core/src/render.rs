@@ -383,7 +383,9 @@ fn path_radiance(
                     };
                     let light = throughput * le * weight;
                     total += light;
-                    lobe_total += light * lobe_fraction;
+                    if split_group.is_some() {
+                        lobe_total += light * lobe_fraction;
+                    }
                     if let Some(path) = gradient.as_deref_mut() {
                         path.add(light, None);
                     }
