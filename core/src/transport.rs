@@ -391,35 +391,104 @@ pub fn diffuse_part(entries: &[IncidentSample], n_samples: u32) -> Vec3 {
 /// The specular part of [`linear_parts`] under `specular_lobe`, from the pixel's
 /// [`LobePoint`]s in entry order: the same bits, since every sample it leaves out adds
 /// exactly zero there (for finite weights, which the tracer's are).
+///
+/// A Ward lobe alone, what the fits try by the dozen, is evaluated [`math::LANES`] samples
+/// at a time ([`LobeQueue`]); any other material one sample at a time.
 pub fn specular_part(points: &[LobePoint], n_samples: u32, specular_lobe: &Material) -> Vec3 {
-    let mut specular = Vec3::ZERO;
-    match *specular_lobe {
-        // The unit isotropic lobe, what the fits try by the dozen: `f = (w, w, w)`.
-        Material::Ward {
-            rho_d,
-            rho_s,
-            alpha,
-        } if rho_d == Vec3::ZERO && rho_s == Vec3::ONE => {
+    let scale = 1.0 / n_samples.max(1) as f32;
+    // Whether the material is a Ward lobe alone depends on its diffuse colour only, not on
+    // the normal; an isotropic lobe's roughness does not either.
+    let at_any_normal = Bsdf::new(specular_lobe, None, Vec3::Z);
+    let mut bsdf = ReusedBsdf::new(specular_lobe, None);
+    let mut queue = LobeQueue::default();
+    match (*specular_lobe, at_any_normal.lobe_alone()) {
+        // An isotropic lobe's BSDF differs from normal to normal only in its frame, the
+        // one `h_local` is in.
+        (Material::Ward { .. }, Some(lobe)) => {
             for p in points {
-                if material::unit_isotropic_ward_vanishes(p.tan2, alpha) {
-                    continue;
+                if !at_any_normal.vanishes_at(p.tan2) {
+                    queue.push(p.h_local, p.h.length_squared(), p.weight, lobe);
                 }
-                let w = material::unit_isotropic_ward(p.h_local, p.h.length_squared(), alpha);
-                specular += Vec3::splat(w) * p.weight;
             }
+            queue.sum() * scale
         }
-        _ => {
-            let mut bsdf = ReusedBsdf::new(specular_lobe, None);
+        // An anisotropic lobe's frame follows its direction, and its roughnesses change
+        // where that direction meets the normal (`Bsdf::new`'s isotropic fallback).
+        (Material::WardAnisotropic { .. }, Some(_)) => {
             for p in points {
                 let bsdf = bsdf.at(p.n);
-                if bsdf.vanishes_at(p.tan2) {
-                    continue;
+                if let (Some(lobe), false) = (bsdf.lobe_alone(), bsdf.vanishes_at(p.tan2)) {
+                    queue.push(bsdf.to_local(p.h), p.h.length_squared(), p.weight, lobe);
                 }
-                specular += bsdf.eval_above(p.h) * p.weight;
             }
+            queue.sum() * scale
+        }
+        _ => {
+            let mut specular = Vec3::ZERO;
+            for p in points {
+                let bsdf = bsdf.at(p.n);
+                if !bsdf.vanishes_at(p.tan2) {
+                    specular += bsdf.eval_above(p.h) * p.weight;
+                }
+            }
+            specular * scale
         }
     }
-    specular * (1.0 / n_samples.max(1) as f32)
+}
+
+/// Lobe points waiting to be evaluated [`math::LANES`] at a time under one Ward lobe
+/// ([`material::ward_lobes`]), and the sum of what they reflect so far, added in the
+/// points' order: the same sum, to the bit, as evaluating them one at a time.
+#[derive(Default)]
+struct LobeQueue {
+    h: material::HalfVectorLanes,
+    weights: [Vec3; math::LANES],
+    len: usize,
+    /// The queued points' lobe: [`Bsdf::lobe_alone`]'s reflectance and roughnesses.
+    lobe: (Vec3, f32, f32),
+    sum: Vec3,
+}
+
+impl LobeQueue {
+    /// Queues a point's half vector `h_local` in its lobe's frame, its squared length `h2`
+    /// and its weight, under `lobe`.
+    #[inline]
+    fn push(&mut self, h_local: Vec3, h2: f32, weight: Vec3, lobe: (Vec3, f32, f32)) {
+        if self.len > 0 && lobe != self.lobe {
+            self.flush();
+        }
+        self.lobe = lobe;
+        let j = self.len;
+        self.h.x[j] = h_local.x;
+        self.h.y[j] = h_local.y;
+        self.h.z[j] = h_local.z;
+        self.h.length_squared[j] = h2;
+        self.weights[j] = weight;
+        self.len += 1;
+        if self.len == math::LANES {
+            self.flush();
+        }
+    }
+
+    /// Evaluates the queued points and adds them to the sum: `Bsdf::eval_above`'s
+    /// `rho_s * lobe` (its `rho_d / pi` is zero) times each weight.
+    fn flush(&mut self) {
+        if self.len == 0 {
+            return;
+        }
+        let (rho_s, alpha_u, alpha_v) = self.lobe;
+        let lobe = material::ward_lobes(&self.h, alpha_u, alpha_v);
+        for (value, weight) in lobe.iter().zip(&self.weights).take(self.len) {
+            self.sum += (rho_s * *value) * *weight;
+        }
+        self.len = 0;
+    }
+
+    /// The sum over every point pushed.
+    fn sum(mut self) -> Vec3 {
+        self.flush();
+        self.sum
+    }
 }
 
 #[cfg(test)]
@@ -537,6 +606,19 @@ mod tests {
             turned(0.005, 0.05, Vec3::new(1.0, 0.3, 0.0)),
             turned(0.2, 0.01, Vec3::new(0.0, 1.0, 1.0)),
             turned(0.02, 0.3, Vec3::Z),
+            // Metals: a coloured lobe alone.
+            Material::Ward {
+                rho_d: Vec3::ZERO,
+                rho_s: Vec3::new(0.9, 0.6, 0.2),
+                alpha: 0.05,
+            },
+            Material::WardAnisotropic {
+                rho_d: Vec3::ZERO,
+                rho_s: Vec3::new(0.2, 0.7, 0.5),
+                alpha_u: 0.03,
+                alpha_v: 0.12,
+                direction: Vec3::Z,
+            },
             Material::Ward {
                 rho_d: Vec3::splat(0.3),
                 rho_s: Vec3::new(0.1, 0.2, 0.3),

@@ -338,6 +338,39 @@ fn ward_lobe(hl: Vec3, h2: f32, au: f32, av: f32) -> f32 {
     (h2 * math::exp(-e) / denom).min(HUGE)
 }
 
+/// Up to [`math::LANES`] half vectors `h = wo + wi` for [`ward_lobes`], one array per
+/// coordinate in the shading frame, and their squared lengths.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct HalfVectorLanes {
+    pub x: [f32; math::LANES],
+    pub y: [f32; math::LANES],
+    pub z: [f32; math::LANES],
+    pub length_squared: [f32; math::LANES],
+}
+
+/// [`ward_lobe`] at each lane of `h`, the same bits, evaluated as vectors (the exponential
+/// by [`math::exp_lanes`]): where a fit evaluates the lobe at thousands of cached samples
+/// for each candidate. Every lane is computed; a caller ignores those it did not fill.
+pub fn ward_lobes(h: &HalfVectorLanes, au: f32, av: f32) -> [f32; math::LANES] {
+    let mut exponent = [0.0; math::LANES];
+    let mut live = [false; math::LANES];
+    for j in 0..math::LANES {
+        let e = ward_exponent(Vec3::new(h.x[j], h.y[j], h.z[j]), au, av);
+        // `ward_lobe`'s two early zeros, as a mask; a masked lane takes exp(0).
+        live[j] = h.z[j] > 0.0 && e < MAX_EXPONENT;
+        exponent[j] = if live[j] { -e } else { 0.0 };
+    }
+    let exponential = math::exp_lanes(exponent);
+    let mut lobe = [0.0; math::LANES];
+    for j in 0..math::LANES {
+        let hz2 = h.z[j] * h.z[j];
+        let denom = (PI * au * av * hz2 * hz2).max(TINY);
+        let value = (h.length_squared[j] * exponential[j] / denom).min(HUGE);
+        lobe[j] = if live[j] { value } else { 0.0 };
+    }
+    lobe
+}
+
 /// Whether the Ward exponent at a half vector of `tan^2 = tan2` is past its underflow
 /// bound for every roughness up to the (guarded) `alpha`, with a 1% margin for rounding:
 /// true only where the lobe is zero for certain, so that skipping it changes no bit.
@@ -463,6 +496,29 @@ impl Bsdf {
             f += rho_s * self.ward(h, alpha_u, alpha_v);
         }
         f
+    }
+
+    /// The Ward lobe's reflectance and roughnesses `(rho_s, alpha_u, alpha_v)` when the
+    /// BSDF is that lobe alone (no diffuse part; not a mirror). Then [`Bsdf::eval_above`]
+    /// at `h` is `rho_s` times [`ward_lobes`] at `h` in [`Bsdf::to_local`]'s frame, to the
+    /// bit.
+    pub fn lobe_alone(&self) -> Option<(Vec3, f32, f32)> {
+        match self.lobes {
+            Lobes::Glossy {
+                rho_d,
+                rho_s,
+                alpha_u,
+                alpha_v,
+                ..
+            } if rho_d == Vec3::ZERO => Some((rho_s, alpha_u, alpha_v)),
+            _ => None,
+        }
+    }
+
+    /// `v` in the shading frame.
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        self.frame.to_local(v)
     }
 
     /// Whether [`Bsdf::eval_above`] is zero for certain at a half vector whose angle to
