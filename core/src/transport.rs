@@ -405,9 +405,10 @@ pub fn specular_part(points: &[LobePoint], n_samples: u32, specular_lobe: &Mater
         // An isotropic lobe's BSDF differs from normal to normal only in its frame, the
         // one `h_local` is in.
         (Material::Ward { .. }, Some(lobe)) => {
+            queue.set_lobe(lobe);
             for p in points {
                 if !at_any_normal.vanishes_at(p.tan2) {
-                    queue.push(p.h_local, p.h.length_squared(), p.weight, lobe);
+                    queue.push(p.h_local, p.h.length_squared(), p.weight);
                 }
             }
             queue.sum() * scale
@@ -418,7 +419,8 @@ pub fn specular_part(points: &[LobePoint], n_samples: u32, specular_lobe: &Mater
             for p in points {
                 let bsdf = bsdf.at(p.n);
                 if let (Some(lobe), false) = (bsdf.lobe_alone(), bsdf.vanishes_at(p.tan2)) {
-                    queue.push(bsdf.to_local(p.h), p.h.length_squared(), p.weight, lobe);
+                    queue.set_lobe(lobe);
+                    queue.push(bsdf.to_local(p.h), p.h.length_squared(), p.weight);
                 }
             }
             queue.sum() * scale
@@ -450,14 +452,19 @@ struct LobeQueue {
 }
 
 impl LobeQueue {
-    /// Queues a point's half vector `h_local` in its lobe's frame, its squared length `h2`
-    /// and its weight, under `lobe`.
+    /// The lobe of the points pushed from now on.
     #[inline]
-    fn push(&mut self, h_local: Vec3, h2: f32, weight: Vec3, lobe: (Vec3, f32, f32)) {
-        if self.len > 0 && lobe != self.lobe {
+    fn set_lobe(&mut self, lobe: (Vec3, f32, f32)) {
+        if lobe != self.lobe {
             self.flush();
+            self.lobe = lobe;
         }
-        self.lobe = lobe;
+    }
+
+    /// Queues a point's half vector `h_local` in the lobe's frame, its squared length `h2`
+    /// and its weight.
+    #[inline]
+    fn push(&mut self, h_local: Vec3, h2: f32, weight: Vec3) {
         let j = self.len;
         self.h.x[j] = h_local.x;
         self.h.y[j] = h_local.y;

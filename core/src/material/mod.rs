@@ -379,23 +379,6 @@ fn ward_vanishes(tan2: f32, alpha: f32) -> bool {
     tan2 > MAX_EXPONENT * 1.01 * alpha * alpha
 }
 
-/// The unit isotropic Ward lobe (`rho_d = 0`, `rho_s = 1`) of roughness `alpha`, as
-/// [`Bsdf::eval`] gives it for a `wo` and `wi` both above the surface whose sum has the
-/// coordinates `hl` in [`Frame::from_normal`]'s frame and the squared length `h2`: the same
-/// bits, for a caller that keeps `hl` and `h2` across many roughnesses.
-#[inline]
-pub fn unit_isotropic_ward(hl: Vec3, h2: f32, alpha: f32) -> f32 {
-    let a = alpha_guard(alpha);
-    ward_lobe(hl, h2, a, a)
-}
-
-/// Whether [`unit_isotropic_ward`] is zero for certain at a half vector of
-/// `tan^2 = tan2` (see [`Bsdf::vanishes_at`]).
-#[inline]
-pub fn unit_isotropic_ward_vanishes(tan2: f32, alpha: f32) -> bool {
-    ward_vanishes(tan2, alpha_guard(alpha))
-}
-
 impl Bsdf {
     /// `n` is the unit geometric normal already turned towards `wo` (surfaces reflect on
     /// both sides); `rho_d` overrides the material's diffuse reflectance (a diffuse map;
