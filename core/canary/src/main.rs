@@ -183,9 +183,12 @@ fn recover_diffuse(scene: &Scene, view: &View, real: &[Vec3; PIXELS]) -> ([f64; 
     for step in 1.. {
         let fit = fit_of(rho_d);
         let (next, change) = diffuse::update_with_slope(rho_d, &fit, previous);
+        let back = previous.map_or(f64::INFINITY, |(earlier, _)| {
+            diffuse::relative_distance(next, earlier)
+        });
         previous = Some((rho_d, fit.mean_rendered()));
         rho_d = next;
-        if diffuse::converged(step, change, last_change) {
+        if diffuse::converged(step, change, last_change, back) {
             break;
         }
         last_change = change;

@@ -528,15 +528,21 @@ impl Recovery {
             bar.inc(1);
             let first_fits = first.get_or_insert_with(|| fits.clone()).clone();
             let mut max_change = 0.0f64;
+            // How far the colours end from those before the step before (`converged`).
+            let mut back = 0.0f64;
             for g in 0..self.n_groups() {
                 if let (true, GroupModel::Diffuse { color }) = (active[g], self.models[g]) {
                     let (next, change) = diffuse::update_with_slope(color, &fits[g], previous[g]);
+                    back = back.max(match previous[g] {
+                        Some((earlier, _)) => diffuse::relative_distance(next, earlier),
+                        None => f64::INFINITY,
+                    });
                     previous[g] = Some((color, fits[g].mean_rendered()));
                     self.models[g] = GroupModel::Diffuse { color: next };
                     max_change = max_change.max(change);
                 }
             }
-            if diffuse::converged(evaluations, max_change, previous_change) {
+            if diffuse::converged(evaluations, max_change, previous_change, back) {
                 return Ok((first_fits, evaluations));
             }
             previous_change = max_change;
