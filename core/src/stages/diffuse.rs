@@ -41,7 +41,6 @@ pub fn update_with_slope(
     let ratio = fit.mean_ratio();
     let rendered = fit.mean_rendered();
     let mut out = rho_d;
-    let mut change = 0.0f64;
     for c in 0..3 {
         let mut slope = 1.0;
         if let Some((prev_rho, prev_rendered)) = previous {
@@ -61,15 +60,9 @@ pub fn update_with_slope(
         } else {
             0.0
         };
-        let next = (rho_d[c] * factor).clamp(0.0, MAX_DIFFUSE_REFLECTANCE);
-        if rho_d[c] > 0.0 {
-            change = change.max(((next - rho_d[c]) / rho_d[c]).abs());
-        } else if next > 0.0 {
-            change = f64::INFINITY;
-        }
-        out[c] = next;
+        out[c] = (rho_d[c] * factor).clamp(0.0, MAX_DIFFUSE_REFLECTANCE);
     }
-    (out, change)
+    (out, relative_distance(out, rho_d))
 }
 
 /// The paper's update for a plastic with a lobe, whose specular part does not scale with
@@ -130,7 +123,7 @@ pub fn converged(step: u32, change: f64, previous: f64, back: f64) -> bool {
 }
 
 /// The largest relative distance of `colour` from `earlier` over the channels (infinite
-/// where `earlier` is 0 and `colour` is not), as [`update`] measures a step's change.
+/// where `earlier` is 0 and `colour` is not): a step's change, as [`update`] gives it.
 pub fn relative_distance(colour: [f64; 3], earlier: [f64; 3]) -> f64 {
     (0..3)
         .map(|c| {
