@@ -1394,16 +1394,25 @@ fn steel_box_at_256_px_keeps_its_lobe(seed: &str) {
         assert!(row.class_ok, "seed {seed}: {row:?}");
     }
     // A wall's test renders no more than a decision's cap (DECISION_MAX_SAMPLES per
-    // model) on its subset of 1023 of its 112,446 pixels: 1026 spp, where its size alone
-    // asked 3518 and took 4.5 s a test.
+    // model) on its subset of some 1022 of its 112,354 pixels: 1027 spp, where its size
+    // alone asked 3518 and took 4.5 s a test. (112,446 pixels and a subset of 1023 while a
+    // closest hit shared by two triangles went to the one the BVH met first: the
+    // footprint's corner rays meet the wall's edges exactly, and the lower index is now
+    // taken, whatever the tree.)
     let wall = group_report(&out, "walls_warm");
-    assert_eq!(wall["pure_pixels"], 112_446);
+    assert_eq!(wall["pure_pixels"], 112_354);
     let tested = comparison(&wall, |c| c["stage"] == "2 isotropic");
     let spp = tested["samples_per_pixel"].as_u64().unwrap();
     let cap = report_json(&out)["thresholds"]["DECISION_MAX_SAMPLES"]
         .as_u64()
         .unwrap();
-    assert!(spp * 1023 <= cap + 1023, "seed {seed}: {tested:?}");
+    let decided = decisions(&wall)
+        .into_iter()
+        .find(|d| d.starts_with("stage 2: stays diffuse"))
+        .unwrap_or_else(|| panic!("seed {seed}: {wall:?}"));
+    let subset = number_after(decided, "GAIN_SIGNIFICANCE 3's level over ");
+    assert!((1000..=1024).contains(&subset), "seed {seed}: {decided}");
+    assert!(spp * subset <= cap + subset, "seed {seed}: {tested:?}");
     assert!(
         tested["z"].as_f64().unwrap() < 0.0,
         "seed {seed}: {tested:?}"
@@ -1424,17 +1433,19 @@ fn steel_box_at_256_px_keeps_its_lobe(seed: &str) {
 /// The samples per pixel and the pixels of a stage-4 levelling on a subset, from its
 /// decision: "levelled by a render at {spp} spp on {subset} of its {all} pixels".
 fn levelled_on(decision: &str) -> (u64, u64) {
-    let after = |text: &str, marker: &str| -> u64 {
-        let start = text.find(marker).unwrap_or_else(|| panic!("{text}")) + marker.len();
-        let digits: String = text[start..]
-            .chars()
-            .take_while(char::is_ascii_digit)
-            .collect();
-        digits.parse().unwrap_or_else(|_| panic!("{text}"))
-    };
-    let spp = after(decision, "levelled by a render at ");
-    let subset = after(decision, " spp on ");
+    let spp = number_after(decision, "levelled by a render at ");
+    let subset = number_after(decision, " spp on ");
     (spp, subset)
+}
+
+/// The whole number that follows `marker` in `text`.
+fn number_after(text: &str, marker: &str) -> u64 {
+    let start = text.find(marker).unwrap_or_else(|| panic!("{text}")) + marker.len();
+    let digits: String = text[start..]
+        .chars()
+        .take_while(char::is_ascii_digit)
+        .collect();
+    digits.parse().unwrap_or_else(|_| panic!("{text}"))
 }
 
 /// A picture (textured's flowers) on a floor tile beside a uniform one, under a lamp, seen

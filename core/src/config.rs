@@ -3,10 +3,13 @@
 
 /// Triangles in one scene (after fan triangulation).
 pub const MAX_TRIANGLES: usize = 1 << 22;
-/// BVH nodes: a binary tree over `n` leaves never needs more than `2n - 1`.
-pub const MAX_BVH_NODES: usize = 2 * MAX_TRIANGLES;
-/// Depth of the BVH (and of its traversal stack).
-pub const MAX_BVH_DEPTH: usize = 64;
+/// BVH nodes: a tree over `n` leaves whose nodes have two children or more never needs
+/// more than `n - 1` (and a lone root).
+pub const MAX_BVH_NODES: usize = MAX_TRIANGLES;
+/// Depth of the BVH in nodes, leaves below: a traversal's stack holds at most 3 children
+/// a level (64 entries), and four children a node give 4^21 leaves, where 4 million
+/// triangles need some 4^10. Deeper ranges become large leaves.
+pub const MAX_BVH_DEPTH: usize = 21;
 /// Triangles per BVH leaf at most.
 pub const MAX_LEAF_TRIANGLES: usize = 4;
 /// Material groups in one scene.

@@ -342,7 +342,7 @@ pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
     let materials = diffuse_floor([0.5; 3]);
     let radiance = [Vec3::splat(10.0)];
     let (n_nodes, _) = Bvh::buffer_sizes(triangles.len());
-    let mut nodes = [BvhNode::default(); 8];
+    let mut nodes = [BvhNode::default(); 4];
     let mut packed = [PackedTriangle::default(); 4];
     let mut light_table = [LightTriangle::default(); 2];
     let mut group_planes = [GroupPlane::default(); 1];
