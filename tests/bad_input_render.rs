@@ -636,7 +636,7 @@ fn a_light_flush_with_a_surface_is_named() {
 }
 
 /// A rug modelled as a quad in the floor's plane, of another group, leaves it to the
-/// BVH's order which of the two a view sees there. `check` and `render` name both groups,
+/// tracer's tie rule which of the two a view sees there. `check` and `render` name both groups,
 /// the view that sees it and a point on it; a rug within the ray slack is told as apart,
 /// one a centimetre up is not told, and the box standing on the floor (its bottom in the
 /// floor's plane, closed over) never is.

@@ -1,7 +1,9 @@
 //! Faces of two groups that overlap in one plane where a view sees them: a picture
 //! modelled as a quad on its wall's plane, a rug on the floor's, a wall tessellated twice
 //! for two materials. Where they overlap, the ray tracer's closest hit is a tie, and which
-//! group a view sees, and which one light bounces off, is left to the order of the BVH.
+//! group a view sees, and which one light bounces off, is left to its tie rule (the lower
+//! triangle index, an accident of the OBJ's order), or to rounding where they are not
+//! exactly one plane.
 //! Faces a hair apart are no better: a path leaving one starts `RAY_EPSILON` of the
 //! scene's size off it ([`crate::light_placement`]'s slack), beyond the other, so light
 //! passes through. Exact copies are [`crate::repeated_triangles`]' to tell.
@@ -36,7 +38,7 @@ const NORMAL_STEPS: f64 = 64.0;
 /// the neighbouring gathering too (so that two faces on either side of it still meet).
 const NORMAL_MARGIN: f64 = 0.05;
 
-/// Faces this close (as a share of the slack) are in one plane: their tie is the BVH's.
+/// Faces this close (as a share of the slack) are in one plane: their tie is the tracer's.
 const TIE_SHARE_OF_SLACK: f64 = 0.01;
 
 /// Points of overlap kept per pair of groups, to look for from the views.

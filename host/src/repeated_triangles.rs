@@ -1,6 +1,7 @@
 //! Triangles given twice. Two groups that share a triangle (the same three corners, a wall
-//! exported with two materials) leave it to the BVH's order which one a view sees there,
-//! and which one a path bounces off; a group with copies of its own triangles renders the
+//! exported with two materials) leave it to the closest hit's tie rule (the lower triangle
+//! index, an accident of the OBJ's order) which one a view sees there, and which one a
+//! path bounces off; a group with copies of its own triangles renders the
 //! same but costs a test per copy for every ray that reaches them (a million copies of one
 //! quad took 18 s at 4 samples per pixel, against 0.02 s). Lights given twice are refused
 //! when the scene is assembled, since both copies emit.
