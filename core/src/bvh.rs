@@ -558,9 +558,10 @@ impl<'a> Bvh<'a> {
 
     /// True when anything is hit with `t` in `(0, t_max)`.
     ///
-    /// The walk repeats `intersect`'s child step on purpose: sharing it through an inlined
-    /// helper returning the children to visit cost 9-14% Mrays/s on the living-room ray
-    /// sets (`relume bench rays`, same run), and this is the renderer's innermost loop.
+    /// The walk repeats `intersect`'s loop on purpose, its child step shared
+    /// (`visit_children`): in the binary tree, one helper for the whole step cost 9-14%
+    /// Mrays/s on the living-room ray sets (`relume bench rays`, same run), and this is the
+    /// renderer's innermost loop.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let r = RayData::new(ray);
         let mut stack = [Pending::default(); STACK];
@@ -791,7 +792,8 @@ fn child_entries(n: &BvhNode, r: &RayData, t_max: f32) -> [f32; WIDTH] {
 }
 
 /// The nearest child of `n` the ray enters within `t_max`, if any; the others it enters
-/// are pushed on `stack` so that they pop nearest first (ties: the later slot first).
+/// are pushed on `stack` so that they pop nearest first (the order of equal entries does
+/// not change a hit: one shared by two triangles goes to the lower index).
 /// The entries are sorted where they lie: a small array of them, sorted and then copied,
 /// stalled on its loads (store forwarding) and cost a third of the traversal.
 #[inline(always)]
