@@ -31,7 +31,7 @@
 //! share) the lower triangle index is taken, so the answer does not hang on the tree's
 //! shape or the order it is walked in. On the living room's ray sets (`relume bench
 //! rays`, one thread) four children a node trace 4-27% more rays a second than two did
-//! (docs/recovery.md, "Figures"). The fixed stack cannot overflow (see `STACK`).
+//! (docs/renderer-vs-radiance.md, "Ray tracing speed"). The fixed stack cannot overflow (see `STACK`).
 
 use crate::config::{MAX_BVH_DEPTH, MAX_LEAF_TRIANGLES, MAX_TRIANGLES};
 use crate::error::{check_capacity, Error};

@@ -3,9 +3,6 @@
 
 /// Triangles in one scene (after fan triangulation).
 pub const MAX_TRIANGLES: usize = 1 << 22;
-/// BVH nodes: a tree over `n` leaves whose nodes have two children or more never needs
-/// more than `n - 1` (and a lone root).
-pub const MAX_BVH_NODES: usize = MAX_TRIANGLES;
 /// Depth of the BVH in nodes, leaves below: a traversal's stack holds at most 3 children
 /// a level (64 entries), and four children a node give 4^21 leaves, where 4 million
 /// triangles need some 4^10 (the living room is 9 nodes deep, subdivided to 607,744
