@@ -446,7 +446,8 @@ impl Recovery {
     /// pixel of the whole group), both with bias-only errors (see
     /// [`pixels::evaluate_cross`]) on the decisions' own seed, paired pixel by pixel
     /// ([`fit::ModelComparison`]), from `spp` samples per pixel up while the comparison is
-    /// promising or unresolved ([`fit::next_decision_spp`]). A subtracted variance
+    /// promising or unresolved, or a first look's marginal pass
+    /// ([`fit::ModelComparison::next_look_cap`], [`fit::next_decision_spp`]). A subtracted variance
     /// estimate would favour the model whose sampling is noisier (any Ward lobe, however
     /// weak), not the better model. Leaves the group's model as it was. Returns the last
     /// comparison and its samples per pixel; `None` for a group without lit pixels.
@@ -464,14 +465,9 @@ impl Recovery {
             let Some(c) = self.compare_once(g, simple, complex, &pixels, spp, seed)? else {
                 return Ok(None);
             };
-            let cap = if c.is_promising() {
-                Some(fit::DECISION_MAX_SAMPLES)
-            } else if c.is_unresolved() {
-                Some(fit::UNRESOLVED_MAX_SAMPLES)
-            } else {
-                None
-            };
-            let next_spp = cap.and_then(|cap| fit::next_decision_spp(spp, pixels.len(), cap));
+            let next_spp = c
+                .next_look_cap(round)
+                .and_then(|cap| fit::next_decision_spp(spp, pixels.len(), cap));
             let Some(next_spp) = next_spp.filter(|_| round < fit::DECISION_MAX_ROUNDS) else {
                 return Ok(Some((c, spp)));
             };
