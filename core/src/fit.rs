@@ -437,7 +437,8 @@ pub fn gain_significance(pixels: u32) -> f64 {
 /// small groups and weak lobes get the samples they need, large groups are not rendered
 /// for minutes. A large group's first measurement keeps to that cap too (the host's
 /// `Recovery::decision_pixels`). The next measurement is fresh (new seeds) and decides
-/// alone, so looking again does not raise the false-positive rate above one look's.
+/// alone; a first look's marginal pass is measured again the same way
+/// ([`FIRST_LOOK_MARGIN`], [`ModelComparison::next_look_cap`]).
 pub const DECISION_SPP_GROWTH: u32 = 4;
 pub const DECISION_MAX_ROUNDS: u32 = 3;
 pub const DECISION_MAX_SAMPLES: u64 = 1 << 20;
@@ -589,7 +590,10 @@ mod tests {
     fn a_marginal_pass_is_looked_at_again_once_and_a_clear_one_decides() {
         // z 4 against the 3.01 that 1000 pixels need: a pass, but under twice that.
         let marginal = comparison(4e-4, 1e-4);
-        assert!(marginal.favours_complex() && marginal.z() < 2.0 * marginal.significance());
+        assert!(
+            marginal.favours_complex()
+                && marginal.z() < FIRST_LOOK_MARGIN * marginal.significance()
+        );
         assert!(marginal.is_marginal_first_look(0));
         assert_eq!(marginal.next_look_cap(0), Some(DECISION_MAX_SAMPLES));
         // The look after it decides, whatever it reads.
