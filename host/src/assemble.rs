@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3};
 use relume_core::bvh::{Bvh, BvhBuffers, BvhNode, PackedTriangle};
 use relume_core::geometry::{longest_side, Surface, Triangle, View};
-use relume_core::material::{Kind, Material, SurfaceMaterial, TextureId, TextureInfo, Textures};
+use relume_core::material::{
+    Kind, Material, SurfaceMaterial, TextureId, TextureInfo, Textures, Wrap,
+};
 use relume_core::render::RAY_EPSILON;
 use relume_core::scene::{
     BuiltCounts, BuiltStorage, GroupPlane, LightTriangle, Scene, SceneStorage,
@@ -643,12 +645,28 @@ fn material_kind(desc: &SceneDesc, file: &MaterialsDesc, m: &MaterialDesc) -> Re
 /// refused.
 fn map_texture(
     map: &Path,
+    wrap: Wrap,
     context: impl Fn() -> String,
     maps_read: &mut Vec<(PathBuf, TextureId)>,
     texture_infos: &mut Vec<TextureInfo>,
     texels: &mut Vec<Vec3>,
 ) -> Result<TextureId, Error> {
-    if let Some(&(_, id)) = maps_read.iter().find(|(p, _)| fsutil::same_file(p, map)) {
+    let info_of = |id: &TextureId| texture_infos[id.0 as usize];
+    if let Some(&(_, id)) = maps_read
+        .iter()
+        .find(|(p, id)| fsutil::same_file(p, map) && info_of(id).wrap == wrap)
+    {
+        return Ok(id);
+    }
+    // Read before with the other wrap (tiled on one group, clamped on another): the same
+    // texels, read another way.
+    if let Some((_, read)) = maps_read.iter().find(|(p, _)| fsutil::same_file(p, map)) {
+        let info = TextureInfo {
+            wrap,
+            ..info_of(read)
+        };
+        let id = push_texture_info(info, &context, map, texture_infos)?;
+        maps_read.push((map.to_path_buf(), id));
         return Ok(id);
     }
     // Its size is weighed against the texels left before it is decoded.
@@ -660,6 +678,25 @@ fn map_texture(
         |v| v > 1.0,
         "is above 1: a diffuse map holds reflectances in [0, 1]",
     )?;
+    let info = TextureInfo {
+        width: image.width,
+        height: image.height,
+        offset: texels.len(),
+        wrap,
+    };
+    let id = push_texture_info(info, &context, map, texture_infos)?;
+    texels.extend(image.pixels.iter().map(|p| Vec3::from(*p)));
+    maps_read.push((map.to_path_buf(), id));
+    Ok(id)
+}
+
+/// Appends `info` to `texture_infos`, within the core's `MAX_TEXTURES`.
+fn push_texture_info(
+    info: TextureInfo,
+    context: impl Fn() -> String,
+    map: &Path,
+    texture_infos: &mut Vec<TextureInfo>,
+) -> Result<TextureId, Error> {
     if texture_infos.len() >= relume_core::config::MAX_TEXTURES {
         return Err(Error::core(
             format!("{}: {}", context(), map.display()),
@@ -670,15 +707,8 @@ fn map_texture(
             },
         ));
     }
-    let id = TextureId(texture_infos.len() as u16);
-    texture_infos.push(TextureInfo {
-        width: image.width,
-        height: image.height,
-        offset: texels.len(),
-    });
-    texels.extend(image.pixels.iter().map(|p| Vec3::from(*p)));
-    maps_read.push((map.to_path_buf(), id));
-    Ok(id)
+    texture_infos.push(info);
+    Ok(TextureId((texture_infos.len() - 1) as u16))
 }
 
 /// One material per group, from one or more files: an error names the group and the
@@ -742,6 +772,7 @@ fn resolve_materials(
                 }
                 Some(map_texture(
                     map,
+                    m.map_wrap,
                     || format!("{}:{}: group '{}'", file.path.display(), m.line, m.group),
                     &mut maps_read,
                     texture_infos,
@@ -785,10 +816,44 @@ fn resolve_materials(
     Ok(out)
 }
 
+/// How far past [0, 1] a texture coordinate may reach, from an exporter's rounding,
+/// before it is taken to mean tiles.
+pub const UV_SLACK: f32 = 1e-3;
+
 impl OwnedScene {
     /// The scene's triangles, fixed once assembled.
     pub fn triangles(&self) -> &[Triangle] {
         &self.triangles
+    }
+
+    /// Whether some texture coordinate of group `g`'s faces lies past [0, 1]^2 by more
+    /// than [`UV_SLACK`]: its texture is laid over it as tiles (OpenGL's and the
+    /// exporters' reading of such coordinates), which a map read clamped cannot show.
+    pub fn tiles_its_map(&self, g: usize) -> bool {
+        let past = |x: f32| !(-UV_SLACK..=1.0 + UV_SLACK).contains(&x);
+        self.triangles
+            .iter()
+            .filter(|t| t.surface == Surface::Group(g as u16))
+            .flat_map(|t| t.uv)
+            .any(|uv| past(uv.x) || past(uv.y))
+    }
+
+    /// A warning for each group whose map is read clamped (no `diffuse_map_wrap =
+    /// "repeat"`) over coordinates that reach past [0, 1] ([`Self::tiles_its_map`]):
+    /// every point past 1 reads the map's border texels, where the coordinates most
+    /// likely mean tiles.
+    pub fn clamped_tile_warnings(&self) -> Vec<String> {
+        (self.materials.iter().enumerate())
+            .filter_map(|(g, m)| {
+                let info = self.texture_infos.get(m.diffuse_map?.0 as usize)?;
+                (info.wrap == Wrap::Clamp && self.tiles_its_map(g)).then(|| {
+                    format!(
+                        "group '{}': its texture coordinates reach past [0, 1], where its diffuse_map is read clamped (every point past 1 reads the map's border texels); if the texture is tiled over it, say diffuse_map_wrap = \"repeat\" in its material",
+                        self.group_names[g]
+                    )
+                })
+            })
+            .collect()
     }
 
     /// Each light's radiance, fixed once assembled.

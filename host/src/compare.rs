@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use relume_core::geometry::Surface;
-use relume_core::material::texture::bilinear_taps;
+use relume_core::material::texture::{bilinear_taps, Wrap};
 use relume_core::material::Kind;
 use relume_core::math::{luminance, Vec3};
 use relume_core::render;
@@ -523,7 +523,7 @@ fn specular_reflectance_of(m: &MaterialDesc, kind: Kind) -> Option<[f64; 3]> {
 /// its texels, taken as they are (the centres in f32 are not exact at every size, and a
 /// map equal to the truth's read 130-136 dB rather than infinite). `None` for an empty
 /// image.
-fn map_psnr(truth: &Image, recovered: &Image) -> Option<f64> {
+fn map_psnr(truth: &Image, recovered: &Image, wrap: Wrap) -> Option<f64> {
     let (t, r) = (truth, recovered);
     if t.pixels.is_empty() || r.pixels.is_empty() {
         return None;
@@ -533,7 +533,7 @@ fn map_psnr(truth: &Image, recovered: &Image) -> Option<f64> {
         if same_size {
             return r.pixels[(j * r.width + i) as usize].map(f64::from);
         }
-        bilinear_taps(r.width, r.height, glam::Vec2::new(u, v))
+        bilinear_taps(r.width, r.height, wrap, glam::Vec2::new(u, v))
             .iter()
             .fold([0.0f64; 3], |mut sum, &(k, a)| {
                 for (s, c) in sum.iter_mut().zip(r.pixels[k]) {
@@ -626,14 +626,15 @@ fn set_map_measures(
     row: &mut MaterialRow,
     (truth, truth_at): (&Path, String),
     (recovered, recovered_at): (&Path, String),
+    wrap: Wrap,
 ) -> Result<(), Error> {
     let t = images::read_map(truth, 0, || truth_at)?;
     let r = images::read_map(recovered, 0, || recovered_at)?;
     if r.pixels.is_empty() {
         return Ok(());
     }
-    row.diffuse_map_psnr_db = map_psnr(&t, &r);
-    row.diffuse_map_psnr_ceiling_db = map_psnr(&t, &area_average(&t, r.width, r.height));
+    row.diffuse_map_psnr_db = map_psnr(&t, &r, wrap);
+    row.diffuse_map_psnr_ceiling_db = map_psnr(&t, &area_average(&t, r.width, r.height), wrap);
     row.diffuse_map_level_err = map_level_err(&t, &r);
     Ok(())
 }
@@ -718,7 +719,7 @@ fn materials_rows(t: &MaterialsDesc, m: &MaterialsDesc) -> Result<Vec<MaterialRo
                 let at = |file: &MaterialsDesc, m: &MaterialDesc| {
                     format!("{}:{}: group '{}'", file.path.display(), m.line, m.group)
                 };
-                set_map_measures(&mut row, (b, at(t, tm)), (a, at(m, rm)))?;
+                set_map_measures(&mut row, (b, at(t, tm)), (a, at(m, rm)), rm.map_wrap)?;
             }
         }
         rows.push(row);
@@ -1098,26 +1099,26 @@ mod tests {
     fn a_map_of_the_truths_own_size_has_no_ceiling_and_a_coarse_one_has_one() {
         let checker = image(8, 8, |x, y| if (x + y) % 2 == 0 { 0.8 } else { 0.2 });
         assert_eq!(
-            map_psnr(&checker, &area_average(&checker, 8, 8)),
+            map_psnr(&checker, &area_average(&checker, 8, 8), Wrap::Clamp),
             Some(f64::INFINITY)
         );
         // At a size whose texel centres are not exact in f32 (the textured reference's
         // 192 x 192 maps read 136 dB against themselves).
         let varied = image(192, 37, |x, y| ((x * 7 + y * 13) % 17) as f32 / 17.0);
-        assert_eq!(map_psnr(&varied, &varied), Some(f64::INFINITY));
+        assert_eq!(map_psnr(&varied, &varied, Wrap::Clamp), Some(f64::INFINITY));
         assert_eq!(
-            map_psnr(&varied, &area_average(&varied, 192, 37)),
+            map_psnr(&varied, &area_average(&varied, 192, 37), Wrap::Clamp),
             Some(f64::INFINITY)
         );
         // A texel-sized checker averages to grey at any coarser size: the ceiling is the
         // PSNR of the grey map, 20 log10(0.8 / 0.3).
-        let ceiling = map_psnr(&checker, &area_average(&checker, 4, 4)).unwrap();
+        let ceiling = map_psnr(&checker, &area_average(&checker, 4, 4), Wrap::Clamp).unwrap();
         assert!(
             (ceiling - 20.0 * libm::log10(0.8f64 / 0.3)).abs() < 1e-4,
             "{ceiling}"
         );
         let grey = image(4, 4, |_, _| 0.5);
-        assert!((map_psnr(&checker, &grey).unwrap() - ceiling).abs() < 1e-4);
+        assert!((map_psnr(&checker, &grey, Wrap::Clamp).unwrap() - ceiling).abs() < 1e-4);
     }
 
     #[test]
@@ -1154,9 +1155,9 @@ mod tests {
     #[test]
     fn a_map_against_a_black_truth_is_written_minus_inf_in_json_not_the_null_of_no_map() {
         let black = image(4, 4, |_, _| 0.0);
-        let psnr = map_psnr(&black, &image(4, 4, |_, _| 0.5));
+        let psnr = map_psnr(&black, &image(4, 4, |_, _| 0.5), Wrap::Clamp);
         assert_eq!(psnr, Some(f64::NEG_INFINITY));
-        assert_eq!(map_psnr(&black, &black), Some(f64::INFINITY));
+        assert_eq!(map_psnr(&black, &black, Wrap::Clamp), Some(f64::INFINITY));
         let row = MaterialRow {
             diffuse_map_psnr_db: psnr,
             diffuse_map_psnr_ceiling_db: Some(f64::INFINITY),

@@ -25,12 +25,17 @@
 //! them); direction_u is
 //! finite and not zero. A diffuse map must exist (relative to the file's folder) and be a
 //! file, not a folder. Each group has at most one material per file.
+//!
+//! `diffuse_map_wrap`, a relume extension, is optional beside a `diffuse_map` and forbidden
+//! without one: `"clamp"` (the default, scene-format.md's lookup) or `"repeat"`, a map
+//! tiled over its group by texture coordinates past [0, 1] (`material::texture::Wrap`).
+//! It is written only when it is `"repeat"`, so files without tiles keep the schema.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
-use relume_core::material::{Kind, Params};
+use relume_core::material::{Kind, Params, Wrap};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -152,6 +157,9 @@ pub struct MaterialDesc {
     pub direction_u: Option<[f32; 3]>,
     /// Resolved against the materials file's folder.
     pub diffuse_map: Option<PathBuf>,
+    /// How the diffuse map reads coordinates past [0, 1]: clamped unless the file says
+    /// `diffuse_map_wrap = "repeat"`.
+    pub map_wrap: Wrap,
     /// The kind of its lobe, where the file gives it (see the module's comment); else the
     /// scene's.
     pub kind: Option<Kind>,
@@ -222,6 +230,7 @@ impl MaterialDesc {
             roughness_v: None,
             direction_u: None,
             diffuse_map: None,
+            map_wrap: Wrap::Clamp,
             kind: None,
             line: 0,
         }
@@ -401,6 +410,7 @@ struct RawMaterial {
     roughness_v: Option<Spanned<f64>>,
     direction_u: Option<Spanned<Vec<f64>>>,
     diffuse_map: Option<Spanned<String>>,
+    diffuse_map_wrap: Option<Spanned<String>>,
     kind: Option<Spanned<String>>,
 }
 
@@ -461,6 +471,26 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
             Some(s) => Some(file.resolve(&file.name(s, "diffuse_map")?)),
             None => None,
         };
+        let map_wrap = match &m.diffuse_map_wrap {
+            None => Wrap::Clamp,
+            Some(w) if m.diffuse_map.is_none() => {
+                return Err(file.at(
+                    w.span(),
+                    format!(
+                        "group '{group}': diffuse_map_wrap says how a diffuse_map is read, and the material has none"
+                    ),
+                ))
+            }
+            Some(w) => wrap_from_name(w.get_ref()).ok_or_else(|| {
+                file.at(
+                    w.span(),
+                    format!(
+                        "group '{group}': unknown diffuse_map_wrap '{}' (expected clamp or repeat)",
+                        w.get_ref()
+                    ),
+                )
+            })?,
+        };
         let kind = match &m.kind {
             Some(k) => Some(kind_from_name(k.get_ref()).ok_or_else(|| {
                 file.at(
@@ -492,6 +522,7 @@ pub fn load_materials(path: &Path) -> Result<MaterialsDesc, Error> {
                 .map(|v| file.direction(v, "direction_u"))
                 .transpose()?,
             diffuse_map,
+            map_wrap,
             kind,
             line,
         };
@@ -572,9 +603,29 @@ pub fn materials_text(path: &Path, m: &MaterialsDesc) -> Result<String, Error> {
                 ));
             };
             let _ = writeln!(out, "diffuse_map = {}", toml_string(s));
+            if d.map_wrap == Wrap::Repeat {
+                let _ = writeln!(out, "diffuse_map_wrap = {}", toml_string("repeat"));
+            }
+        } else if d.map_wrap != Wrap::Clamp {
+            return Err(Error::input(
+                path,
+                format!(
+                    "cannot write group '{}': a diffuse_map_wrap without a diffuse_map",
+                    d.group
+                ),
+            ));
         }
     }
     Ok(out)
+}
+
+/// The wrap a `diffuse_map_wrap` value names.
+fn wrap_from_name(name: &str) -> Option<Wrap> {
+    match name {
+        "clamp" => Some(Wrap::Clamp),
+        "repeat" => Some(Wrap::Repeat),
+        _ => None,
+    }
 }
 
 fn toml_string(s: &str) -> String {
@@ -734,6 +785,71 @@ mod tests {
                 assert_eq!(d.color_or_white(), [0.5, 0.4, 0.3]);
             }
         }
+    }
+
+    /// `diffuse_map_wrap` tiles a map, is clamp when absent, round-trips (written only
+    /// when it repeats), and is refused at its line with any other value or without a
+    /// map.
+    #[test]
+    fn a_maps_wrap_is_read_written_and_checked() {
+        let model = Model::TexturedDiffuse;
+        let with = |wrap: &str| {
+            file_text(
+                model,
+                &format!("{}diffuse_map_wrap = {wrap}\n", body(model, None, None)),
+            )
+        };
+        let (_dir, path) = write(&file_text(model, &body(model, None, None)));
+        let plain = load_materials(&path).unwrap();
+        assert_eq!(plain.materials[0].map_wrap, Wrap::Clamp);
+        assert!(!materials_text(&path, &plain).unwrap().contains("wrap"));
+        for (value, wrap) in [("\"clamp\"", Wrap::Clamp), ("\"repeat\"", Wrap::Repeat)] {
+            let (_dir, path) = write(&with(value));
+            let m = load_materials(&path).unwrap();
+            assert_eq!(m.materials[0].map_wrap, wrap);
+            let text = materials_text(&path, &m).unwrap();
+            assert_eq!(
+                text.contains("diffuse_map_wrap = \"repeat\"\n"),
+                wrap == Wrap::Repeat,
+                "{text}"
+            );
+            std::fs::write(&path, &text).unwrap();
+            assert_eq!(load_materials(&path).unwrap(), m);
+        }
+        let text = with("\"mirror\"");
+        bad(
+            &text,
+            line_of(&text, "diffuse_map_wrap"),
+            &["unknown diffuse_map_wrap 'mirror' (expected clamp or repeat)"],
+        );
+        let text = file_text(
+            Model::Diffuse,
+            &format!(
+                "{}diffuse_map_wrap = \"repeat\"\n",
+                body(Model::Diffuse, None, None)
+            ),
+        );
+        bad(
+            &text,
+            line_of(&text, "diffuse_map_wrap"),
+            &["diffuse_map_wrap says how a diffuse_map is read, and the material has none"],
+        );
+        let mut tiled_colour = MaterialDesc::new("g", Model::Diffuse);
+        tiled_colour.color = Some([0.5; 3]);
+        tiled_colour.map_wrap = Wrap::Repeat;
+        let e = materials_text(
+            &path,
+            &MaterialsDesc {
+                path: path.clone(),
+                materials: vec![tiled_colour],
+            },
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("a diffuse_map_wrap without a diffuse_map"),
+            "{e}"
+        );
     }
 
     /// A lobe's kind loads where the model has a lobe (a textured one as plastic only),

@@ -89,6 +89,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
             )
         })
         .collect();
+    let clamped_tiles = owned.clamped_tile_warnings();
     let mut inputs = owned.desc.input_files();
     inputs.extend(files.iter().flat_map(|f| f.input_files()));
     let pool = parallel::thread_pool(args.threads)?;
@@ -145,6 +146,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     progress.finish_and_clear();
     let mut warnings = placement;
     warnings.extend(fallbacks);
+    warnings.extend(clamped_tiles);
     warnings.extend(files.iter().flat_map(|f| f.roughness_warnings()));
     // A file that gives no material changes nothing: most likely the wrong file was given.
     warnings.extend(

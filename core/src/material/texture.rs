@@ -1,8 +1,10 @@
 //! Diffuse maps: RGB texels in one lent pool, looked up by bilinear interpolation between
 //! texel centres, clamped at the border (bench/README.md, "Texture sampling"): texel
 //! `(i, j)` has its centre at `u = (i + 0.5) / W`, `v = 1 - (j + 0.5) / H`; row 0 is v = 1.
-//! Texture coordinates outside [0, 1] are clamped to it (no wrapping), so beyond the outer
-//! texel centres a lookup returns the border texels; NaN coordinates count as 0.
+//! Texture coordinates outside [0, 1] are clamped to it ([`Wrap::Clamp`], the format's
+//! lookup), so beyond the outer texel centres a lookup returns the border texels; a map
+//! laid over its group as tiles ([`Wrap::Repeat`]) reads coordinate `u` at `u - floor(u)`
+//! and blends its last column with its first. NaN coordinates count as 0.
 //!
 //! OWNER: material helper.
 
@@ -14,6 +16,17 @@ use crate::math::{self, Vec2, Vec3};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TextureId(pub u16);
 
+/// How a texture reads coordinates outside [0, 1].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Wrap {
+    /// Held to [0, 1]: past the outer texel centres, the border texels (scene-format.md).
+    #[default]
+    Clamp,
+    /// Tiled: `u` reads as `u - floor(u)`, and the last texel blends into the first, so
+    /// that a texture repeated over a floor by coordinates from 0 to 4 has no seam.
+    Repeat,
+}
+
 /// Where one texture lies in the texel pool.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TextureInfo {
@@ -21,6 +34,7 @@ pub struct TextureInfo {
     pub height: u32,
     /// First texel (row 0, column 0) in the pool; rows follow each other.
     pub offset: usize,
+    pub wrap: Wrap,
 }
 
 /// All textures of a scene, over lent slices.
@@ -40,6 +54,17 @@ fn clamp_unit(x: f32) -> f32 {
     }
 }
 
+/// The fractional part of a texture coordinate, in [0, 1) (NaN and infinities to 0).
+#[inline]
+fn repeat_unit(x: f32) -> f32 {
+    let f = x - math::floor(x);
+    if (0.0..1.0).contains(&f) {
+        f
+    } else {
+        0.0
+    }
+}
+
 /// The two texel indices around continuous texel coordinate `x` (texel centres at
 /// integers) and the weight of the second, clamped to `[0, n - 1]`.
 #[inline]
@@ -53,6 +78,21 @@ fn axis(x: f32, n: u32) -> (usize, usize, f32) {
     let i0 = (f as usize).min(last);
     let i1 = (i0 + 1).min(last);
     (i0, i1, t)
+}
+
+/// [`axis`] for a tiled texture: `x` in `[-0.5, n - 0.5)`, and the texel after the last
+/// is the first (before the first, the last).
+#[inline]
+fn axis_repeat(x: f32, n: u32) -> (usize, usize, f32) {
+    let n = n.max(1) as usize;
+    let f = math::floor(x);
+    let t = x - f;
+    let i0 = if f < 0.0 {
+        n - 1
+    } else {
+        (f as usize).min(n - 1)
+    };
+    (i0, (i0 + 1) % n, t)
 }
 
 impl<'a> Textures<'a> {
@@ -94,7 +134,7 @@ impl<'a> Textures<'a> {
         let Some(info) = self.infos.get(id.0 as usize) else {
             return Vec3::ZERO;
         };
-        bilinear_taps(info.width, info.height, uv)
+        bilinear_taps(info.width, info.height, info.wrap, uv)
             .iter()
             .map(|&(index, weight)| {
                 self.texels
@@ -110,12 +150,20 @@ impl<'a> Textures<'a> {
 /// The four texels (row-major index into a `width x height` texture) and weights that a
 /// bilinear lookup at `uv` blends; the weights sum to 1. Shared by the lookup and by the
 /// recovery of a map (stage 5), which must invert exactly this sampling.
-pub fn bilinear_taps(width: u32, height: u32, uv: Vec2) -> [(usize, f32); 4] {
+pub fn bilinear_taps(width: u32, height: u32, wrap: Wrap, uv: Vec2) -> [(usize, f32); 4] {
     // Continuous texel coordinates: texel (i, j)'s centre is at (i, j).
-    let x = clamp_unit(uv.x) * width as f32 - 0.5;
-    let y = (1.0 - clamp_unit(uv.y)) * height as f32 - 0.5;
-    let (i0, i1, tx) = axis(x, width);
-    let (j0, j1, ty) = axis(y, height);
+    let ((i0, i1, tx), (j0, j1, ty)) = match wrap {
+        Wrap::Clamp => (
+            axis(clamp_unit(uv.x) * width as f32 - 0.5, width),
+            axis((1.0 - clamp_unit(uv.y)) * height as f32 - 0.5, height),
+        ),
+        // At a whole u or v both sides of the seam read the same: half the last texel,
+        // half the first.
+        Wrap::Repeat => (
+            axis_repeat(repeat_unit(uv.x) * width as f32 - 0.5, width),
+            axis_repeat((1.0 - repeat_unit(uv.y)) * height as f32 - 0.5, height),
+        ),
+    };
     let w = width as usize;
     [
         (j0 * w + i0, (1.0 - tx) * (1.0 - ty)),
@@ -143,11 +191,13 @@ mod tests {
                 width: 3,
                 height: 2,
                 offset: 1,
+                wrap: Wrap::Clamp,
             },
             TextureInfo {
                 width: 1,
                 height: 1,
                 offset: 0,
+                wrap: Wrap::Clamp,
             },
         ];
         (infos, texels)
@@ -254,6 +304,53 @@ mod tests {
         );
     }
 
+    /// A tiled texture reads a whole tile away as here, and across its seam blends the
+    /// last texel into the first: no border held, no jump.
+    #[test]
+    fn repeated_across_tiles_without_a_seam() {
+        let (mut infos, texels) = pool();
+        infos[0].wrap = Wrap::Repeat;
+        let t = Textures::new(&infos, &texels).unwrap();
+        let id = TextureId(0);
+        for (i, j) in [(0, 0), (2, 0), (1, 1)] {
+            let c = centre(i, j, 3, 2);
+            let want = t.lookup(id, c);
+            for shift in [
+                Vec2::new(1.0, 0.0),
+                Vec2::new(-2.0, 3.0),
+                Vec2::new(4.0, -1.0),
+            ] {
+                let got = t.lookup(id, c + shift);
+                assert!(close(got, want), "({i}, {j}) + {shift}: {got} != {want}");
+            }
+        }
+        // u = 0 (or 1, or 2) on row 0: half the last column, half the first.
+        let (first, last) = (Vec3::new(0.0, 0.0, 10.0), Vec3::new(2.0, 0.0, 12.0));
+        for u in [0.0, 1.0, 2.0, -1.0] {
+            let got = t.lookup(id, Vec2::new(u, 0.75));
+            assert!(close(got, (first + last) * 0.5), "u {u}: {got}");
+        }
+        // Just past 1 is the first column's side of the seam, not the last column held.
+        let got = t.lookup(id, Vec2::new(1.0 + 1.0 / 6.0, 0.75));
+        assert!(close(got, first), "{got}");
+        // v across its seam: rows 1 and 0 blend at v = 0.
+        let got = t.lookup(id, Vec2::new(0.5, 0.0));
+        assert!(close(got, Vec3::new(1.0, 0.5, 12.5)), "{got}");
+        // The taps' weights sum to 1 and their indices stay in the texture.
+        for uv in [
+            Vec2::new(-0.01, 7.99),
+            Vec2::new(123.456, -0.0001),
+            Vec2::new(f32::NAN, f32::INFINITY),
+        ] {
+            let taps = bilinear_taps(3, 2, Wrap::Repeat, uv);
+            let sum: f32 = taps.iter().map(|&(_, a)| a).sum();
+            assert!(
+                (sum - 1.0).abs() < 1e-5 && taps.iter().all(|&(k, _)| k < 6),
+                "{uv}"
+            );
+        }
+    }
+
     #[test]
     fn new_checks_the_pool() {
         let texels = std::vec![Vec3::ONE; 12];
@@ -261,6 +358,7 @@ mod tests {
             width,
             height,
             offset,
+            wrap: Wrap::Clamp,
         };
         assert!(Textures::new(&[info(4, 3, 0)], &texels).is_ok());
         assert!(Textures::new(&[info(2, 3, 6), info(1, 1, 11)], &texels).is_ok());

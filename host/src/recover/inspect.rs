@@ -114,17 +114,10 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
     })
 }
 
-/// How far past [0, 1] a texture coordinate may reach, from an exporter's rounding, before
-/// a map laid over the group reads its border texels where the group has more to show.
-const UV_SLACK: f32 = 1e-3;
-
 /// The first object of `group` (not hidden) whose OBJ texture coordinates no map can be
-/// laid over, and why:
-/// - coordinates beyond [0, 1], where a map is clamped to its border texels
-///   (scene-format.md's lookup): a texture tiled over a floor by coordinates from 0 to 4
-///   has no map of that lookup, the floor's pixels past 1 would all read its last column;
-/// - coordinates that cover no area (an exporter's `vt 0 0` at every corner): every pixel
-///   would read one texel, or one line of them.
+/// laid over, and why: coordinates that cover no area (an exporter's `vt 0 0` at every
+/// corner), where every pixel would read one texel, or one line of them. Coordinates past
+/// [0, 1] are tiles, and the map is read repeated there (`texture::map_wrap`).
 fn coordinates_unfit_for_a_map(
     desc: &SceneDesc,
     objects: &[ObjObject],
@@ -133,42 +126,42 @@ fn coordinates_unfit_for_a_map(
     let shown = |o: &&ObjObject| group.objects.contains(&o.name) && !desc.hide.contains(&o.name);
     objects.iter().filter(shown).find_map(|o| {
         let faces = o.uvs.as_deref()?;
-        let (mut low, mut high) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-        let mut area = 0.0f64;
-        for [a, b, c] in faces {
-            for uv in [a, b, c] {
-                for k in 0..2 {
-                    low[k] = low[k].min(uv[k]);
-                    high[k] = high[k].max(uv[k]);
-                }
-            }
-            let (e1, e2) = (
-                [(b[0] - a[0]) as f64, (b[1] - a[1]) as f64],
-                [(c[0] - a[0]) as f64, (c[1] - a[1]) as f64],
-            );
-            area += 0.5 * (e1[0] * e2[1] - e1[1] * e2[0]).abs();
-        }
-        let span = format!(
-            "u {}..{}, v {}..{}",
-            crate::text::significant(low[0] as f64),
-            crate::text::significant(high[0] as f64),
-            crate::text::significant(low[1] as f64),
-            crate::text::significant(high[1] as f64)
-        );
-        if (0..2).any(|k| low[k] < -UV_SLACK || high[k] > 1.0 + UV_SLACK) {
-            Some(format!(
-                "object '{}' has texture coordinates {span}, beyond [0, 1], where a map is clamped to its border texels (a texture tiled over the group is not modelled)",
-                o.name
-            ))
-        } else if area.is_nan() || area <= 0.0 {
-            Some(format!(
-                "object '{}' has texture coordinates that cover no area of a map ({span}: every face's corners on one point or line), so all its pixels would read one texel or one line of them",
-                o.name
-            ))
-        } else {
-            None
-        }
+        let area: f64 = faces
+            .iter()
+            .map(|[a, b, c]| {
+                let (e1, e2) = (
+                    [(b[0] - a[0]) as f64, (b[1] - a[1]) as f64],
+                    [(c[0] - a[0]) as f64, (c[1] - a[1]) as f64],
+                );
+                0.5 * (e1[0] * e2[1] - e1[1] * e2[0]).abs()
+            })
+            .sum();
+        (area.is_nan() || area <= 0.0).then(|| {
+            format!(
+                "object '{}' has texture coordinates that cover no area of a map ({}: every face's corners on one point or line), so all its pixels would read one texel or one line of them",
+                o.name,
+                uv_span(faces)
+            )
+        })
     })
+}
+
+/// The span of some faces' texture coordinates, as a message gives it.
+fn uv_span(faces: &[[[f32; 2]; 3]]) -> String {
+    let (mut low, mut high) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    for uv in faces.iter().flatten() {
+        for k in 0..2 {
+            low[k] = low[k].min(uv[k]);
+            high[k] = high[k].max(uv[k]);
+        }
+    }
+    format!(
+        "u {}..{}, v {}..{}",
+        crate::text::significant(low[0] as f64),
+        crate::text::significant(high[0] as f64),
+        crate::text::significant(low[1] as f64),
+        crate::text::significant(high[1] as f64)
+    )
 }
 
 /// Whether some triangle of `object` has an area, in 64 bits relative to its first corner.

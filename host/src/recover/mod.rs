@@ -176,6 +176,7 @@ impl Recovery {
                     width: map.side,
                     height: map.side,
                     offset: self.owned.texels.len(),
+                    wrap: map.wrap,
                 });
             self.owned.texels.extend_from_slice(&map.texels);
         }

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use relume_core::geometry::{Surface, Triangle};
+use relume_core::material::Wrap;
 
 use super::model::GroupModel;
 use super::{texture, RecoverReport, Recovery};
@@ -177,6 +178,9 @@ pub(super) fn write_all(
             .filter_map(|(g, m)| {
                 let path = matches!(m, GroupModel::Textured { .. }).then(|| map_path(g));
                 let mut d = m.material_desc(&names[g], path.as_deref())?;
+                if let GroupModel::Textured { map, .. } = m {
+                    d.map_wrap = rec.maps[*map].wrap;
+                }
                 // scene.toml does not say which kind a group of kind "auto" turned out.
                 if rec.owned.desc.groups[g].kind == GroupKind::Auto {
                     d.kind = m.lobe_kind();
@@ -245,7 +249,12 @@ fn add_maps_and_radiance(set: &mut OutputSet, out: &Path, rec: &Recovery) -> Res
                     Placement::Mesh
                 }
             };
-            add_radiance_picture(set, out, name, &image, lobe.specularity(), placement)?;
+            let picture = Picture {
+                map: &image,
+                wrap: map.wrap,
+                specularity: lobe.specularity(),
+            };
+            add_radiance_picture(set, out, name, picture, placement)?;
             primitive.1 = pattern_name(name, names);
             rad.push_str(&format!(
                 "\nvoid colorpict {}\n7 red green blue textures/{name}.hdr textures/{name}.cal pic_u pic_v\n0\n0\n",
@@ -495,6 +504,14 @@ fn map_files(out: &Path, name: &str) -> Vec<PathBuf> {
     pictures.into_iter().chain(meshes).collect()
 }
 
+/// A textured group's recovered map, how it is read, and the lobe's specularity that
+/// RADIANCE's plastic takes out of it.
+struct Picture<'a> {
+    map: &'a Image,
+    wrap: Wrap,
+    specularity: f64,
+}
+
 /// Where a textured group's (u, v) come from in its RADIANCE `.cal`.
 enum Placement<'a> {
     /// An affine function of the hit point (Px, Py, Pz), as on obj2rad's polygons; the
@@ -515,8 +532,11 @@ fn add_radiance_picture(
     set: &mut OutputSet,
     out: &Path,
     name: &str,
-    map: &Image,
-    specularity: f64,
+    Picture {
+        map,
+        wrap,
+        specularity,
+    }: Picture,
     placement: Placement,
 ) -> Result<(), Error> {
     let scale = 1.0 / (1.0 - specularity as f32).max(1e-3);
@@ -566,14 +586,26 @@ fn add_radiance_picture(
             n = map.width,
         ),
     };
-    let cal = format!(
-        "{uv}\
-         {{ held to the picture, as relume's lookup clamps at the border: RADIANCE\n\
-            extrapolates a picture past its edge, then tapers it to black }}\n\
-         unit(x) = if(x, if(x - 1, 1, x), 0);\n\
-         pic_u = unit((obj_u*N - .5)/(N - 1));\n\
-         pic_v = unit((obj_v*N - .5)/(N - 1));\n"
-    );
+    let cal = match wrap {
+        Wrap::Clamp => format!(
+            "{uv}\
+             {{ held to the picture, as relume's lookup clamps at the border: RADIANCE\n\
+                extrapolates a picture past its edge, then tapers it to black }}\n\
+             unit(x) = if(x, if(x - 1, 1, x), 0);\n\
+             pic_u = unit((obj_u*N - .5)/(N - 1));\n\
+             pic_v = unit((obj_v*N - .5)/(N - 1));\n"
+        ),
+        Wrap::Repeat => format!(
+            "{uv}\
+             {{ tiled: each whole step of (u, v) repeats the picture. RADIANCE holds a\n\
+                picture to its edge texels, where relume's lookup blends the last texel\n\
+                into the first: the two differ within half a texel of each seam }}\n\
+             unit(x) = if(x, if(x - 1, 1, x), 0);\n\
+             repeat(x) = x - floor(x);\n\
+             pic_u = unit((repeat(obj_u)*N - .5)/(N - 1));\n\
+             pic_v = unit((repeat(obj_v)*N - .5)/(N - 1));\n"
+        ),
+    };
     set.add(
         &out.join(TEXTURES_DIR).join(format!("{name}.cal")),
         cal.as_bytes(),
@@ -740,6 +772,7 @@ objects = ["wrap"]
             assemble::load_and_assemble(&dir.join("scene.toml"), MaterialSource::GeometryOnly)
                 .unwrap();
         let map = |base: f32| texture::RecoveredMap {
+            wrap: Wrap::Clamp,
             side: 4,
             texels: (0..16)
                 .map(|i| Vec3::new(base, 0.05 * i as f32, 0.5 - 0.02 * i as f32))
@@ -826,6 +859,32 @@ objects = ["wrap"]
         set.commit().unwrap();
         let cal = std::fs::read_to_string(out.join("textures/label.cal")).unwrap();
         assert_label_cal_places_the_map(&cal, shift);
+    }
+
+    /// A tiled map's .cal repeats the picture at each whole step of (u, v), as relume's
+    /// lookup does; a clamped map's beside it is held to the picture as before.
+    #[test]
+    fn a_tiled_maps_cal_repeats_the_picture() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut rec = scene(dir.path());
+        rec.maps[0].wrap = Wrap::Repeat;
+        let out = dir.path().join("out");
+        let mut set = OutputSet::keeping(Vec::new());
+        add_maps_and_radiance(&mut set, &out, &rec).unwrap();
+        set.commit().unwrap();
+        let read = |f: &str| std::fs::read_to_string(out.join(f)).unwrap();
+        let label = read("textures/label.cal");
+        assert!(
+            label.contains("repeat(x) = x - floor(x);\n")
+                && label.contains("pic_u = unit((repeat(obj_u)*N - .5)/(N - 1));\n")
+                && label.contains("pic_v = unit((repeat(obj_v)*N - .5)/(N - 1));\n"),
+            "{label}"
+        );
+        let wrap = read("textures/wrap.cal");
+        assert!(
+            wrap.contains("pic_u = unit((obj_u*N - .5)/(N - 1));") && !wrap.contains("repeat"),
+            "{wrap}"
+        );
     }
 
     /// A curved textured group lost its whole map in RADIANCE (written as its mean

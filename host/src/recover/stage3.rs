@@ -28,7 +28,7 @@ pub(super) struct Stage3 {
 /// Runs stage 3 with renders at `4 * verify_spp` on `seed`, recording each tested group's
 /// contrast and decision in `reports`. Groups without texture coordinates (`mapped`
 /// false) are not tested; one that shows a texture over coordinates no map can be laid
-/// over (`unfit_for_a_map`) keeps its uniform model, and is warned of.
+/// over (`unfit_for_a_map`: over no area) keeps its uniform model, and is warned of.
 pub(super) fn run(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
@@ -139,8 +139,8 @@ pub(super) fn run(
             "stage 3: textured: {measured} > TEXTURE_CONTRAST_THRESHOLD {}",
             fit::TEXTURE_CONTRAST_THRESHOLD
         );
-        // A map clamped over a tiled texture, or read at one point, would be wrong: the
-        // texture is told rather than modelled wrong.
+        // A map read at one point (coordinates over no area) would be wrong: the texture
+        // is told rather than modelled wrong. Coordinates past [0, 1] are tiles, mapped.
         if let Some(why) = &unfit_for_a_map[g] {
             r.decisions.push(format!(
                 "{decision}, but {why}: no map is recovered, and its uniform model stays"

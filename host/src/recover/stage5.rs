@@ -16,6 +16,7 @@
 use std::time::Instant;
 
 use relume_core::fit;
+use relume_core::material::Wrap;
 use relume_core::render::RenderSettings;
 
 use super::model::GroupModel;
@@ -145,8 +146,12 @@ fn solve_map(
         Some(_) => "the lobe refitted with the map".to_string(),
         None => format!("the {} stand-in's lobe", standin.name()),
     };
+    let tiled = match summary.wrap {
+        Wrap::Repeat => " tiled (its texture coordinates reach past [0, 1], so the map repeats)",
+        Wrap::Clamp => "",
+    };
     report.decisions.push(format!(
-        "stage 5: {} map {}x{} from {} and {} on its border (T = (I_real - I_specular) / E under {lobe}); {} left out, {} kept, {} unseen and filled from neighbours",
+        "stage 5: {} map {}x{}{tiled} from {} and {} on its border (T = (I_real - I_specular) / E under {lobe}); {} left out, {} kept, {} unseen and filled from neighbours",
         rec.models[g].name(),
         summary.side,
         summary.side,

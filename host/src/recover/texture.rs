@@ -7,13 +7,13 @@ use std::collections::HashMap;
 use glam::{Vec2, Vec3};
 use relume_core::fit;
 use relume_core::geometry::{longest_side, Surface, Triangle};
-use relume_core::material::Material;
+use relume_core::material::{Material, Wrap};
 use relume_core::math::luminance;
 use relume_core::render::RenderSettings;
 use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
 use relume_core::stages::isotropic;
 use relume_core::stages::texture;
-use relume_core::stages::texture_map::{self, MapObservation, FOOTPRINT_SAMPLES};
+use relume_core::stages::texture_map::{self, MapGrid, MapObservation, FOOTPRINT_SAMPLES};
 
 use super::model::{GroupModel, MapLobe};
 use super::pixels::{self, PurePixel};
@@ -30,11 +30,37 @@ const BORDER_MIN_ON: usize = 2;
 pub struct RecoveredMap {
     pub side: u32,
     pub texels: Vec<Vec3>,
+    /// Repeated where its group's coordinates reach past [0, 1] ([`map_wrap`]).
+    pub wrap: Wrap,
+}
+
+impl RecoveredMap {
+    /// Its texel grid, as the renderer and the solver read it.
+    pub fn grid(&self) -> MapGrid {
+        MapGrid {
+            width: self.side,
+            height: self.side,
+            wrap: self.wrap,
+        }
+    }
+}
+
+/// How group `g`'s map is read: repeated when some coordinate of its faces reaches past
+/// [0, 1] (`OwnedScene::tiles_its_map`: a texture tiled over a floor by coordinates from 0
+/// to 4), else clamped, the format's lookup. A clamped map over tiles would give every
+/// pixel past 1 its last column.
+pub fn map_wrap(rec: &Recovery, g: usize) -> Wrap {
+    if rec.owned.tiles_its_map(g) {
+        Wrap::Repeat
+    } else {
+        Wrap::Clamp
+    }
 }
 
 /// How a map was recovered, for the report.
 pub struct MapSummary {
     pub side: u32,
+    pub wrap: Wrap,
     /// Pure pixels, and pixels on the group's border that the map was also solved from.
     pub pixels: usize,
     pub border_pixels: usize,
@@ -188,9 +214,11 @@ pub fn recover_map(
         Vec3::splat(MAX_DIFFUSE_REFLECTANCE as f32),
     );
     let map = rec.maps.len();
+    let wrap = map_wrap(rec, g);
     rec.maps.push(RecoveredMap {
         side: 1,
         texels: vec![start],
+        wrap,
     });
     rec.models[g] = GroupModel::Textured {
         map,
@@ -235,6 +263,7 @@ pub fn recover_map(
         .collect();
     Ok(MapSummary {
         side: solved.side,
+        wrap,
         pixels: pure_count,
         border_pixels: solved.border_used,
         highlights: solved.highlight[..pure_count]
@@ -339,6 +368,7 @@ impl MapSolve<'_> {
         rec.maps[map] = RecoveredMap {
             side: 1,
             texels: vec![self.start],
+            wrap: rec.maps[map].wrap,
         };
         let g = self.g as u16;
         let split = rec.with_scene(
@@ -411,21 +441,30 @@ impl MapSolve<'_> {
                 })
             })
             .collect();
-        let side = texture_map::map_side(self.pure_count, self.uv_coverage);
+        let side = match rec.maps[map].wrap {
+            Wrap::Clamp => texture_map::map_side(self.pure_count, self.uv_coverage),
+            // The coordinates' area in (u, v) is the number of repeats.
+            Wrap::Repeat => texture_map::tiled_map_side(self.pure_count, self.uv_coverage),
+        };
         let n = (side * side) as usize;
         let mut texels = vec![self.start; n];
         let (mut numerator, mut denominator) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
+        let wrap = rec.maps[map].wrap;
+        let grid = MapGrid {
+            width: side,
+            height: side,
+            wrap,
+        };
         let unseen_texels = texture_map::solve_map(
             &observations,
-            side,
-            side,
+            grid,
             MAX_DIFFUSE_REFLECTANCE as f32,
             &mut texels,
             &mut numerator,
             &mut denominator,
         )
         .map_err(|e| Error::core(format!("recovering the map of group {}", self.g), e))?;
-        rec.maps[map] = RecoveredMap { side, texels };
+        rec.maps[map] = RecoveredMap { side, texels, wrap };
         Ok(Solved {
             side,
             highlight,
@@ -490,10 +529,7 @@ fn lobe_with_map(
         .enumerate()
         .filter_map(|(i, p)| {
             let uv = footprints.get(&(p.view, p.x, p.y))?;
-            Some((
-                i,
-                texture_map::footprint_value(&map.texels, map.side, map.side, uv),
-            ))
+            Some((i, texture_map::footprint_value(&map.texels, map.grid(), uv)))
         })
         .collect();
     if rows.len() < fit::MIN_PIXELS_FOR_MODEL_CHOICE as usize {
