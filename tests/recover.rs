@@ -1525,7 +1525,7 @@ fn a_texture_over_coordinates_no_map_fits_is_told_not_mapped() {
         let run = relume_ok(dir, &["check", "scene.toml"]);
         String::from_utf8_lossy(&run.stdout).into_owned()
     };
-    assert!(!check().contains("texture coordinates:"));
+    assert!(!check().contains("texture coordinates:") && !check().contains("tiles:"));
     let why = "texture coordinates that cover no area of a map (u 0..0, v 0..0";
     picture_scene(dir, [[0.0, 0.0]; 4]);
     let stdout = check();
@@ -1602,9 +1602,16 @@ fn a_texture_tiled_past_the_unit_square_is_mapped_as_tiles() {
     let dir = tmp.path();
     picture_scene(dir, [[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]]);
     render_picture_panorama(dir, Tiles::Repeat);
-    // Tiles are no fault of the input: `check` names nothing.
+    // Tiles are no fault of the input: `check` says how they will be read.
     let run = relume_ok(dir, &["check", "scene.toml"]);
-    assert!(!String::from_utf8_lossy(&run.stdout).contains("texture coordinates:"));
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        !stdout.contains("texture coordinates:")
+            && stdout.contains(
+                "tiles: group 'picture': texture coordinates u 0..2, v 0..2, past [0, 1]"
+            ),
+        "{stdout}"
+    );
     let materials = recover(
         &dir.join("scene.toml"),
         &dir.join("rec"),

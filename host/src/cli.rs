@@ -439,6 +439,11 @@ fn print_check(report: &recover_cmd::CheckReport) {
             "texture coordinates: group '{group}': {why}: a texture it shows is told, and it keeps a uniform model"
         );
     }
+    for (group, span) in &report.tiled {
+        println!(
+            "tiles: group '{group}': texture coordinates {span}, past [0, 1]: a texture it shows is taken as tiled over it, and its map repeats (diffuse_map_wrap = \"repeat\")"
+        );
+    }
     for w in &report.warnings {
         eprintln!("relume: warning: {w}");
     }

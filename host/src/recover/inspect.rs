@@ -45,6 +45,9 @@ pub(super) struct Input {
     /// For a group with texture coordinates no map can be laid over, which object and why
     /// ([`coordinates_unfit_for_a_map`]).
     pub unfit_for_a_map: Vec<Option<String>>,
+    /// For a group whose texture coordinates reach past [0, 1], their span
+    /// ([`tiled_coordinates`]): a map recovered for it repeats.
+    pub tiled: Vec<Option<String>>,
     /// Whether every object of a group is hidden (`hide`): it is not in the scene.
     pub hidden: Vec<bool>,
     /// Whether a group's faces (those not hidden) have no area, every triangle degenerate:
@@ -83,6 +86,11 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         .iter()
         .map(|g| coordinates_unfit_for_a_map(&desc, &objects, g))
         .collect();
+    let tiled: Vec<Option<String>> = desc
+        .groups
+        .iter()
+        .map(|g| tiled_coordinates(&desc, &objects, g))
+        .collect();
     let hidden: Vec<bool> = desc
         .groups
         .iter()
@@ -109,6 +117,7 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         kinds,
         mapped,
         unfit_for_a_map,
+        tiled,
         hidden,
         no_area,
     })
@@ -144,6 +153,26 @@ fn coordinates_unfit_for_a_map(
             )
         })
     })
+}
+
+/// The span of group `group`'s texture coordinates (its objects not hidden) when some lie
+/// past [0, 1] by more than `assemble::UV_SLACK`: its texture is tiled over it, and a map
+/// recovered for it repeats (`OwnedScene::tiles_its_map`, from the same coordinates).
+fn tiled_coordinates(desc: &SceneDesc, objects: &[ObjObject], group: &GroupDesc) -> Option<String> {
+    let shown = |o: &&ObjObject| group.objects.contains(&o.name) && !desc.hide.contains(&o.name);
+    let faces: Vec<[[f32; 2]; 3]> = objects
+        .iter()
+        .filter(shown)
+        .filter_map(|o| o.uvs.as_deref())
+        .flatten()
+        .copied()
+        .collect();
+    let past = |x: f32| !(-assemble::UV_SLACK..=1.0 + assemble::UV_SLACK).contains(&x);
+    faces
+        .iter()
+        .flatten()
+        .any(|uv| past(uv[0]) || past(uv[1]))
+        .then(|| uv_span(&faces))
 }
 
 /// The span of some faces' texture coordinates, as a message gives it.
@@ -420,6 +449,9 @@ pub struct CheckReport {
     /// The groups whose texture coordinates no map can be laid over, and why
     /// ([`coordinates_unfit_for_a_map`]): a texture they show is told, not mapped.
     pub unfit_for_a_map: Vec<(String, String)>,
+    /// The groups whose texture coordinates reach past [0, 1], and their span: a texture
+    /// is tiled over them, and a map recovered for one repeats.
+    pub tiled: Vec<(String, String)>,
     /// Each view's pixels of the preview rendered under its colours against the
     /// panorama: a view off the others by more than `VIEW_GROSS_FACTOR` is warned of.
     pub view_readings: Vec<ViewReading>,
@@ -561,6 +593,9 @@ pub fn check(
     let unfit_for_a_map = (names.iter().zip(&input.unfit_for_a_map))
         .filter_map(|(name, why)| Some((name.clone(), why.clone()?)))
         .collect();
+    let tiled = (names.iter().zip(&input.tiled))
+        .filter_map(|(name, span)| Some((name.clone(), span.clone()?)))
+        .collect();
     let report = CheckReport {
         views: input.view_names,
         groups,
@@ -569,6 +604,7 @@ pub fn check(
         warnings,
         few_pixels,
         unfit_for_a_map,
+        tiled,
         view_readings,
         preview_spp: PREVIEW_SPP,
         preview_renders: preview.evaluations + view_renders,
