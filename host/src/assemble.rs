@@ -818,7 +818,14 @@ fn resolve_materials(
 
 /// How far past [0, 1] a texture coordinate may reach, from an exporter's rounding,
 /// before it is taken to mean tiles.
-pub const UV_SLACK: f32 = 1e-3;
+const UV_SLACK: f32 = 1e-3;
+
+/// Whether texture coordinate `(u, v)` lies past [0, 1]^2 by more than [`UV_SLACK`]: a
+/// texture laid over its face as tiles (OpenGL's and the exporters' reading).
+pub fn past_the_unit_square([u, v]: [f32; 2]) -> bool {
+    let past = |x: f32| !(-UV_SLACK..=1.0 + UV_SLACK).contains(&x);
+    past(u) || past(v)
+}
 
 impl OwnedScene {
     /// The scene's triangles, fixed once assembled.
@@ -826,16 +833,15 @@ impl OwnedScene {
         &self.triangles
     }
 
-    /// Whether some texture coordinate of group `g`'s faces lies past [0, 1]^2 by more
-    /// than [`UV_SLACK`]: its texture is laid over it as tiles (OpenGL's and the
-    /// exporters' reading of such coordinates), which a map read clamped cannot show.
+    /// Whether some texture coordinate of group `g`'s faces lies past [0, 1]^2
+    /// ([`past_the_unit_square`]): its texture is laid over it as tiles, which a map read
+    /// clamped cannot show.
     pub fn tiles_its_map(&self, g: usize) -> bool {
-        let past = |x: f32| !(-UV_SLACK..=1.0 + UV_SLACK).contains(&x);
         self.triangles
             .iter()
             .filter(|t| t.surface == Surface::Group(g as u16))
             .flat_map(|t| t.uv)
-            .any(|uv| past(uv.x) || past(uv.y))
+            .any(|uv| past_the_unit_square(uv.to_array()))
     }
 
     /// A warning for each group whose map is read clamped (no `diffuse_map_wrap =

@@ -156,8 +156,8 @@ fn coordinates_unfit_for_a_map(
 }
 
 /// The span of group `group`'s texture coordinates (its objects not hidden) when some lie
-/// past [0, 1] by more than `assemble::UV_SLACK`: its texture is tiled over it, and a map
-/// recovered for it repeats (`OwnedScene::tiles_its_map`, from the same coordinates).
+/// past [0, 1] (`assemble::past_the_unit_square`): its texture is tiled over it, and a
+/// map recovered for it repeats (`OwnedScene::tiles_its_map`, from the same coordinates).
 fn tiled_coordinates(desc: &SceneDesc, objects: &[ObjObject], group: &GroupDesc) -> Option<String> {
     let shown = |o: &&ObjObject| group.objects.contains(&o.name) && !desc.hide.contains(&o.name);
     let faces: Vec<[[f32; 2]; 3]> = objects
@@ -167,11 +167,10 @@ fn tiled_coordinates(desc: &SceneDesc, objects: &[ObjObject], group: &GroupDesc)
         .flatten()
         .copied()
         .collect();
-    let past = |x: f32| !(-assemble::UV_SLACK..=1.0 + assemble::UV_SLACK).contains(&x);
     faces
         .iter()
         .flatten()
-        .any(|uv| past(uv[0]) || past(uv[1]))
+        .any(|&uv| assemble::past_the_unit_square(uv))
         .then(|| uv_span(&faces))
 }
 
