@@ -9,7 +9,7 @@ use glam::{Vec2, Vec3};
 use relume_core::bvh::{Bvh, BvhBuffers, BvhNode, PackedTriangle};
 use relume_core::geometry::{longest_side, Surface, Triangle, View};
 use relume_core::material::{
-    Kind, Material, SurfaceMaterial, TextureId, TextureInfo, Textures, Wrap,
+    Kind, Material, SurfaceMaterial, TextureGrid, TextureId, TextureInfo, Textures, Wrap,
 };
 use relume_core::render::RAY_EPSILON;
 use relume_core::scene::{
@@ -654,16 +654,17 @@ fn map_texture(
     let info_of = |id: &TextureId| texture_infos[id.0 as usize];
     if let Some(&(_, id)) = maps_read
         .iter()
-        .find(|(p, id)| fsutil::same_file(p, map) && info_of(id).wrap == wrap)
+        .find(|(p, id)| fsutil::same_file(p, map) && info_of(id).grid.wrap == wrap)
     {
         return Ok(id);
     }
     // Read before with the other wrap (tiled on one group, clamped on another): the same
     // texels, read another way.
     if let Some((_, read)) = maps_read.iter().find(|(p, _)| fsutil::same_file(p, map)) {
+        let first = info_of(read);
         let info = TextureInfo {
-            wrap,
-            ..info_of(read)
+            grid: TextureGrid { wrap, ..first.grid },
+            ..first
         };
         let id = push_texture_info(info, &context, map, texture_infos)?;
         maps_read.push((map.to_path_buf(), id));
@@ -679,10 +680,12 @@ fn map_texture(
         "is above 1: a diffuse map holds reflectances in [0, 1]",
     )?;
     let info = TextureInfo {
-        width: image.width,
-        height: image.height,
+        grid: TextureGrid {
+            width: image.width,
+            height: image.height,
+            wrap,
+        },
         offset: texels.len(),
-        wrap,
     };
     let id = push_texture_info(info, &context, map, texture_infos)?;
     texels.extend(image.pixels.iter().map(|p| Vec3::from(*p)));
@@ -852,7 +855,7 @@ impl OwnedScene {
         (self.materials.iter().enumerate())
             .filter_map(|(g, m)| {
                 let info = self.texture_infos.get(m.diffuse_map?.0 as usize)?;
-                (info.wrap == Wrap::Clamp && self.tiles_its_map(g)).then(|| {
+                (info.grid.wrap == Wrap::Clamp && self.tiles_its_map(g)).then(|| {
                     format!(
                         "group '{}': its texture coordinates reach past [0, 1], where its diffuse_map is read clamped (every point past 1 reads the map's border texels); if the texture is tiled over it, say diffuse_map_wrap = \"repeat\" in its material",
                         self.group_names[g]

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use relume_core::geometry::Surface;
-use relume_core::material::texture::{bilinear_taps, Wrap};
+use relume_core::material::texture::{TextureGrid, Wrap};
 use relume_core::material::Kind;
 use relume_core::math::{luminance, Vec3};
 use relume_core::render;
@@ -533,7 +533,12 @@ fn map_psnr(truth: &Image, recovered: &Image, wrap: Wrap) -> Option<f64> {
         if same_size {
             return r.pixels[(j * r.width + i) as usize].map(f64::from);
         }
-        bilinear_taps(r.width, r.height, wrap, glam::Vec2::new(u, v))
+        let grid = TextureGrid {
+            width: r.width,
+            height: r.height,
+            wrap,
+        };
+        grid.taps(glam::Vec2::new(u, v))
             .iter()
             .fold([0.0f64; 3], |mut sum, &(k, a)| {
                 for (s, c) in sum.iter_mut().zip(r.pixels[k]) {

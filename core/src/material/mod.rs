@@ -44,7 +44,7 @@ pub mod texture;
 use crate::error::Error;
 use crate::math::{self, Frame, Vec3, INV_PI, PI};
 
-pub use texture::{TextureId, TextureInfo, Textures, Wrap};
+pub use texture::{TextureGrid, TextureId, TextureInfo, Textures, Wrap};
 
 /// The group's material type, assigned in preprocessing (scene.toml `kind`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

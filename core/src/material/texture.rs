@@ -27,14 +27,21 @@ pub enum Wrap {
     Repeat,
 }
 
+/// A texture's texel grid and how it reads coordinates outside [0, 1]: what a lookup
+/// needs, and what the recovery of a map (stage 5) must invert.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TextureGrid {
+    pub width: u32,
+    pub height: u32,
+    pub wrap: Wrap,
+}
+
 /// Where one texture lies in the texel pool.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TextureInfo {
-    pub width: u32,
-    pub height: u32,
+    pub grid: TextureGrid,
     /// First texel (row 0, column 0) in the pool; rows follow each other.
     pub offset: usize,
-    pub wrap: Wrap,
 }
 
 /// All textures of a scene, over lent slices.
@@ -101,13 +108,14 @@ impl<'a> Textures<'a> {
         check_capacity("config::MAX_TEXTURES", config::MAX_TEXTURES, infos.len())?;
         check_capacity("config::MAX_TEXELS", config::MAX_TEXELS, texels.len())?;
         for info in infos {
-            if info.width == 0 || info.height == 0 {
+            let TextureGrid { width, height, .. } = info.grid;
+            if width == 0 || height == 0 {
                 return Err(Error::InvalidValue {
                     what: "texture: width and height must be at least 1 texel",
                 });
             }
-            let needed = (info.width as usize)
-                .checked_mul(info.height as usize)
+            let needed = (width as usize)
+                .checked_mul(height as usize)
                 .and_then(|count| count.checked_add(info.offset))
                 .unwrap_or(usize::MAX);
             if needed > texels.len() {
@@ -134,7 +142,8 @@ impl<'a> Textures<'a> {
         let Some(info) = self.infos.get(id.0 as usize) else {
             return Vec3::ZERO;
         };
-        bilinear_taps(info.width, info.height, info.wrap, uv)
+        info.grid
+            .taps(uv)
             .iter()
             .map(|&(index, weight)| {
                 self.texels
@@ -147,30 +156,37 @@ impl<'a> Textures<'a> {
     }
 }
 
-/// The four texels (row-major index into a `width x height` texture) and weights that a
-/// bilinear lookup at `uv` blends; the weights sum to 1. Shared by the lookup and by the
-/// recovery of a map (stage 5), which must invert exactly this sampling.
-pub fn bilinear_taps(width: u32, height: u32, wrap: Wrap, uv: Vec2) -> [(usize, f32); 4] {
-    // Continuous texel coordinates: texel (i, j)'s centre is at (i, j).
-    let ((i0, i1, tx), (j0, j1, ty)) = match wrap {
-        Wrap::Clamp => (
-            axis(clamp_unit(uv.x) * width as f32 - 0.5, width),
-            axis((1.0 - clamp_unit(uv.y)) * height as f32 - 0.5, height),
-        ),
-        // At a whole u or v both sides of the seam read the same: half the last texel,
-        // half the first.
-        Wrap::Repeat => (
-            axis_repeat(repeat_unit(uv.x) * width as f32 - 0.5, width),
-            axis_repeat((1.0 - repeat_unit(uv.y)) * height as f32 - 0.5, height),
-        ),
-    };
-    let w = width as usize;
-    [
-        (j0 * w + i0, (1.0 - tx) * (1.0 - ty)),
-        (j0 * w + i1, tx * (1.0 - ty)),
-        (j1 * w + i0, (1.0 - tx) * ty),
-        (j1 * w + i1, tx * ty),
-    ]
+impl TextureGrid {
+    /// The four texels (row-major index into the `width x height` grid) and weights that
+    /// a bilinear lookup at `uv` blends; the weights sum to 1. Shared by the lookup and by
+    /// the recovery of a map (stage 5), which must invert exactly this sampling.
+    pub fn taps(&self, uv: Vec2) -> [(usize, f32); 4] {
+        let TextureGrid {
+            width,
+            height,
+            wrap,
+        } = *self;
+        // Continuous texel coordinates: texel (i, j)'s centre is at (i, j).
+        let ((i0, i1, tx), (j0, j1, ty)) = match wrap {
+            Wrap::Clamp => (
+                axis(clamp_unit(uv.x) * width as f32 - 0.5, width),
+                axis((1.0 - clamp_unit(uv.y)) * height as f32 - 0.5, height),
+            ),
+            // At a whole u or v both sides of the seam read the same: half the last texel,
+            // half the first.
+            Wrap::Repeat => (
+                axis_repeat(repeat_unit(uv.x) * width as f32 - 0.5, width),
+                axis_repeat((1.0 - repeat_unit(uv.y)) * height as f32 - 0.5, height),
+            ),
+        };
+        let w = width as usize;
+        [
+            (j0 * w + i0, (1.0 - tx) * (1.0 - ty)),
+            (j0 * w + i1, tx * (1.0 - ty)),
+            (j1 * w + i0, (1.0 - tx) * ty),
+            (j1 * w + i1, tx * ty),
+        ]
+    }
 }
 
 #[cfg(test)]
@@ -188,16 +204,20 @@ mod tests {
         }
         let infos = std::vec![
             TextureInfo {
-                width: 3,
-                height: 2,
+                grid: TextureGrid {
+                    width: 3,
+                    height: 2,
+                    wrap: Wrap::Clamp,
+                },
                 offset: 1,
-                wrap: Wrap::Clamp,
             },
             TextureInfo {
-                width: 1,
-                height: 1,
+                grid: TextureGrid {
+                    width: 1,
+                    height: 1,
+                    wrap: Wrap::Clamp,
+                },
                 offset: 0,
-                wrap: Wrap::Clamp,
             },
         ];
         (infos, texels)
@@ -309,7 +329,7 @@ mod tests {
     #[test]
     fn repeated_across_tiles_without_a_seam() {
         let (mut infos, texels) = pool();
-        infos[0].wrap = Wrap::Repeat;
+        infos[0].grid.wrap = Wrap::Repeat;
         let t = Textures::new(&infos, &texels).unwrap();
         let id = TextureId(0);
         for (i, j) in [(0, 0), (2, 0), (1, 1)] {
@@ -342,7 +362,12 @@ mod tests {
             Vec2::new(123.456, -0.0001),
             Vec2::new(f32::NAN, f32::INFINITY),
         ] {
-            let taps = bilinear_taps(3, 2, Wrap::Repeat, uv);
+            let grid = TextureGrid {
+                width: 3,
+                height: 2,
+                wrap: Wrap::Repeat,
+            };
+            let taps = grid.taps(uv);
             let sum: f32 = taps.iter().map(|&(_, a)| a).sum();
             assert!(
                 (sum - 1.0).abs() < 1e-5 && taps.iter().all(|&(k, _)| k < 6),
@@ -355,10 +380,12 @@ mod tests {
     fn new_checks_the_pool() {
         let texels = std::vec![Vec3::ONE; 12];
         let info = |width, height, offset| TextureInfo {
-            width,
-            height,
+            grid: TextureGrid {
+                width,
+                height,
+                wrap: Wrap::Clamp,
+            },
             offset,
-            wrap: Wrap::Clamp,
         };
         assert!(Textures::new(&[info(4, 3, 0)], &texels).is_ok());
         assert!(Textures::new(&[info(2, 3, 6), info(1, 1, 11)], &texels).is_ok());

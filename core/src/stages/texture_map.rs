@@ -5,7 +5,7 @@
 //! group's full model, and its specular part alone) and so knows, per channel, how much
 //! radiance one unit of diffuse reflectance sends to the camera there: `e_p`, the
 //! irradiance over pi, which carries the full global illumination. The renderer samples
-//! the map bilinearly (`material::texture::bilinear_taps`), so the observation is
+//! the map bilinearly (`material::texture::TextureGrid::taps`), so the observation is
 //! `e_p * sum_k a_pk T_k = I_p - S_p`. Dividing pixel by pixel and splatting would blur
 //! the map by that bilinear kernel; instead the weighted least-squares problem over the
 //! texels is solved by SIRT (simultaneous iterative reconstruction: each texel moves by
@@ -17,24 +17,8 @@
 //! the lobe.
 
 use crate::error::{check_capacity, Error};
-use crate::material::texture::{bilinear_taps, Wrap};
+use crate::material::texture::{TextureGrid, Wrap};
 use crate::math::{Vec2, Vec3};
-
-/// A map's texel grid and how it reads coordinates outside [0, 1] (a tiled map wraps).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct MapGrid {
-    pub width: u32,
-    pub height: u32,
-    pub wrap: Wrap,
-}
-
-impl MapGrid {
-    /// The renderer's bilinear taps on this grid (`material::texture::bilinear_taps`).
-    #[inline]
-    pub fn taps(&self, uv: Vec2) -> [(usize, f32); 4] {
-        bilinear_taps(self.width, self.height, self.wrap, uv)
-    }
-}
 
 /// The smallest and largest side of a recovered map.
 pub const MIN_SIDE: u32 = 4;
@@ -115,7 +99,7 @@ pub const MIN_UV_COVERAGE: f64 = 1e-4;
 /// non-negative reflectance is an error.
 pub fn solve_map(
     observations: &[MapObservation],
-    grid: MapGrid,
+    grid: TextureGrid,
     max_reflectance: f32,
     texels: &mut [Vec3],
     numerator: &mut [Vec3],
@@ -204,7 +188,7 @@ pub fn solve_map(
 
 /// A `width x height` map's value at a pixel as [`solve_map`] models it: the mean of its
 /// bilinear lookups at the pixel's [`FOOTPRINT_OFFSETS`] (`uv`).
-pub fn footprint_value(texels: &[Vec3], grid: MapGrid, uv: &[Vec2; FOOTPRINT_SAMPLES]) -> Vec3 {
+pub fn footprint_value(texels: &[Vec3], grid: TextureGrid, uv: &[Vec2; FOOTPRINT_SAMPLES]) -> Vec3 {
     let mut value = Vec3::ZERO;
     for &p in uv {
         for (k, a) in grid.taps(p) {
@@ -255,7 +239,7 @@ impl LobeScaleSums {
 
 /// Gives every texel no observation touched (zero weight in `seen`) the mean of its
 /// already known 4-neighbours, growing inwards from the known texels ring by ring.
-fn fill_unseen(grid: MapGrid, texels: &mut [Vec3], seen: &mut [Vec3]) -> usize {
+fn fill_unseen(grid: TextureGrid, texels: &mut [Vec3], seen: &mut [Vec3]) -> usize {
     let (w, h) = (grid.width as usize, grid.height as usize);
     // A tiled map's edges are neighbours across its seam.
     let tiled = grid.wrap == Wrap::Repeat;
@@ -341,15 +325,15 @@ mod tests {
     }
 
     /// A `w x h` grid read as the format reads maps, clamped.
-    fn grid(width: u32, height: u32) -> MapGrid {
-        MapGrid {
+    fn grid(width: u32, height: u32) -> TextureGrid {
+        TextureGrid {
             width,
             height,
             wrap: Wrap::Clamp,
         }
     }
 
-    fn lookup(map: &[Vec3], grid: MapGrid, uv: Vec2) -> Vec3 {
+    fn lookup(map: &[Vec3], grid: TextureGrid, uv: Vec2) -> Vec3 {
         grid.taps(uv)
             .iter()
             .fold(Vec3::ZERO, |s, &(k, a)| s + map[k] * a)
@@ -361,7 +345,13 @@ mod tests {
     }
 
     /// [`observe`] on any grid (a tiled one reads `[lo, hi]^2` past [0, 1]).
-    fn observe_on(map: &[Vec3], g: MapGrid, count: u32, lo: f32, hi: f32) -> Vec<MapObservation> {
+    fn observe_on(
+        map: &[Vec3],
+        g: TextureGrid,
+        count: u32,
+        lo: f32,
+        hi: f32,
+    ) -> Vec<MapObservation> {
         let mut rng = Sampler::for_pixel_sample(7, 0, 0, 0);
         (0..count)
             .map(|_| {
@@ -387,7 +377,7 @@ mod tests {
         solve_on(obs, grid(w, h))
     }
 
-    fn solve_on(obs: &[MapObservation], g: MapGrid) -> (Vec<Vec3>, usize) {
+    fn solve_on(obs: &[MapObservation], g: TextureGrid) -> (Vec<Vec3>, usize) {
         let n = (g.width * g.height) as usize;
         let mut map = vec![Vec3::splat(0.5); n];
         let (mut a, mut b) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
@@ -408,7 +398,7 @@ mod tests {
     fn a_tiled_map_pools_its_repeats() {
         let (w, h) = (8, 6);
         let truth = truth_map(w, h);
-        let tiled = MapGrid {
+        let tiled = TextureGrid {
             wrap: Wrap::Repeat,
             ..grid(w, h)
         };
@@ -427,7 +417,7 @@ mod tests {
     #[test]
     fn a_tiled_maps_unseen_texels_fill_across_its_seam() {
         let (w, h) = (4u32, 2u32);
-        let tiled = MapGrid {
+        let tiled = TextureGrid {
             wrap: Wrap::Repeat,
             ..grid(w, h)
         };

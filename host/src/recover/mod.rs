@@ -173,10 +173,8 @@ impl Recovery {
             self.owned
                 .texture_infos
                 .push(relume_core::material::TextureInfo {
-                    width: map.side,
-                    height: map.side,
+                    grid: map.grid(),
                     offset: self.owned.texels.len(),
-                    wrap: map.wrap,
                 });
             self.owned.texels.extend_from_slice(&map.texels);
         }

@@ -7,13 +7,13 @@ use std::collections::HashMap;
 use glam::{Vec2, Vec3};
 use relume_core::fit;
 use relume_core::geometry::{longest_side, Surface, Triangle};
-use relume_core::material::{Material, Wrap};
+use relume_core::material::{Material, TextureGrid, Wrap};
 use relume_core::math::luminance;
 use relume_core::render::RenderSettings;
 use relume_core::stages::diffuse::MAX_DIFFUSE_REFLECTANCE;
 use relume_core::stages::isotropic;
 use relume_core::stages::texture;
-use relume_core::stages::texture_map::{self, MapGrid, MapObservation, FOOTPRINT_SAMPLES};
+use relume_core::stages::texture_map::{self, MapObservation, FOOTPRINT_SAMPLES};
 
 use super::model::{GroupModel, MapLobe};
 use super::pixels::{self, PurePixel};
@@ -36,8 +36,8 @@ pub struct RecoveredMap {
 
 impl RecoveredMap {
     /// Its texel grid, as the renderer and the solver read it.
-    pub fn grid(&self) -> MapGrid {
-        MapGrid {
+    pub fn grid(&self) -> TextureGrid {
+        TextureGrid {
             width: self.side,
             height: self.side,
             wrap: self.wrap,
@@ -450,7 +450,7 @@ impl MapSolve<'_> {
         let mut texels = vec![self.start; n];
         let (mut numerator, mut denominator) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
         let wrap = rec.maps[map].wrap;
-        let grid = MapGrid {
+        let grid = TextureGrid {
             width: side,
             height: side,
             wrap,
