@@ -17,22 +17,7 @@ import numpy as np
 from embreex import rtcore as rtc, rtcore_scene as rtcs
 from embreex.mesh_construction import TriangleMesh
 
-
-def read_obj_triangles(path):
-    vertices, triangles = [], []
-    with open(path) as f:
-        for line in f:
-            parts = line.split()
-            if not parts:
-                continue
-            if parts[0] == "v":
-                vertices.append([float(x) for x in parts[1:4]])
-            elif parts[0] == "f":
-                corners = [int(c.split("/")[0]) for c in parts[1:]]
-                corners = [c - 1 if c > 0 else len(vertices) + c for c in corners]
-                for k in range(1, len(corners) - 1):
-                    triangles.append([corners[0], corners[k], corners[k + 1]])
-    return np.array(vertices, np.float32), np.array(triangles, np.int32)
+from obj_triangles import read_obj_triangles
 
 
 def read_rays(path):
@@ -54,7 +39,8 @@ def agreeing(t, triangle, reference):
 
 
 def main(obj, rays_path, repeats):
-    vertices, triangles = read_obj_triangles(obj)
+    vertices, triangles, _ = read_obj_triangles(obj)
+    vertices = vertices.astype(np.float32)
     start = time.perf_counter()
     scene = rtcs.EmbreeScene(rtc.EmbreeDevice())
     TriangleMesh(scene, vertices, triangles)

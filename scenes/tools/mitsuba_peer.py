@@ -34,29 +34,10 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from obj_triangles import read_obj_triangles
+
 mi.set_variant("llvm_ad_rgb")
 PLY_DIR = "/tmp/mitsuba_peer_ply"
-
-
-def read_obj_objects(path):
-    """Vertices, and each OBJ object's faces fan-triangulated."""
-    vertices, objects, current = [], {}, None
-    with open(path) as f:
-        for line in f:
-            parts = line.split()
-            if not parts:
-                continue
-            if parts[0] == "v":
-                vertices.append([float(x) for x in parts[1:4]])
-            elif parts[0] in ("o", "g"):
-                current = parts[1]
-                objects.setdefault(current, [])
-            elif parts[0] == "f":
-                corners = [int(c.split("/")[0]) for c in parts[1:]]
-                corners = [c - 1 if c > 0 else len(vertices) + c for c in corners]
-                for k in range(1, len(corners) - 1):
-                    objects[current].append([corners[0], corners[k], corners[k + 1]])
-    return np.array(vertices, np.float64), objects
 
 
 def write_ply(name, vertices, triangles):
@@ -82,7 +63,10 @@ def load(scene_path):
     folder = os.path.dirname(os.path.abspath(scene_path))
     with open(scene_path, "rb") as f:
         desc = tomllib.load(f)
-    vertices, objects = read_obj_objects(os.path.join(folder, desc["geometry"][0]))
+    vertices, all_triangles, owners = read_obj_triangles(os.path.join(folder, desc["geometry"][0]))
+    objects = {}
+    for triangle, owner in zip(all_triangles.tolist(), owners):
+        objects.setdefault(owner, []).append(triangle)
     group_of = {o: g["name"] for g in desc["group"] for o in g["objects"]}
     lights = {l["object"]: l["radiance"] for l in desc.get("light", [])}
     scene = {"type": "scene", "integrator": {"type": "prb", "max_depth": 16, "rr_depth": 5}}
