@@ -64,24 +64,23 @@ def load(scene_path):
     with open(scene_path, "rb") as f:
         desc = tomllib.load(f)
     vertices, all_triangles, owners = read_obj_triangles(os.path.join(folder, desc["geometry"][0]))
-    objects = {}
-    for triangle, owner in zip(all_triangles.tolist(), owners):
-        objects.setdefault(owner, []).append(triangle)
     group_of = {o: g["name"] for g in desc["group"] for o in g["objects"]}
     lights = {l["object"]: l["radiance"] for l in desc.get("light", [])}
+    light_triangles, by_group = {}, {}
+    for triangle, owner in zip(all_triangles.tolist(), owners):
+        if owner in lights:
+            light_triangles.setdefault(owner, []).append(triangle)
+        elif owner in group_of:
+            by_group.setdefault(group_of[owner], []).append(triangle)
     scene = {"type": "scene", "integrator": {"type": "prb", "max_depth": 16, "rr_depth": 5}}
-    by_group = {}
-    for name, triangles in objects.items():
-        if name in lights:
-            scene["light_" + name] = {
-                "type": "ply",
-                "filename": write_ply(name, vertices, triangles),
-                "face_normals": True,
-                "emitter": {"type": "area", "radiance": {"type": "rgb", "value": lights[name]}},
-                "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0, 0, 0]}},
-            }
-        elif name in group_of:
-            by_group.setdefault(group_of[name], []).extend(triangles)
+    for name, triangles in light_triangles.items():
+        scene["light_" + name] = {
+            "type": "ply",
+            "filename": write_ply(name, vertices, triangles),
+            "face_normals": True,
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": lights[name]}},
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0, 0, 0]}},
+        }
     for group, triangles in by_group.items():
         diffuse = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}}
         scene["group_" + group] = {
