@@ -13,16 +13,17 @@ iteration renders all views with path replay backpropagation (`prb`, 16 bounces,
 roulette from the 5th) at SPP samples a pixel on a fresh seed, takes the mean squared
 error against the views, and steps Adam; the learning rate decays from LR by DECAY each
 iteration (1 keeps it constant) down to LR / 100. Writes one JSON line per iteration (wall
-seconds since the first, the albedos' mean and largest relative error) to LOG, and prints
-the time it first reached 1% mean relative error and its error at the end.
+seconds since the first, the albedos' mean and largest relative error; reading them back
+is inside the timed loop, a small cost charged to the peer) to LOG, and prints the time it
+first reached 1% mean relative error and its error at the end.
 
 Needs mitsuba and drjit from PyPI and an LLVM of version 16 or later (Debian: libllvm19):
   python3 -m venv /tmp/emb && /tmp/emb/bin/pip install mitsuba numpy
   apt-get install libllvm19
   DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 \\
     /tmp/emb/bin/python mitsuba_peer.py SCENE.toml TRUTH.toml SECONDS SPP LR DECAY LOG
-CHECK=1 instead renders each view with the true colours at 256 spp and prints how it
-differs from the panorama (that the cameras and lights are read as relume reads them).
+CHECK=1 (with the same arguments, of which only the two files are read) instead renders
+each view with the true colours at 256 spp and prints how it differs from the panorama (that the cameras and lights are read as relume reads them).
 """
 import json
 import os

@@ -1,6 +1,6 @@
 """The OBJ reading the peer scripts share: vertices, and every face fan-triangulated in file
-order with the object it belongs to. The order is the global triangle index of
-shared/bench/rays/README.md and of relume's own reading (`o` and `g` both name objects)."""
+order with the object it belongs to (the last `o` or `g` line before it). The order is the
+global triangle index of shared/bench/rays/README.md."""
 import numpy as np
 
 
