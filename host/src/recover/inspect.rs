@@ -554,6 +554,7 @@ pub fn check(
         pool,
         seed: PREVIEW_SEED,
         terms_memo: Default::default(),
+        started: start,
     };
     let names = rec.owned.group_names.clone();
     let preview = stage1::preview_light(&mut rec, &names, PREVIEW_SPP)?;

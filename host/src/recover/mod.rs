@@ -71,7 +71,7 @@ pub use model::GroupModel;
 pub use output::{output_files, UNSEEN_TOML};
 use pixels::PurePixel;
 use report::keep_rule;
-pub use report::{ComparisonReport, GroupReport, RecoverReport, StageReport};
+pub use report::{ComparisonReport, DiffuseStep, GroupReport, RecoverReport, StageReport};
 pub use warnings::FEW_PIXELS;
 
 /// How much work the recovery may spend: samples per pixel of the renders and caches in
@@ -156,6 +156,18 @@ struct Recovery {
     seed: u64,
     /// The last paired measurements ([`Recovery::paired_terms`]).
     terms_memo: terms_memo::TermsMemo,
+    /// When the recovery began: the report's clock.
+    started: Instant,
+}
+
+/// What a run of the diffuse iteration ([`Recovery::diffuse_iteration`]) found.
+struct DiffuseIteration {
+    /// The fits of its first render, of the colours it started from.
+    first: Vec<GroupFit>,
+    /// Renders spent.
+    evaluations: u32,
+    /// Each step's update.
+    steps: Vec<DiffuseStep>,
 }
 
 impl Recovery {
@@ -498,8 +510,8 @@ impl Recovery {
 
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
     /// held fixed, until converged, every render on [`Recovery::diffuse_subset`] (the
-    /// update needs each group's mean, not every pixel). Returns (first fits, on that
-    /// subset, and evaluations). The step that finds
+    /// update needs each group's mean, not every pixel). The first fits are on that
+    /// subset. The step that finds
     /// the change converged has already applied its update; no render follows it (what
     /// stage 1 decides on is measured afterwards by [`Recovery::error_estimates`]).
     fn diffuse_iteration(
@@ -507,12 +519,13 @@ impl Recovery {
         spp: u32,
         active: &[bool],
         bar: &ProgressBar,
-    ) -> Result<(Vec<GroupFit>, u32), Error> {
+    ) -> Result<DiffuseIteration, Error> {
         let seed = self.seed;
         let wanted = |g: u16| active[g as usize];
         let subset = self.diffuse_subset();
         let mut first = None;
         let mut evaluations = 0;
+        let mut steps = Vec::new();
         let mut previous_change = f64::INFINITY;
         // Per group: the reflectance and mean rendered value of the previous step, from
         // which the update measures how strongly the render responds (its slope).
@@ -537,8 +550,22 @@ impl Recovery {
                     max_change = max_change.max(change);
                 }
             }
+            steps.push(DiffuseStep {
+                seconds: self.started.elapsed().as_secs_f64(),
+                largest_change: max_change,
+                reflectances: (0..self.n_groups())
+                    .map(|g| match (active[g], self.models[g]) {
+                        (true, GroupModel::Diffuse { color }) => Some(color),
+                        _ => None,
+                    })
+                    .collect(),
+            });
             if diffuse::converged(evaluations, max_change, previous_change, back) {
-                return Ok((first_fits, evaluations));
+                return Ok(DiffuseIteration {
+                    first: first_fits,
+                    evaluations,
+                    steps,
+                });
             }
             previous_change = max_change;
         }
@@ -875,14 +902,18 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         pool,
         seed: args.seed,
         terms_memo: Default::default(),
+        started: start,
     };
     let mut reports: Vec<GroupReport> = (0..n_groups)
         .map(|g| GroupReport::new(&names[g], &format!("{:?}", kinds[g]).to_lowercase()))
         .collect();
 
     let spp = args.budget.loop_spp;
-    let (stage1_report, mut candidates) =
-        stage1::run(&mut rec, &mut reports, &names, spp, &mut warnings)?;
+    let stage1::Stage1 {
+        report: stage1_report,
+        mut candidates,
+        steps: diffuse_steps,
+    } = stage1::run(&mut rec, &mut reports, &names, spp, &mut warnings)?;
     let mut stages = vec![stage1_report];
     // The groups no view sees whole pass on light too: their stand-ins, measured under
     // stage 1's colours now, and again below under their neighbours' final models.
@@ -1112,6 +1143,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         view_readings,
         orientation_readings,
         stages,
+        diffuse_steps,
         groups: reports,
         warnings,
         warnings_told,

@@ -803,6 +803,7 @@ objects = ["wrap"]
             pool: crate::parallel::thread_pool(Some(1)).unwrap(),
             seed: 1,
             terms_memo: Default::default(),
+            started: std::time::Instant::now(),
         }
     }
 

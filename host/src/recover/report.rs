@@ -289,6 +289,21 @@ pub struct StageReport {
     pub notes: Vec<String>,
 }
 
+/// One step of stage 1's iteration, so that a reader sees how fast the colours settle
+/// (and can time the estimate against a peer's optimiser by the same rule: when it first
+/// comes within a given error of the truth).
+#[derive(Serialize, Debug, Clone, PartialEq)]
+pub struct DiffuseStep {
+    /// When the step's update was made, in seconds since the recovery began (reading the
+    /// scene and its inspection included).
+    pub seconds: f64,
+    /// The largest relative change of a colour in the step.
+    pub largest_change: f64,
+    /// Every group's diffuse reflectance after the step, in the order of `groups`
+    /// (`None` for a group the iteration does not move).
+    pub reflectances: Vec<Option<[f64; 3]>>,
+}
+
 #[derive(Serialize, Debug)]
 pub struct RecoverReport {
     pub scene: String,
@@ -311,6 +326,8 @@ pub struct RecoverReport {
     /// orientation that fits best: a view in another cube-face convention.
     pub orientation_readings: Vec<super::orientation::OrientationReading>,
     pub stages: Vec<StageReport>,
+    /// Stage 1's iteration, step by step.
+    pub diffuse_steps: Vec<DiffuseStep>,
     pub groups: Vec<GroupReport>,
     pub warnings: Vec<String>,
     /// The first of `warnings` already printed, before the work (`tell_input_warnings`).

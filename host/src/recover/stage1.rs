@@ -10,30 +10,39 @@ use relume_core::stages::diffuse::{self, DiffuseVerdict};
 use super::model::{GroupModel, NEUTRAL_STAND_IN};
 use super::warnings::brighter_at_bound;
 use super::{
-    min_samples_spp, pixels, progress_bar, GroupReport, Recovery, StageReport, CACHE_MIN_SAMPLES,
-    POLISH_MIN_SAMPLES, POLISH_NEWTON_MAX_GROUPS, POLISH_SPP_FACTOR,
+    min_samples_spp, pixels, progress_bar, DiffuseStep, GroupReport, Recovery, StageReport,
+    CACHE_MIN_SAMPLES, POLISH_MIN_SAMPLES, POLISH_NEWTON_MAX_GROUPS, POLISH_SPP_FACTOR,
 };
 use crate::error::Error;
 use crate::text::counted;
 
+/// What stage 1 hands on.
+pub(super) struct Stage1 {
+    pub report: StageReport,
+    /// The groups that go on to stage 2, each with its error.
+    pub candidates: Vec<(usize, f64)>,
+    /// The iteration's steps, for the recovery's report.
+    pub steps: Vec<DiffuseStep>,
+}
+
 /// Runs stage 1 at `spp` samples per pixel, recording each group's error and verdict in
-/// `reports` (and a warning in `warnings` for a group unseen or barely seen). Returns the
-/// stage's report and the groups that go on to stage 2, each with its error.
+/// `reports` (and a warning in `warnings` for a group unseen or barely seen).
 pub(super) fn run(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
     names: &[String],
     spp: u32,
     warnings: &mut Vec<String>,
-) -> Result<(StageReport, Vec<(usize, f64)>), Error> {
+) -> Result<Stage1, Error> {
     let n_groups = reports.len();
     let stage_start = Instant::now();
     let bar = progress_bar(fit::DIFFUSE_MAX_STEPS as u64, "1 diffuse");
     let all = vec![true; n_groups];
-    let (first, evaluations) = rec.diffuse_iteration(spp, &all, &bar)?;
+    let iteration = rec.diffuse_iteration(spp, &all, &bar)?;
+    let (first, evaluations) = (&iteration.first, iteration.evaluations);
     let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
-    let unlit = unlit_groups(rec, &first, spp)?;
-    refuse_unlit_or_black(rec, &first, &unlit, &pure_pixels)?;
+    let unlit = unlit_groups(rec, first, spp)?;
+    refuse_unlit_or_black(rec, first, &unlit, &pure_pixels)?;
     // Which groups go on is decided on the bias-only error, at the decisions' samples and
     // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
     // own noise (heavy-tailed paths), by whole percents either way.
@@ -152,7 +161,11 @@ pub(super) fn run(
             }
         }
     }
-    Ok((report, candidates))
+    Ok(Stage1 {
+        report,
+        candidates,
+        steps: iteration.steps,
+    })
 }
 
 /// The refusals of a scene whose first render says that nothing can be recovered: no light
@@ -208,8 +221,8 @@ pub(super) fn preview_light(
 ) -> Result<LightPreview, Error> {
     let n_groups = rec.n_groups();
     let all = vec![true; n_groups];
-    let (first, mut evaluations) =
-        rec.diffuse_iteration(spp, &all, &indicatif::ProgressBar::hidden())?;
+    let iteration = rec.diffuse_iteration(spp, &all, &indicatif::ProgressBar::hidden())?;
+    let (first, mut evaluations) = (iteration.first, iteration.evaluations);
     let pure_pixels = pixels::group_counts(&rec.pure, n_groups);
     let unlit = unlit_groups(rec, &first, spp)?;
     refuse_unlit_or_black(rec, &first, &unlit, &pure_pixels)?;
@@ -368,7 +381,7 @@ pub(super) fn refine_diffuse_groups(
     });
     let mut evaluations = 0;
     if !all_diffuse {
-        evaluations += rec.diffuse_iteration(spp, &active, &bar)?.1;
+        evaluations += rec.diffuse_iteration(spp, &active, &bar)?.evaluations;
     }
     // The iteration stops at its own noise floor, so each colour carries the noise of one
     // render at the loop's samples (on box-diffuse at effort fast, up to 0.94% between
