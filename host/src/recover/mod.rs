@@ -25,6 +25,7 @@ mod anisotropic;
 mod cache;
 mod calibration;
 mod inspect;
+mod joint_step;
 mod kind;
 mod ladder;
 mod model;
@@ -527,27 +528,36 @@ impl Recovery {
         let mut evaluations = 0;
         let mut steps = Vec::new();
         let mut previous_change = f64::INFINITY;
-        // Per group: the reflectance and mean rendered value of the previous step, from
-        // which the update measures how strongly the render responds (its slope).
-        let mut previous: Vec<Option<([f64; 3], [f64; 3])>> = vec![None; self.n_groups()];
+        let mut joint = joint_step::JointStep::new(self.n_groups());
+        // The colours before the last step, from which `converged` sees a step turn back.
+        let mut before: Vec<Option<[f64; 3]>> = vec![None; self.n_groups()];
         loop {
             let fits = self.evaluate_pixels(&subset, spp, seed, &wanted)?;
             evaluations += 1;
             bar.inc(1);
             let first_fits = first.get_or_insert_with(|| fits.clone()).clone();
-            let mut max_change = 0.0f64;
+            let mut colours: Vec<Option<[f64; 3]>> = (0..self.n_groups())
+                .map(|g| match (active[g], self.models[g]) {
+                    (true, GroupModel::Diffuse { color }) => Some(color),
+                    _ => None,
+                })
+                .collect();
+            let now = colours.clone();
+            let max_change = joint.step(&mut colours, &fits);
             // How far the colours end from those before the step before (`converged`).
-            let mut back = 0.0f64;
-            for g in 0..self.n_groups() {
-                if let (true, GroupModel::Diffuse { color }) = (active[g], self.models[g]) {
-                    let (next, change) = diffuse::update_with_slope(color, &fits[g], previous[g]);
-                    back = back.max(match previous[g] {
-                        Some((earlier, _)) => diffuse::relative_distance(next, earlier),
-                        None => f64::INFINITY,
-                    });
-                    previous[g] = Some((color, fits[g].mean_rendered()));
-                    self.models[g] = GroupModel::Diffuse { color: next };
-                    max_change = max_change.max(change);
+            let back = colours
+                .iter()
+                .zip(&before)
+                .map(|(next, earlier)| match (next, earlier) {
+                    (Some(next), Some(earlier)) => diffuse::relative_distance(*next, *earlier),
+                    (Some(_), None) => f64::INFINITY,
+                    _ => 0.0,
+                })
+                .fold(0.0, f64::max);
+            before = now;
+            for (model, colour) in self.models.iter_mut().zip(&colours) {
+                if let Some(color) = colour {
+                    *model = GroupModel::Diffuse { color: *color };
                 }
             }
             steps.push(DiffuseStep {

@@ -64,7 +64,7 @@ pub(super) fn run(
         samples_per_pixel: spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![format!(
-            "rho_d <- rho_d * mean(real) / mean(rendered) per group and channel, until the largest relative change <= {} or, after {} steps, stops shrinking (the render's noise floor)",
+            "rho_d <- rho_d * mean(real) / mean(rendered) per group and channel at the first step, then Broyden's joint secant step (per channel, over all groups, in log space: it learns how each group's render responds to every colour), until the largest relative change <= {} or, after {} steps, stops shrinking (the render's noise floor)",
             fit::DIFFUSE_CONVERGED,
             diffuse::MIN_STEPS
         )],
