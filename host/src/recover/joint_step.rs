@@ -123,6 +123,17 @@ mod tests {
         fit
     }
 
+    /// The fits of the room rendered with the channel-0 colours of `colours` against the
+    /// panorama `real` (one mean per group).
+    fn fits_of(colours: &[Option<[f64; 3]>], real: &[f64]) -> Vec<GroupFit> {
+        let rho: Vec<f64> = colours.iter().map(|c| c.unwrap()[0]).collect();
+        render(&rho)
+            .iter()
+            .zip(real)
+            .map(|(&r, &t)| fit_of(t, r))
+            .collect()
+    }
+
     /// Steps until every colour is within `tol` of the truth, by the joint step or by the
     /// paper's rule.
     fn steps_to(joint: bool, tol: f64) -> usize {
@@ -131,12 +142,7 @@ mod tests {
         let mut colours = vec![Some([0.5; 3]); 3];
         let mut state = JointStep::new(3);
         for step in 1..=60 {
-            let rho: Vec<f64> = colours.iter().map(|c| c.unwrap()[0]).collect();
-            let fits: Vec<GroupFit> = render(&rho)
-                .iter()
-                .zip(&real)
-                .map(|(&r, &t)| fit_of(t, r))
-                .collect();
+            let fits = fits_of(&colours, &real);
             if joint {
                 state.step(&mut colours, &fits);
             } else {
@@ -170,12 +176,7 @@ mod tests {
         let mut colours = vec![Some([0.5; 3]); 3];
         let mut state = JointStep::new(3);
         for _ in 0..20 {
-            let rho: Vec<f64> = colours.iter().map(|c| c.unwrap()[0]).collect();
-            let fits: Vec<GroupFit> = render(&rho)
-                .iter()
-                .zip(&real)
-                .map(|(&r, &t)| fit_of(t, r))
-                .collect();
+            let fits = fits_of(&colours, &real);
             state.step(&mut colours, &fits);
         }
         for colour in colours {

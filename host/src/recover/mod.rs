@@ -512,9 +512,9 @@ impl Recovery {
     /// Stage 1 (and its refinement): the diffuse update for the groups `active`, the others
     /// held fixed, until converged, every render on [`Recovery::diffuse_subset`] (the
     /// update needs each group's mean, not every pixel). The first fits are on that
-    /// subset. The step that finds
-    /// the change converged has already applied its update; no render follows it (what
-    /// stage 1 decides on is measured afterwards by [`Recovery::error_estimates`]).
+    /// subset. The step that finds the change converged has already applied its update; no
+    /// render follows it (what stage 1 decides on is measured afterwards by
+    /// [`Recovery::error_estimates`]).
     fn diffuse_iteration(
         &mut self,
         spp: u32,
@@ -563,12 +563,7 @@ impl Recovery {
             steps.push(DiffuseStep {
                 seconds: self.started.elapsed().as_secs_f64(),
                 largest_change: max_change,
-                reflectances: (0..self.n_groups())
-                    .map(|g| match (active[g], self.models[g]) {
-                        (true, GroupModel::Diffuse { color }) => Some(color),
-                        _ => None,
-                    })
-                    .collect(),
+                reflectances: colours,
             });
             if diffuse::converged(evaluations, max_change, previous_change, back) {
                 return Ok(DiffuseIteration {
