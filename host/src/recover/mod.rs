@@ -535,7 +535,9 @@ impl Recovery {
             let fits = self.evaluate_pixels(&subset, spp, seed, &wanted)?;
             evaluations += 1;
             bar.inc(1);
-            let first_fits = first.get_or_insert_with(|| fits.clone()).clone();
+            if first.is_none() {
+                first = Some(fits.clone());
+            }
             let mut colours: Vec<Option<[f64; 3]>> = (0..self.n_groups())
                 .map(|g| match (active[g], self.models[g]) {
                     (true, GroupModel::Diffuse { color }) => Some(color),
@@ -567,7 +569,7 @@ impl Recovery {
             });
             if diffuse::converged(evaluations, max_change, previous_change, back) {
                 return Ok(DiffuseIteration {
-                    first: first_fits,
+                    first: first.unwrap_or_default(),
                     evaluations,
                     steps,
                 });
