@@ -16,6 +16,7 @@
 //! may be coplanar meet), and within a plane that holds several groups, a sweep over
 //! their extents in the plane tests only pairs whose boxes overlap.
 
+use std::cell::RefCell;
 use std::collections::{HashMap, HashSet};
 use std::hash::{DefaultHasher, Hash, Hasher};
 
@@ -43,6 +44,12 @@ const TIE_SHARE_OF_SLACK: f64 = 0.01;
 
 /// Points of overlap kept per pair of groups, to look for from the views.
 const POINTS_PER_PAIR: usize = 32;
+
+/// Triangle pairs counted per pair of groups. Past it the warning says "at least", and no
+/// more of those two groups' faces are tested: faces that all overlap one another would
+/// otherwise cost the square of their number (20,000 thin triangles of two groups in one
+/// plane took minutes to `check`).
+const MAX_COUNTED_PAIRS: usize = 10_000;
 
 /// A face prepared for the tests, in f64.
 struct Face {
@@ -227,8 +234,13 @@ pub fn overlapping_face_warnings(owned: &mut OwnedScene) -> Result<Vec<String>, 
             significant(p[2] + origin[2])
         );
         let view = view_names.get(view).map_or("?", String::as_str);
+        let at_least = if o.pairs >= MAX_COUNTED_PAIRS {
+            "at least "
+        } else {
+            ""
+        };
         let what = format!(
-            "{} of triangles, seen from view '{view}' at {at}",
+            "{at_least}{} of triangles, seen from view '{view}' at {at}",
             counted(o.pairs as u64, "pair")
         );
         warnings.push(if o.apart <= TIE_SHARE_OF_SLACK * slack {
@@ -276,9 +288,16 @@ fn seen_by(scene: &Scene, views: &[View], p: [f64; 3], slack: f64) -> Option<usi
 /// Each pair of groups (smaller index first, in order) with faces that overlap within
 /// `slack` of one plane, exact copies left out.
 fn find_overlaps(triangles: &[Triangle], slack: f64) -> Vec<((u16, u16), Overlap)> {
-    let mut found: HashMap<(u16, u16), Overlap> = HashMap::new();
+    let found: RefCell<HashMap<(u16, u16), Overlap>> = RefCell::new(HashMap::new());
+    // Two groups' faces, until that pair has MAX_COUNTED_PAIRS counted.
     let of_groups = |a: &Face, b: &Face| match (a.surface, b.surface) {
-        (Surface::Group(g), Surface::Group(h)) => g != h,
+        (Surface::Group(g), Surface::Group(h)) => {
+            g != h
+                && found
+                    .borrow()
+                    .get(&(g.min(h), g.max(h)))
+                    .is_none_or(|o| o.pairs < MAX_COUNTED_PAIRS)
+        }
         _ => false,
     };
     let is_group = |s: Surface| matches!(s, Surface::Group(_));
@@ -294,6 +313,7 @@ fn find_overlaps(triangles: &[Triangle], slack: f64) -> Vec<((u16, u16), Overlap
             let (Surface::Group(g), Surface::Group(h)) = (a.surface, b.surface) else {
                 return;
             };
+            let mut found = found.borrow_mut();
             let entry = found.entry((g.min(h), g.max(h))).or_default();
             entry.pairs += 1;
             entry.apart = entry.apart.max(apart);
@@ -302,7 +322,7 @@ fn find_overlaps(triangles: &[Triangle], slack: f64) -> Vec<((u16, u16), Overlap
             }
         },
     );
-    let mut pairs: Vec<_> = found.into_iter().collect();
+    let mut pairs: Vec<_> = found.into_inner().into_iter().collect();
     pairs.sort_unstable_by_key(|(k, _)| *k);
     pairs
 }
@@ -448,31 +468,49 @@ fn sweep_plane(
         .collect();
     let mut order: Vec<usize> = (0..faces.len()).collect();
     order.sort_unstable_by(|&a, &b| items[a].1[0].total_cmp(&items[b].1[0]).then(a.cmp(&b)));
-    let mut active: Vec<usize> = Vec::new();
+    // The faces the sweep has passed, by kind (surface and facing, all `may_pair` looks
+    // at; the first face of the kind stands for it): a kind it admits no pair with is
+    // passed over whole, so that faces of one group, or of a pair of groups that has been
+    // counted enough, cost nothing each. A kind's faces whose extents the sweep has left
+    // behind are dropped when it is next looked at.
+    let mut active: Vec<(usize, Vec<usize>)> = Vec::new();
     for &i in &order {
         let (p, bx) = items[i];
-        active.retain(|&j| items[j].1[1] > bx[0] + slack);
         let fa = &faces[i];
-        for &j in &active {
-            let (q, by) = items[j];
-            let fb = &faces[j];
-            let boxes_meet = by[2] < bx[3] - slack && bx[2] < by[3] - slack;
-            if !boxes_meet || !may_pair(fa, fb) {
+        for (kind, members) in active.iter_mut() {
+            if !may_pair(fa, &faces[*kind]) {
                 continue;
             }
-            let (ta, tb) = (fa.triangle as u32, fb.triangle as u32);
-            let pair = (ta.min(tb), ta.max(tb));
-            if seen.contains(&pair) {
-                continue;
+            members.retain(|&j| items[j].1[1] > bx[0] + slack);
+            for &j in members.iter() {
+                let (q, by) = items[j];
+                let fb = &faces[j];
+                if !(by[2] < bx[3] - slack && bx[2] < by[3] - slack) {
+                    continue;
+                }
+                let (ta, tb) = (fa.triangle as u32, fb.triangle as u32);
+                let pair = (ta.min(tb), ta.max(tb));
+                if seen.contains(&pair) {
+                    continue;
+                }
+                let apart = fa.distance_to(fb).max(fb.distance_to(fa));
+                if apart.is_nan() || apart > slack || !overlap_2d(p, q, slack) {
+                    continue;
+                }
+                seen.insert(pair);
+                on_overlap(fa, fb, apart, &|| overlap_point(p, q, (u, v), fa));
+                if !may_pair(fa, &faces[*kind]) {
+                    break;
+                }
             }
-            let apart = fa.distance_to(fb).max(fb.distance_to(fa));
-            if apart.is_nan() || apart > slack || !overlap_2d(p, q, slack) {
-                continue;
-            }
-            seen.insert(pair);
-            on_overlap(fa, fb, apart, &|| overlap_point(p, q, (u, v), fa));
         }
-        active.push(i);
+        let same_kind = |&(kind, _): &(usize, Vec<usize>)| {
+            faces[kind].surface == fa.surface && faces[kind].front == fa.front
+        };
+        match active.iter_mut().find(|k| same_kind(k)) {
+            Some((_, members)) => members.push(i),
+            None => active.push((i, vec![i])),
+        }
     }
 }
 
@@ -596,6 +634,44 @@ mod tests {
         let found = overlaps(&t);
         assert_eq!(found.len(), 1);
         assert_eq!(found[0].1.pairs, 4);
+    }
+
+    /// `n` thin triangles of each of groups 0 and 1 in the plane z = 0, every one over
+    /// every one of the other group (each shifted along x by a little), beside a floor of
+    /// group 2 that sets the scene's size.
+    fn stacked_slivers(n: usize) -> Vec<Triangle> {
+        let mut t = Vec::new();
+        for k in 0..n {
+            for group in 0..2u16 {
+                let x = 1.0 + (2 * k + group as usize) as f32 * 1e-4;
+                t.push(triangle(
+                    [[x, 1.0, 0.0], [x + 2.0, 1.0, 0.0], [x + 1.0, 1.5, 0.0]],
+                    group,
+                ));
+            }
+        }
+        t.extend(quad(
+            Vec3::new(0.0, 3.0, 0.0),
+            Vec3::X * 5.0,
+            Vec3::Y,
+            false,
+            2,
+        ));
+        t
+    }
+
+    #[test]
+    fn every_pair_is_counted_up_to_the_cap_and_no_further() {
+        let found = overlaps(&stacked_slivers(40));
+        assert_eq!(found.len(), 1);
+        assert_eq!(found[0].0, (0, 1));
+        assert_eq!(found[0].1.pairs, 40 * 40);
+        // 150 x 150 pairs overlap: counting stops at the cap, with its points and distance.
+        let found = overlaps(&stacked_slivers(150));
+        assert_eq!(found.len(), 1);
+        assert_eq!(found[0].1.pairs, MAX_COUNTED_PAIRS);
+        assert_eq!(found[0].1.points.len(), POINTS_PER_PAIR);
+        assert!(found[0].1.apart < 1e-6);
     }
 
     #[test]
