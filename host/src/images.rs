@@ -151,8 +151,14 @@ fn read_image_and_header(
         }
         _ => None,
     };
+    if format == ImageFormat::OpenExr {
+        reader
+            .seek(SeekFrom::Start(0))
+            .map_err(|e| Error::io(path, e))?;
+        check_exr_offsets(path, &mut reader, unreadable)?;
+    }
     let png_transfer = match format {
-        ImageFormat::Png => png_transfer(&mut reader, unreadable)?,
+        ImageFormat::Png => png_transfer(path, &mut reader, unreadable)?,
         _ => PngTransfer::Srgb,
     };
     reader
@@ -303,6 +309,26 @@ fn check_exr_windows(
             show(display)
         ),
     ))
+}
+
+/// Refuses an EXR whose table of block offsets is corrupt: two blocks at one offset, or
+/// one outside the file. The image crate reads such a file without a word, the block
+/// named twice in the place of both and the other left black (a row of zeros where a
+/// row's offset pointed at the next row's block). `reader` is at the file's start.
+fn check_exr_offsets(
+    path: &Path,
+    reader: &mut (impl Read + Seek),
+    unreadable: impl Fn(ImageError) -> Error,
+) -> Result<(), Error> {
+    let blocks = exr::block::read(reader, false).map_err(|e| unreadable(exr_to_image_error(e)))?;
+    match blocks.filter_chunks(true, |_, _, _| true) {
+        Ok(_) => Ok(()),
+        Err(exr::error::Error::Io(io)) => Err(unreadable(ImageError::IoError(io))),
+        Err(e) => Err(Error::input(
+            path,
+            format!("its table of block offsets is corrupt ({e}): blocks would be read twice or not at all"),
+        )),
+    }
 }
 
 /// The header lines of a Radiance picture, numbered from 1 (the `#?RADIANCE` line), up to
@@ -554,28 +580,81 @@ const PNG_SRGB_GAMMA: core::ops::RangeInclusive<u32> = 45_400..=45_500;
 
 /// The transfer function a PNG's chunks declare ([`PngTransfer`]); `reader` is at its
 /// start. An ICC profile (`iCCP`) is not read: such a file is taken as sRGB, as most are.
+///
+/// An indexed PNG's palette is checked here too, before the image crate expands it
+/// ([`check_png_palette`]).
 fn png_transfer(
+    path: &Path,
     reader: &mut (impl BufRead + Seek),
     unreadable: impl Fn(ImageError) -> Error,
 ) -> Result<PngTransfer, Error> {
-    let decoder = png::Decoder::new(reader);
-    let info_reader = decoder.read_info().map_err(|e| {
+    let png_error = |e: png::DecodingError| {
         unreadable(ImageError::Decoding(image::error::DecodingError::new(
             ImageFormat::Png.into(),
             e,
         )))
-    })?;
+    };
+    let mut decoder = png::Decoder::new(reader);
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    let mut info_reader = decoder.read_info().map_err(png_error)?;
     // `gamma()` is the gAMA chunk's value, or sRGB's 1/2.2 where an sRGB chunk overrides
     // it. A gAMA of 0 is invalid, and the decoder ignores it, as the PNG standard says.
-    match info_reader
+    let transfer = match info_reader
         .info()
         .gamma()
         .map(png::ScaledFloat::into_scaled)
     {
-        None => Ok(PngTransfer::Srgb),
-        Some(g) if PNG_SRGB_GAMMA.contains(&g) => Ok(PngTransfer::Srgb),
-        Some(g) => Ok(PngTransfer::Power(100_000.0 / g as f32)),
+        None => PngTransfer::Srgb,
+        Some(g) if PNG_SRGB_GAMMA.contains(&g) => PngTransfer::Srgb,
+        Some(g) => PngTransfer::Power(100_000.0 / g as f32),
+    };
+    if info_reader.info().color_type == png::ColorType::Indexed {
+        check_png_palette(path, &mut info_reader, png_error)?;
     }
+    Ok(transfer)
+}
+
+/// Refuses an indexed PNG whose palette is not whole RGB entries (1 to 256 of 3 bytes;
+/// the png crate panics on some others where it expands them), or one of whose pixels
+/// names an entry past the palette's end (which it decodes as black, a radiance never
+/// measured). The pixels are read as their indices, unexpanded.
+fn check_png_palette<R: BufRead + Seek>(
+    path: &Path,
+    info_reader: &mut png::Reader<R>,
+    png_error: impl Fn(png::DecodingError) -> Error,
+) -> Result<(), Error> {
+    let bytes = info_reader.info().palette.as_ref().map_or(0, |p| p.len());
+    if bytes == 0 || bytes % 3 != 0 || bytes > 3 * 256 {
+        return Err(Error::input(
+            path,
+            format!("its palette (PLTE chunk) is {bytes} bytes: an indexed PNG needs 1 to 256 entries of 3 bytes"),
+        ));
+    }
+    let entries = bytes / 3;
+    let Some(size) = info_reader.output_buffer_size() else {
+        return Err(png_error(png::DecodingError::LimitsExceeded));
+    };
+    let mut indices = vec![0u8; size];
+    let frame = info_reader.next_frame(&mut indices).map_err(png_error)?;
+    let bits = frame.bit_depth as usize;
+    for (y, row) in indices
+        .chunks(frame.line_size)
+        .take(frame.height as usize)
+        .enumerate()
+    {
+        for x in 0..frame.width as usize {
+            let bit = x * bits;
+            let byte = row.get(bit / 8).copied().unwrap_or(0);
+            let index = (byte >> (8 - bits - bit % 8)) & ((1u16 << bits) - 1) as u8;
+            if index as usize >= entries {
+                return Err(Error::input(
+                    path,
+                    format!("pixel ({x}, {y}) names palette entry {index}, past the palette's {entries}"),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn png_to_linear(decoded: DynamicImage, transfer: PngTransfer) -> Vec<[f32; 3]> {
@@ -1211,6 +1290,93 @@ mod tests {
         let bytes: Vec<u8> = value.iter().flat_map(|c| c.to_be_bytes()).collect();
         let mut writer = encoder.write_header().unwrap();
         writer.write_image_data(&bytes).unwrap();
+    }
+
+    /// An indexed PNG of `w` x 1 pixels at `depth` bits whose palette is `palette` (the
+    /// PLTE chunk's bytes, as given) and whose row is `row` (packed indices).
+    fn indexed_png(path: &Path, w: u32, depth: png::BitDepth, palette: &[u8], row: &[u8]) {
+        let file = std::fs::File::create(path).unwrap();
+        let mut encoder = png::Encoder::new(file, w, 1);
+        encoder.set_color(png::ColorType::Indexed);
+        encoder.set_depth(depth);
+        encoder.set_palette(palette.to_vec());
+        let mut writer = encoder.write_header().unwrap();
+        writer.write_image_data(row).unwrap();
+    }
+
+    /// An indexed PNG reads through its palette; one whose palette is not whole RGB
+    /// entries (the png crate panicked expanding a 4-byte one) or whose pixel names an
+    /// entry past it (read as black before) is refused, naming the pixel.
+    #[test]
+    fn an_indexed_png_reads_through_a_whole_palette_and_no_further() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("i.png");
+        // Two entries, black and white, at one bit a pixel: 0b0100_0000 is black, white.
+        indexed_png(
+            &p,
+            2,
+            png::BitDepth::One,
+            &[0, 0, 0, 255, 255, 255],
+            &[0b0100_0000],
+        );
+        let image = read_image(&p, 1.0).unwrap();
+        assert_eq!(image.pixels, vec![[0.0; 3], [1.0; 3]]);
+        // The second pixel at entry 1 of a one-entry palette.
+        indexed_png(&p, 2, png::BitDepth::One, &[9, 9, 9], &[0b0100_0000]);
+        let e = err(&p);
+        assert!(
+            e.contains("i.png: pixel (1, 0) names palette entry 1, past the palette's 1"),
+            "{e}"
+        );
+        indexed_png(
+            &p,
+            3,
+            png::BitDepth::Eight,
+            &[9, 9, 9, 7, 7, 7],
+            &[1, 0, 200],
+        );
+        let e = err(&p);
+        assert!(
+            e.contains("pixel (2, 0) names palette entry 200, past the palette's 2"),
+            "{e}"
+        );
+        for bytes in [4, 5, 10] {
+            indexed_png(&p, 1, png::BitDepth::Eight, &vec![9; bytes], &[0]);
+            let e = err(&p);
+            assert!(
+                e.contains(&format!("its palette (PLTE chunk) is {bytes} bytes: an indexed PNG needs 1 to 256 entries of 3 bytes")),
+                "{e}"
+            );
+        }
+    }
+
+    /// An uncompressed scanline EXR whose block offset for row 1 is row 2's: the image
+    /// crate read row 2 in its place and left row 1 black, without a word.
+    #[test]
+    fn an_exr_whose_block_offsets_repeat_is_refused() {
+        use exr::prelude::{Encoding, SpecificChannels, Vec2, WritableImage};
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("o.exr");
+        let ch = SpecificChannels::rgb(|pos: Vec2<usize>| (0.5f32, pos.y() as f32, 0.25f32));
+        exr::prelude::Image::from_encoded_channels((2, 4), Encoding::UNCOMPRESSED, ch)
+            .write()
+            .to_file(&p)
+            .unwrap();
+        assert_eq!(read_image(&p, 1.0).unwrap().pixels[2], [0.5, 1.0, 0.25]);
+        // The table of four offsets ends where the first block starts: find it so.
+        let mut bytes = std::fs::read(&p).unwrap();
+        let at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().unwrap());
+        let table = (0..bytes.len() - 32)
+            .find(|&i| at(i) == (i + 32) as u64)
+            .expect("the offset table");
+        let third = at(table + 16);
+        bytes[table + 8..table + 16].copy_from_slice(&third.to_le_bytes());
+        std::fs::write(&p, &bytes).unwrap();
+        let e = err(&p);
+        assert!(
+            e.contains("o.exr: its table of block offsets is corrupt"),
+            "{e}"
+        );
     }
 
     /// A PNG's gAMA chunk is honoured (the PNG standard's `linear = sample^(1/gamma)`);
