@@ -974,7 +974,7 @@ mod tests {
     fn ranges() {
         let iso = file_text(Model::Isotropic, &body(Model::Isotropic, None, None));
         let aniso = file_text(Model::Anisotropic, &body(Model::Anisotropic, None, None));
-        let cases: [(&str, &str, &str, &str); 11] = [
+        let cases: [(&str, &str, &str, &str); 12] = [
             (
                 &iso,
                 "color = [0.5, 0.4, 0.3]",
@@ -1004,6 +1004,12 @@ mod tests {
                 "roughness = 0.1",
                 "roughness = 0.0",
                 "roughness must be in (0, 1], got 0",
+            ),
+            (
+                &iso,
+                "roughness = 0.1",
+                "roughness = 1e-50",
+                "`roughness` is too small for a 32-bit float, which reads 1e-50 as 0",
             ),
             (
                 &iso,

@@ -84,6 +84,8 @@ pub struct GroupDesc {
     pub name: String,
     pub kind: GroupKind,
     pub objects: Vec<String>,
+    /// The line of its `name` in scene.toml, for messages about the group.
+    pub line: usize,
 }
 
 /// A validated scene.toml.
@@ -368,6 +370,7 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
             objects.push(object);
         }
         groups.push(GroupDesc {
+            line: group_lines[&name],
             name,
             kind,
             objects,
@@ -443,15 +446,9 @@ fn check_view(file: &TomlFile, v: &RawView) -> Result<ViewDesc, Error> {
         Some(e) => {
             let x = file.number(e, "exposure")?;
             if x <= 0.0 {
-                let written = *e.get_ref();
-                let why = if written > 0.0 {
-                    format!("got {written:e}, which is 0 as a 32-bit float (below about 1e-45)")
-                } else {
-                    format!("got {x}")
-                };
                 return Err(file.at(
                     e.span(),
-                    format!("view '{name}': exposure must be > 0, {why}"),
+                    format!("view '{name}': exposure must be > 0, got {x}"),
                 ));
             }
             x
@@ -960,6 +957,11 @@ pub mod toml_src {
         if !y.is_finite() {
             return Err(format!("is out of range for a 32-bit float: {x:e}"));
         }
+        if y == 0.0 && x != 0.0 {
+            return Err(format!(
+                "is too small for a 32-bit float, which reads {x:e} as 0 (write 0 if 0 is meant)"
+            ));
+        }
         Ok(y)
     }
 }
@@ -1288,6 +1290,13 @@ objects = ["quad"]
             9,
             &["out of range for a 32-bit float: 1e40"],
         );
+        // Not silently 0: the number the file gives is named.
+        bad(
+            "radiance = [5.0, 5.0, 5.0]",
+            "radiance = [5.0, 1e-50, 5.0]",
+            18,
+            &["`radiance` is too small for a 32-bit float, which reads 1e-50 as 0"],
+        );
     }
 
     /// A direction's length does not matter: a tiny or huge one whose squares leave f32's
@@ -1411,7 +1420,7 @@ objects = ["quad"]
             "exposure = 1.0",
             "exposure = 1e-50",
             14,
-            &["exposure must be > 0, got 1e-50", "0 as a 32-bit float"],
+            &["`exposure` is too small for a 32-bit float, which reads 1e-50 as 0"],
         );
     }
 
