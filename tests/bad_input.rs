@@ -319,13 +319,14 @@ fn scene_object_in_a_group_and_a_light() {
         .fails(INPUT, &["scene.toml:22", "'lamp'", "also a light"]);
 }
 
-/// A light whose faces are all degenerate emits nothing: said, with the light and its
-/// file, rather than an all-black render whose warning could not say why.
+/// A light whose faces are all degenerate emits nothing: said, with the light and the
+/// line where its object starts, rather than an all-black render whose warning could not
+/// say why.
 #[test]
 fn a_light_without_area_is_named() {
     Case::new()
         .obj("f 5 7 6", "f 5 5 6")
-        .fails(INPUT, &["geo.obj", "light 'lamp'", "no area"]);
+        .fails(INPUT, &["geo.obj:11", "light 'lamp'", "no area"]);
 }
 
 /// Rays leave a surface 1e-4 of the scene's size off it: a floor 100,000 wide under a

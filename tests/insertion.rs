@@ -201,8 +201,14 @@ fn a_group_with_no_material_or_two_is_an_input_error() {
     let vase = example().join("inserted-materials.toml");
 
     let err = fails(tmp.path(), &scene, &[&room]);
+    // The line of the group's name in insert.toml.
+    let vase_line = 1 + std::fs::read_to_string(&scene)
+        .unwrap()
+        .lines()
+        .position(|l| l.trim() == "name = \"vase\"")
+        .expect("insert.toml names the vase group");
     assert!(
-        err.contains("insert.toml")
+        err.contains(&format!("insert.toml:{vase_line}"))
             && err.contains("group 'vase' has no material in")
             && err.contains("scenes/cornell/materials.toml"),
         "{err}"

@@ -73,16 +73,16 @@ fn refuse_a_light_without_area(object: &ObjObject) -> Result<(), Error> {
         })
         .sum();
     if area > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::input(
-            &object.file,
-            format!(
-                "light '{}': its faces have no area (every triangle degenerate), so it emits nothing",
-                object.name
-            ),
-        ))
+        return Ok(());
     }
+    let msg = format!(
+        "light '{}': its faces have no area (every triangle degenerate), so it emits nothing",
+        object.name
+    );
+    Err(match crate::obj::object_line(&object.file, &object.name) {
+        Some(line) => Error::at_line(&object.file, line, msg),
+        None => Error::input(&object.file, msg),
+    })
 }
 
 /// A light triangle's corners as bits, turned to start at the least: the key under which
@@ -805,11 +805,13 @@ fn resolve_materials(
             None => {
                 let names: Vec<String> =
                     files.iter().map(|f| f.path.display().to_string()).collect();
-                return Err(Error::input(
+                let group = &desc.groups[gi];
+                return Err(Error::at_line(
                     &desc.path,
+                    group.line,
                     format!(
                         "group '{}' has no material in {}",
-                        desc.groups[gi].name,
+                        group.name,
                         names.join(", ")
                     ),
                 ));
