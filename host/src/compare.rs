@@ -166,7 +166,7 @@ impl ViewImages<'_> {
                 let path = desc.image.as_ref().ok_or_else(|| {
                     Error::input(scene_path, format!("view '{}' names no image", desc.name))
                 })?;
-                images::read_view_image(path, desc.exposure, desc.size)
+                images::read_view_image(path, desc, desc.exposure)
             }
         }
     }

@@ -158,7 +158,7 @@ pub fn downsample(scene: &Path, factor: u32, out: &Path) -> Result<Vec<String>, 
             continue;
         }
         let path = desc.view_image(vi, "nothing to downsample")?;
-        let image = images::read_view_image(path, v.exposure, v.size)?;
+        let image = images::read_view_image(path, v, v.exposure)?;
         let clipped = image
             .pixels
             .iter()
@@ -225,7 +225,7 @@ pub fn write_derived_scene(
                 ),
             ));
         }
-        let mut image = images::read_view_image(&path, v.exposure, v.size)?;
+        let mut image = images::read_view_image(&path, v, v.exposure)?;
         if factor > 1 {
             image = box_average(&image, factor);
         }

@@ -471,7 +471,7 @@ fn reject_transparent(path: &Path, decoded: &DynamicImage) -> Result<(), Error> 
 /// `dir` that is a file is bad input, and a missing image names its view ("rA/px.exr/px.exr:
 /// Not a directory", "miss/nz.exr: No such file" were all that was said).
 pub fn read_folder_view_image(dir: &Path, view: &ViewDesc) -> Result<Image, Error> {
-    let (name, size) = (&view.name, view.size);
+    let name = &view.name;
     if dir.is_file() {
         return Err(Error::input(
             dir,
@@ -492,12 +492,13 @@ pub fn read_folder_view_image(dir: &Path, view: &ViewDesc) -> Result<Image, Erro
         .image
         .as_ref()
         .is_some_and(|image| crate::fsutil::same_file(image, &path));
-    read_view_image(&path, if own { view.exposure } else { 1.0 }, size)
+    read_view_image(&path, view, if own { view.exposure } else { 1.0 })
 }
 
-/// [`read_image`], and the size must be the view's `[width, height]`.
-pub fn read_view_image(path: &Path, exposure: f32, expected: [u32; 2]) -> Result<Image, Error> {
-    read_view_image_and_header(path, exposure, expected).map(|(image, _)| image)
+/// [`read_image`] of `view`'s image at `path`, read at `exposure`; its size must be the
+/// view's.
+pub fn read_view_image(path: &Path, view: &ViewDesc, exposure: f32) -> Result<Image, Error> {
+    read_view_image_and_header(path, view, exposure).map(|(image, _)| image)
 }
 
 /// [`read_view_image`], and what the file's header divided its stored values by, per
@@ -505,9 +506,10 @@ pub fn read_view_image(path: &Path, exposure: f32, expected: [u32; 2]) -> Result
 /// view's exposure names it, since a header's factor is applied without a word.
 pub fn read_view_image_and_header(
     path: &Path,
+    view: &ViewDesc,
     exposure: f32,
-    expected: [u32; 2],
 ) -> Result<(Image, Option<[f64; 3]>), Error> {
+    let expected = view.size;
     read_radiance_sized(path, exposure, |width, height| {
         if [width, height] == expected {
             return Ok(());
@@ -515,8 +517,8 @@ pub fn read_view_image_and_header(
         Err(Error::input(
             path,
             format!(
-                "image is {width}x{height} but the view says {}x{}",
-                expected[0], expected[1]
+                "image is {width}x{height} but view '{}' says size = [{}, {}]",
+                view.name, expected[0], expected[1]
             ),
         ))
     })
@@ -624,7 +626,7 @@ fn check_png_palette<R: BufRead + Seek>(
     png_error: impl Fn(png::DecodingError) -> Error,
 ) -> Result<(), Error> {
     let bytes = info_reader.info().palette.as_ref().map_or(0, |p| p.len());
-    if bytes == 0 || bytes % 3 != 0 || bytes > 3 * 256 {
+    if bytes == 0 || !bytes.is_multiple_of(3) || bytes > 3 * 256 {
         return Err(Error::input(
             path,
             format!("its palette (PLTE chunk) is {bytes} bytes: an indexed PNG needs 1 to 256 entries of 3 bytes"),
@@ -1044,6 +1046,20 @@ mod tests {
         encode_exr(path, &image(w, h, f), std::io::BufWriter::new(file)).unwrap();
     }
 
+    /// A view of `width` x `height` pixels, named "v", for the reads that check a size.
+    fn sized(width: u32, height: u32) -> ViewDesc {
+        ViewDesc {
+            name: "v".into(),
+            image: None,
+            position: [0.0; 3],
+            direction: [1.0, 0.0, 0.0],
+            up: [0.0, 0.0, 1.0],
+            fov_deg: [90.0, 90.0],
+            size: [width, height],
+            exposure: 1.0,
+        }
+    }
+
     fn err(path: &Path) -> String {
         read_image(path, 1.0)
             .expect_err("the image should be refused")
@@ -1134,14 +1150,16 @@ mod tests {
             "{e}"
         );
         // A panorama's radiance (times exposure) stays within MAX_RADIANCE.
-        let e = read_view_image(&big, 1e18, [2, 1]).unwrap_err().to_string();
+        let e = read_view_image(&big, &sized(2, 1), 1e18)
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("big.exr: pixel (x 1, y 0)")
                 && e.contains("channel B value 2e18 after exposure 1e18")
                 && e.contains("above the largest radiance relume computes with, 1e18"),
             "{e}"
         );
-        read_view_image(&big, 5e17, [2, 1]).unwrap();
+        read_view_image(&big, &sized(2, 1), 5e17).unwrap();
     }
 
     #[test]
@@ -1254,24 +1272,29 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("v.exr");
         raw_exr(&p, 4, 2, |_, _| [1.0; 3]);
-        read_view_image(&p, 1.0, [4, 2]).unwrap();
-        let e = read_view_image(&p, 1.0, [256, 256])
+        read_view_image(&p, &sized(4, 2), 1.0).unwrap();
+        let e = read_view_image(&p, &sized(256, 256), 1.0)
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("v.exr") && e.contains("is 4x2 but the view says 256x256"),
+            e.contains("v.exr") && e.contains("is 4x2 but view 'v' says size = [256, 256]"),
             "{e}"
         );
         // The size is refused from the header, before the pixels are decoded: a file
         // whose pixels are cut short is refused for its size, not as truncated.
         let bytes = std::fs::read(&p).unwrap();
         std::fs::write(&p, &bytes[..bytes.len() - 16]).unwrap();
-        let e = read_view_image(&p, 1.0, [4, 2]).unwrap_err().to_string();
-        assert!(e.contains("truncated"), "{e}");
-        let e = read_view_image(&p, 1.0, [256, 256])
+        let e = read_view_image(&p, &sized(4, 2), 1.0)
             .unwrap_err()
             .to_string();
-        assert!(e.contains("is 4x2 but the view says 256x256"), "{e}");
+        assert!(e.contains("truncated"), "{e}");
+        let e = read_view_image(&p, &sized(256, 256), 1.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("is 4x2 but view 'v' says size = [256, 256]"),
+            "{e}"
+        );
     }
 
     /// A 16-bit RGB PNG of one pixel with the given `gAMA` (scaled by 100000) and sRGB
@@ -1514,7 +1537,7 @@ mod tests {
         for (i, (display, data, data_text, display_text)) in cases.into_iter().enumerate() {
             let p = dir.path().join(format!("w{i}.exr"));
             windowed_exr(&p, display, data);
-            let e = read_view_image(&p, 1.0, [display.1 .0 as u32, display.1 .1 as u32])
+            let e = read_view_image(&p, &sized(display.1 .0 as u32, display.1 .1 as u32), 1.0)
                 .expect_err("the uncovered pixels have no value");
             assert_eq!(e.exit_code(), 3, "{e}");
             let e = e.to_string();
@@ -1537,7 +1560,7 @@ mod tests {
         {
             let p = dir.path().join(format!("ok{i}.exr"));
             windowed_exr(&p, display, data);
-            let img = read_view_image(&p, 1.0, [4, 3]).unwrap_or_else(|e| panic!("{e}"));
+            let img = read_view_image(&p, &sized(4, 3), 1.0).unwrap_or_else(|e| panic!("{e}"));
             assert_eq!(img.pixels, vec![[0.5; 3]; 12]);
         }
     }
@@ -1563,7 +1586,7 @@ mod tests {
         let p = dir.path().join("a.hdr");
         let stored = [[1.0, 0.5, 2.0], [0.0, 0.25, 8.0]];
         hdr_with_header(&p, "EXPOSURE=1e300\nEXPOSURE=10\n", &stored);
-        let (image, divisor) = read_view_image_and_header(&p, 1.0, [2, 1]).unwrap();
+        let (image, divisor) = read_view_image_and_header(&p, &sized(2, 1), 1.0).unwrap();
         assert_eq!(divisor, Some([1e301; 3]));
         assert_eq!(image.pixels, vec![[0.0; 3]; 2]);
         assert_eq!(
@@ -1571,13 +1594,16 @@ mod tests {
             ", its header's EXPOSURE and COLORCORR dividing its stored values by 1e301"
         );
         hdr_with_header(&p, "COLORCORR=1 2 0.5\n", &stored);
-        let (_, divisor) = read_view_image_and_header(&p, 1.0, [2, 1]).unwrap();
+        let (_, divisor) = read_view_image_and_header(&p, &sized(2, 1), 1.0).unwrap();
         assert_eq!(
             header_note(divisor),
             ", its header's EXPOSURE and COLORCORR dividing its stored values by 1, 2 and 0.5 (R, G, B)"
         );
         hdr_with_header(&p, "SOFTWARE=test\n", &stored);
-        assert_eq!(read_view_image_and_header(&p, 1.0, [2, 1]).unwrap().1, None);
+        assert_eq!(
+            read_view_image_and_header(&p, &sized(2, 1), 1.0).unwrap().1,
+            None
+        );
         assert_eq!(header_note(None), "");
     }
 
@@ -1595,7 +1621,7 @@ mod tests {
         let back = read_image(&p, 2.0).unwrap();
         assert_eq!(back.pixels, vec![[0.25, 0.0625, 1.0], [0.0, 0.03125, 4.0]]);
         hdr_with_header(&p, "EXPOSURE=2\n", &stored);
-        let back = read_view_image(&p, 1.0, [2, 1]).unwrap();
+        let back = read_view_image(&p, &sized(2, 1), 1.0).unwrap();
         assert_eq!(back.pixels, vec![[0.5, 0.25, 1.0], [0.0, 0.125, 4.0]]);
         // Without such lines the stored values, bit for bit.
         let odd = [[1.0e-30, 0.1, 3.0e30], [1.0 / 3.0, 7.0, 0.0]];
@@ -1739,7 +1765,7 @@ mod tests {
         };
         for v in ["px", "nx", "py", "ny", "pz", "nz"] {
             let p = bench.join(format!("box-diffuse/views-small/{v}.exr"));
-            let img = read_view_image(&p, 1.0, [64, 64]).unwrap_or_else(|e| panic!("{e}"));
+            let img = read_view_image(&p, &sized(64, 64), 1.0).unwrap_or_else(|e| panic!("{e}"));
             assert_eq!(img.pixels.len(), 64 * 64);
             assert!(img
                 .pixels

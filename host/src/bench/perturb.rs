@@ -193,12 +193,12 @@ mod tests {
             original.lights[0].radiance.map(|r| r * 1.1)
         );
         let v = &original.views[0];
-        let real = images::read_view_image(v.image.as_ref().unwrap(), v.exposure, v.size).unwrap();
+        let real = images::read_view_image(v.image.as_ref().unwrap(), v, v.exposure).unwrap();
         let mut expected = downsample::box_average(&real, 2);
         scale(&mut expected, 0.9);
         let w = &desc.views[0];
         assert_eq!(w.size, [v.size[0] / 2, v.size[1] / 2]);
-        let got = images::read_view_image(w.image.as_ref().unwrap(), w.exposure, w.size).unwrap();
+        let got = images::read_view_image(w.image.as_ref().unwrap(), w, w.exposure).unwrap();
         assert_eq!(got, expected);
     }
 

@@ -63,7 +63,7 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
     let mut clipped_at = Vec::with_capacity(desc.views.len());
     for (vi, v) in desc.views.iter().enumerate() {
         let path = desc.view_image(vi, "recover needs the panorama")?;
-        let (image, divisor) = images::read_view_image_and_header(path, v.exposure, v.size)?;
+        let (image, divisor) = images::read_view_image_and_header(path, v, v.exposure)?;
         real.push(image);
         header_divisors.push(divisor);
         // A PNG's largest code reads as 1 before the exposure, exactly (the sRGB curve's
