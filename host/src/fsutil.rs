@@ -147,6 +147,13 @@ impl OutputSet {
     /// file added is checked; a command calls this before its work for the files it will
     /// write, so that it fails at once rather than at the end.
     pub fn check_target(&self, path: &Path) -> Result<(), Error> {
+        // `--json out/` names a folder: its write failed ("Not a directory") after the work.
+        if path.as_os_str().as_encoded_bytes().ends_with(b"/") || path.file_name().is_none() {
+            return Err(Error::io(
+                path,
+                std::io::Error::other("names a folder (it ends in '/'), not a file: name a file"),
+            ));
+        }
         refuse_file_in_the_way(folder_of(path))?;
         // As the commit would find it, but before the work (a `--json` naming a folder
         // was refused after the whole comparison or bench).
@@ -684,6 +691,21 @@ mod tests {
             .file_type()
             .is_symlink());
         set.check_target(&dir.path().join("new.json")).unwrap();
+    }
+
+    /// A path that ends in '/' names a folder: refused before the work, where the write
+    /// failed after it with "Not a directory".
+    #[test]
+    fn an_output_named_as_a_folder_is_refused_before_the_work() {
+        let dir = tempfile::tempdir().unwrap();
+        let set = OutputSet::keeping(Vec::new());
+        let slash = PathBuf::from(format!("{}/", dir.path().join("nothere").display()));
+        for path in [slash, dir.path().join("..")] {
+            let e = set.check_target(&path).unwrap_err();
+            assert_eq!(e.exit_code(), 4, "{e}");
+            assert!(e.to_string().contains("names a folder"), "{e}");
+        }
+        set.check_target(&dir.path().join("nothere")).unwrap();
     }
 
     #[test]
