@@ -151,14 +151,8 @@ fn read_image_and_header(
         }
         _ => None,
     };
-    if format == ImageFormat::OpenExr {
-        reader
-            .seek(SeekFrom::Start(0))
-            .map_err(|e| Error::io(path, e))?;
-        check_exr_offsets(path, &mut reader, unreadable)?;
-    }
     let png_transfer = match format {
-        ImageFormat::Png => png_transfer(path, &mut reader, unreadable)?,
+        ImageFormat::Png => png_transfer(&mut reader, unreadable)?,
         _ => PngTransfer::Srgb,
     };
     reader
@@ -188,6 +182,8 @@ fn read_image_and_header(
             },
         ));
     }
+    // Within the capacity, what the decoder would read wrong without a word (or panic on).
+    check_blocks_and_palette(path, format, &unreadable)?;
     let decoded = DynamicImage::from_decoder(decoder).map_err(unreadable)?;
     reject_transparent(path, &decoded)?;
     let pixels = match format {
@@ -318,7 +314,7 @@ fn check_exr_windows(
 fn check_exr_offsets(
     path: &Path,
     reader: &mut (impl Read + Seek),
-    unreadable: impl Fn(ImageError) -> Error,
+    unreadable: &impl Fn(ImageError) -> Error,
 ) -> Result<(), Error> {
     let blocks = exr::block::read(reader, false).map_err(|e| unreadable(exr_to_image_error(e)))?;
     match blocks.filter_chunks(true, |_, _, _| true) {
@@ -582,38 +578,58 @@ const PNG_SRGB_GAMMA: core::ops::RangeInclusive<u32> = 45_400..=45_500;
 
 /// The transfer function a PNG's chunks declare ([`PngTransfer`]); `reader` is at its
 /// start. An ICC profile (`iCCP`) is not read: such a file is taken as sRGB, as most are.
-///
-/// An indexed PNG's palette is checked here too, before the image crate expands it
-/// ([`check_png_palette`]).
 fn png_transfer(
-    path: &Path,
     reader: &mut (impl BufRead + Seek),
     unreadable: impl Fn(ImageError) -> Error,
 ) -> Result<PngTransfer, Error> {
-    let png_error = |e: png::DecodingError| {
-        unreadable(ImageError::Decoding(image::error::DecodingError::new(
-            ImageFormat::Png.into(),
-            e,
-        )))
-    };
-    let mut decoder = png::Decoder::new(reader);
-    decoder.set_transformations(png::Transformations::IDENTITY);
-    let mut info_reader = decoder.read_info().map_err(png_error)?;
+    let decoder = png::Decoder::new(reader);
+    let info_reader = decoder.read_info().map_err(|e| png_error(e, &unreadable))?;
     // `gamma()` is the gAMA chunk's value, or sRGB's 1/2.2 where an sRGB chunk overrides
     // it. A gAMA of 0 is invalid, and the decoder ignores it, as the PNG standard says.
-    let transfer = match info_reader
+    match info_reader
         .info()
         .gamma()
         .map(png::ScaledFloat::into_scaled)
     {
-        None => PngTransfer::Srgb,
-        Some(g) if PNG_SRGB_GAMMA.contains(&g) => PngTransfer::Srgb,
-        Some(g) => PngTransfer::Power(100_000.0 / g as f32),
-    };
-    if info_reader.info().color_type == png::ColorType::Indexed {
-        check_png_palette(path, &mut info_reader, png_error)?;
+        None => Ok(PngTransfer::Srgb),
+        Some(g) if PNG_SRGB_GAMMA.contains(&g) => Ok(PngTransfer::Srgb),
+        Some(g) => Ok(PngTransfer::Power(100_000.0 / g as f32)),
     }
-    Ok(transfer)
+}
+
+/// A png crate's decoding error as `unreadable` reports an image crate's.
+fn png_error(e: png::DecodingError, unreadable: &impl Fn(ImageError) -> Error) -> Error {
+    unreadable(ImageError::Decoding(image::error::DecodingError::new(
+        ImageFormat::Png.into(),
+        e,
+    )))
+}
+
+/// What the image crate would decode wrong without a word, or panic on, read from the
+/// file anew (its decoder holds the first reader): an EXR's block offsets
+/// ([`check_exr_offsets`]) and an indexed PNG's palette ([`check_png_palette`]). Called
+/// once the header's size is known to be within the capacity, so that neither reads
+/// tables or pixels for a size no image has.
+fn check_blocks_and_palette(
+    path: &Path,
+    format: ImageFormat,
+    unreadable: &impl Fn(ImageError) -> Error,
+) -> Result<(), Error> {
+    if !matches!(format, ImageFormat::OpenExr | ImageFormat::Png) {
+        return Ok(());
+    }
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = BufReader::new(file);
+    if format == ImageFormat::OpenExr {
+        return check_exr_offsets(path, &mut reader, unreadable);
+    }
+    let mut decoder = png::Decoder::new(reader);
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    let mut info_reader = decoder.read_info().map_err(|e| png_error(e, unreadable))?;
+    if info_reader.info().color_type == png::ColorType::Indexed {
+        check_png_palette(path, &mut info_reader, |e| png_error(e, unreadable))?;
+    }
+    Ok(())
 }
 
 /// Refuses an indexed PNG whose palette is not whole RGB entries (1 to 256 of 3 bytes;
@@ -1371,6 +1387,41 @@ mod tests {
                 "{e}"
             );
         }
+    }
+
+    /// An indexed PNG whose header claims 200000 x 100000 pixels is refused by the
+    /// capacity, before its indices are read (20 GB of them).
+    #[test]
+    fn an_indexed_png_of_too_many_pixels_is_refused_before_its_indices_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("huge.png");
+        indexed_png(&p, 1, png::BitDepth::Eight, &[9, 9, 9], &[0]);
+        let mut bytes = std::fs::read(&p).unwrap();
+        // IHDR follows the 8-byte signature: length, type, width, height, ..., CRC.
+        bytes[16..20].copy_from_slice(&200_000u32.to_be_bytes());
+        bytes[20..24].copy_from_slice(&100_000u32.to_be_bytes());
+        let crc = crc32(&bytes[12..29]);
+        bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_image(&p, 1.0).unwrap_err();
+        assert_eq!(e.exit_code(), 5, "{e}");
+        assert!(e.to_string().contains("image is 200000x100000"), "{e}");
+    }
+
+    /// The PNG chunks' CRC-32 (ISO 3309), bit by bit.
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut crc = !0u32;
+        for &b in bytes {
+            crc ^= u32::from(b);
+            for _ in 0..8 {
+                crc = if crc & 1 != 0 {
+                    (crc >> 1) ^ 0xEDB8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
     }
 
     /// An uncompressed scanline EXR whose block offset for row 1 is row 2's: the image
