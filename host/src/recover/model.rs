@@ -198,6 +198,20 @@ impl GroupModel {
         }
     }
 
+    /// Whether it reflects specularly at all: a Ward model of specularity 0 is the diffuse
+    /// model of its colour, and is not kept as a lobe (a fit that renders better with one
+    /// renders better by its colour, which the colour polish takes up).
+    pub fn has_lobe(&self) -> bool {
+        match self {
+            GroupModel::Isotropic { .. } | GroupModel::Anisotropic { .. } => {
+                self.reflectances().1.iter().any(|&r| r > 0.0)
+            }
+            GroupModel::Mirror { .. } => true,
+            GroupModel::Textured { lobe, .. } => lobe.textured_model().has_lobe(),
+            GroupModel::Diffuse { .. } | GroupModel::Unseen { .. } => false,
+        }
+    }
+
     /// The kind of its lobe (`None` without one; a textured model's lobe is a plastic's).
     pub fn lobe_kind(&self) -> Option<Kind> {
         match *self {
@@ -424,6 +438,42 @@ mod tests {
                 roughness: 0.08
             }
         );
+    }
+
+    /// A Ward fit of specularity 0 (a cache's closed form at its bound, on a panorama far
+    /// too dim) renders as the diffuse model of its colour: no lobe to keep.
+    #[test]
+    fn a_ward_model_of_no_specularity_has_no_lobe() {
+        for kind in [Kind::Plastic, Kind::Metal] {
+            let iso = |specularity| GroupModel::Isotropic {
+                kind,
+                color: [0.001, 0.0002, 0.0001],
+                specularity,
+                roughness: 0.005,
+            };
+            assert!(!iso(0.0).has_lobe());
+            assert!(iso(1e-6).has_lobe());
+            let aniso = |specularity| GroupModel::Anisotropic {
+                kind,
+                color: [0.5; 3],
+                specularity,
+                roughness_u: 0.05,
+                roughness_v: 0.2,
+                direction: [0.0, 0.0, 1.0],
+            };
+            assert!(!aniso(0.0).has_lobe());
+            assert!(aniso(0.9).has_lobe());
+        }
+        // A metal's lobe is its colour times s: black, it reflects nothing.
+        let black_metal = GroupModel::Isotropic {
+            kind: Kind::Metal,
+            color: [0.0; 3],
+            specularity: 0.9,
+            roughness: 0.1,
+        };
+        assert!(!black_metal.has_lobe());
+        assert!(GroupModel::Mirror { color: [0.9; 3] }.has_lobe());
+        assert!(!GroupModel::Diffuse { color: [0.5; 3] }.has_lobe());
     }
 
     #[test]

@@ -440,7 +440,13 @@ pub(super) fn run(
             c.error_simple,
             c.error_complex
         );
-        if c.favours_complex() {
+        if c.favours_complex() && !candidate.0.has_lobe() {
+            r.decisions.push(format!(
+                "stage 2: stays diffuse: the fit that renders better (s {specularity:.4}) {measured}, but it has no lobe: its gain is its colour's, which the colour polish takes up"
+            ));
+            rec.models[g] = stage1;
+            r.set_decided(more_precise(r.latest_error, c.simple_estimate()));
+        } else if c.favours_complex() {
             r.decisions.push(format!(
                 "stage 2: {} {} (s {specularity:.4}, roughness {alpha:.4}; cache proposed s {:.4}) {measured}: {}",
                 candidate.0.name(),

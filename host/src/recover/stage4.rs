@@ -387,7 +387,8 @@ pub(super) fn run(
                 anisotropic::isotropic_projection(refined.model),
             ),
         ] {
-            let Some(alternative) = alternative else {
+            // A fit of no lobe (specularity 0) is the diffuse model of its colour.
+            let Some(alternative) = alternative.filter(GroupModel::has_lobe) else {
                 continue;
             };
             evaluations += 2;
@@ -556,8 +557,10 @@ pub(super) fn run(
                 direction: d,
                 ..
             },
-        ) = (c.favours_complex(), refined.model)
-        {
+        ) = (
+            c.favours_complex() && refined.model.has_lobe(),
+            refined.model,
+        ) {
             if let Some(test) = pattern {
                 r.decisions.push(format!(
                     "stage 4: the anisotropic gain explains a highlight: {}",
@@ -571,6 +574,11 @@ pub(super) fn run(
             ));
             rec.models[g] = refined.model;
             r.set_decided(c.complex_estimate());
+        } else if c.favours_complex() {
+            r.decisions.push(format!(
+                "stage 4: stays {}: the best anisotropic fit {measured}, but it has no lobe (specularity 0): its gain is its colour's, which the colour polish takes up",
+                kept.name(),
+            ));
         } else {
             r.decisions.push(format!(
                 "stage 4: stays {}: the best anisotropic fit {measured}: needs {}",
