@@ -2049,6 +2049,25 @@ fn a_greyscale_view_is_told() {
     assert!(!stderr.contains("holds equal R, G and B"), "{stderr}");
 }
 
+/// A view given twice (a copied `[[view]]` table, renamed) counts its pixels twice in
+/// every fit: told, naming both; cornell's six distinct views are not.
+#[test]
+fn a_view_given_twice_is_told() {
+    let text = cornell_scene_text();
+    let start = text.find("[[view]]").unwrap();
+    let end = start + 8 + text[start + 8..].find("[[view]]").unwrap();
+    let again = text[start..end].replace("name = \"px\"", "name = \"px_again\"");
+    let doubled = format!("{text}\n{again}");
+    let (code, stderr, _) = check_scene(&doubled);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("view 'px_again' looks from where view 'px' does, the same way, over the same field and pixels"),
+        "{stderr}"
+    );
+    let (_, stderr, _) = check_scene(&text);
+    assert!(!stderr.contains("looks from where"), "{stderr}");
+}
+
 /// No surface is brighter in a channel than the lights are there (it reflects at most
 /// what reaches it): a hot pixel in cornell's floor view is left out of the fit and named,
 /// where before it put the floor at its bound; a light declared 100x too dim, which makes

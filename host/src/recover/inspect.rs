@@ -23,7 +23,7 @@ use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::obj::ObjObject;
 use crate::parallel;
-use crate::scene_file::{GroupDesc, GroupKind, SceneDesc};
+use crate::scene_file::{GroupDesc, GroupKind, SceneDesc, ViewDesc};
 
 /// A scene read for recovery: its geometry assembled (no materials yet) and its panorama.
 pub(super) struct Input {
@@ -225,6 +225,30 @@ fn greyscale_warnings(real: &[Image], view_names: &[String]) -> Vec<String> {
         .collect()
 }
 
+/// A view that looks from the same place, the same way, over the same field and pixels
+/// as an earlier one: every fit counts its pixels twice (a copied `[[view]]` table lifted
+/// a 2-pixel plate to 4, and it came out glossy). Told, naming both.
+fn repeated_view_warnings(views: &[ViewDesc]) -> Vec<String> {
+    let same = |a: &ViewDesc, b: &ViewDesc| {
+        a.position == b.position
+            && a.direction == b.direction
+            && a.up == b.up
+            && a.fov_deg == b.fov_deg
+            && a.size == b.size
+    };
+    views
+        .iter()
+        .enumerate()
+        .filter_map(|(i, v)| {
+            let first = views[..i].iter().find(|u| same(u, v))?;
+            Some(format!(
+                "view '{}' looks from where view '{}' does, the same way, over the same field and pixels: every fit counts these pixels twice, weighing what they see double; leave one out (or merge their images)",
+                v.name, first.name
+            ))
+        })
+        .collect()
+}
+
 /// A PNG view's pure pixels clipped at its largest code are at least that bright, not
 /// that: counted per view, and told where there are any. (A capture's 6 pixels at 65535
 /// were taken as radiance without a word.)
@@ -345,6 +369,7 @@ pub(super) fn inspect(
     ));
     warnings.extend(too_bright);
     warnings.extend(greyscale_warnings(&input.real, &input.view_names));
+    warnings.extend(repeated_view_warnings(&owned.desc.views));
     warnings.extend(clipped_warnings(
         &pure,
         &input.real,

@@ -65,6 +65,19 @@ pub(super) fn run(
                 }
         })
         .collect();
+    // Seen in too few pixels for the statistic, a texture cannot be told from a lobe or a
+    // colour: said, since such a group keeps a uniform model (whatever error a picture
+    // leaves goes to stage 4's lobe).
+    for (g, r) in reports.iter_mut().enumerate() {
+        let few = r.pure_pixels > 0 && r.pure_pixels < fit::MIN_PIXELS_FOR_TEXTURE;
+        if few && mapped[g] && kinds[g] != GroupKind::Metal {
+            r.decisions.push(format!(
+                "stage 3: not tested for texture: {} pure pixels, fewer than MIN_PIXELS_FOR_TEXTURE {} that the step statistic needs; it keeps a uniform model",
+                r.pure_pixels,
+                fit::MIN_PIXELS_FOR_TEXTURE
+            ));
+        }
+    }
     // A map lies over the OBJ texture coordinates: a group without them cannot have one.
     let (tested, unmapped): (Vec<usize>, Vec<usize>) = tested.into_iter().partition(|&g| mapped[g]);
     for g in unmapped {
