@@ -90,9 +90,20 @@ pub fn leave_out_too_bright(
         v[2],
     );
     if share > TOO_BRIGHT_SHARE {
+        // All in one view of several: that view's exposure is the likelier cause (one
+        // view's exposure 1e6 was blamed on the lights).
+        let view = first.view;
+        let one_view = names.views.len() > 1 && bright.iter().all(|p| p.view == view);
+        let cause = match one_view {
+            true => format!(
+                "every one of them in view '{}': its exposure is likely too high, or a light the scene lacks (a window, a lamp not declared) shines only there",
+                names.views[view as usize]
+            ),
+            false => "a light the scene lacks (a window, a lamp not declared) or a light's radiance declared too low".to_string(),
+        };
         return Err(Error::input(
             scene_file,
-            format!("{what}: a light the scene lacks (a window, a lamp not declared) or a light's radiance declared too low (more than TOO_BRIGHT_SHARE {TOO_BRIGHT_SHARE} of the pure pixels: refused)"),
+            format!("{what}: {cause} (more than TOO_BRIGHT_SHARE {TOO_BRIGHT_SHARE} of the pure pixels: refused)"),
         ));
     }
     let warning = format!(
@@ -172,6 +183,48 @@ mod tests {
             (0..n).map(|x| pixel(x, (x % 2) as u16)).collect(),
             vec![image],
         )
+    }
+
+    /// Too many too bright pixels, all in one view of two: that view's exposure is named
+    /// as the likely cause; spread over both, the lights are.
+    #[test]
+    fn too_bright_pixels_in_one_view_of_several_blame_its_exposure() {
+        let s = |v: &[&str]| v.iter().map(|n| n.to_string()).collect::<Vec<_>>();
+        let (views, groups, lights) = (
+            s(&["front", "back"]),
+            s(&["floor", "wall"]),
+            s(&["off", "lamp"]),
+        );
+        let names = Names {
+            views: &views,
+            groups: &groups,
+            lights: &lights,
+        };
+        let radiance = [Vec3::ZERO, Vec3::new(4.0, 10.0, 6.0)];
+        let two_views = |front: &[(u32, f32)], back: &[(u32, f32)]| {
+            let (mut pure, mut real) = case(200, front);
+            let (back_pure, back_real) = case(200, back);
+            pure.extend(back_pure.into_iter().map(|p| PurePixel { view: 1, ..p }));
+            real.extend(back_real);
+            let file = Path::new("scene.toml");
+            leave_out_too_bright(file, pure, &real, &names, &radiance)
+                .unwrap_err()
+                .to_string()
+        };
+        let hot = [(2, 1e6), (13, 1e6), (50, 1e6), (60, 1e6), (70, 1e6)];
+        let message = two_views(&hot, &[]);
+        assert!(
+            message.contains("5 pure pixels of 400 (1.25%)")
+                && message
+                    .contains("every one of them in view 'front': its exposure is likely too high"),
+            "{message}"
+        );
+        let message = two_views(&hot[..3], &hot[3..]);
+        assert!(
+            !message.contains("every one of them")
+                && message.contains("a light the scene lacks (a window, a lamp not declared) or a light's radiance declared too low"),
+            "{message}"
+        );
     }
 
     #[test]
