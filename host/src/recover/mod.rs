@@ -1046,6 +1046,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             &names[g],
             &rec.models[g],
         ));
+        warnings.extend(warnings::plastic_lobe_at_bound(&names[g], &rec.models[g]));
     }
     let spp_per_half = final_renders.spp_per_half;
     let renders = final_renders.mean;

@@ -11,6 +11,7 @@ use relume_core::stages::diffuse;
 use super::kind;
 use super::model::GroupModel;
 use super::{Budget, GroupReport};
+use relume_core::material::Kind;
 
 /// Fewer pure pixels than this: specular parameters spread 10-100% over seeds, and the
 /// mirror turned isotropic at 64 pixels (docs/stability.md, "few pixels").
@@ -258,6 +259,37 @@ pub fn darker_than_any_material(name: &str, model: &GroupModel) -> Option<String
     })
 }
 
+/// A warning when group `name` holds a plastic lobe and its colour is at
+/// [`diffuse::MAX_DIFFUSE_REFLECTANCE`] in some channel: its diffuse part could not reach
+/// the panorama's level, and the lobe made up the rest. A panorama 10x too bright gave
+/// cornell's floor, ceiling and walls white lobes at the bound, where only the groups kept
+/// diffuse were warned of ([`brighter_than_lit`]).
+pub fn plastic_lobe_at_bound(name: &str, model: &GroupModel) -> Option<String> {
+    let (GroupModel::Isotropic {
+        kind: Kind::Plastic,
+        color,
+        specularity,
+        ..
+    }
+    | GroupModel::Anisotropic {
+        kind: Kind::Plastic,
+        color,
+        specularity,
+        ..
+    }) = *model
+    else {
+        return None;
+    };
+    let c = (0..3).find(|&c| color[c] >= diffuse::MAX_DIFFUSE_REFLECTANCE)?;
+    model.has_lobe().then(|| {
+        format!(
+            "group '{name}': its colour is at the bound {} ({} channel) under a lobe of specularity {specularity:.3}: its diffuse part could not reach the panorama's level, and the lobe made up the rest; if the group is not glossy, a light's radiance or a view's exposure is likely too low",
+            diffuse::MAX_DIFFUSE_REFLECTANCE,
+            ["red", "green", "blue"][c]
+        )
+    })
+}
+
 /// For a diffuse `model` whose colour is at [`diffuse::MAX_DIFFUSE_REFLECTANCE`] in some
 /// channel where the panorama is brighter than its render `fit` by more than
 /// [`BRIGHTER_THAN_LIT`]: the channel where it is most so, and the panorama over the render.
@@ -311,6 +343,32 @@ mod tests {
             sum_real: [ratio, 0.5, 0.5],
             sum_rendered: [1.0, 0.5, 0.5],
             ..GroupFit::default()
+        }
+    }
+
+    #[test]
+    fn a_plastic_lobe_over_a_colour_at_the_bound_is_named() {
+        let plastic = |kind, color, specularity| GroupModel::Isotropic {
+            kind,
+            color,
+            specularity,
+            roughness: 0.3,
+        };
+        let bound = diffuse::MAX_DIFFUSE_REFLECTANCE;
+        let w = plastic_lobe_at_bound("floor", &plastic(Kind::Plastic, [0.5, bound, 0.5], 0.2))
+            .unwrap();
+        assert!(
+            w.contains("group 'floor': its colour is at the bound 0.99 (green channel) under a lobe of specularity 0.200"),
+            "{w}"
+        );
+        // Below the bound, a metal (whose colour is its lobe's), or no lobe: nothing.
+        for model in [
+            plastic(Kind::Plastic, [0.98; 3], 0.2),
+            plastic(Kind::Metal, [bound; 3], 0.9),
+            plastic(Kind::Plastic, [bound; 3], 0.0),
+            GroupModel::Diffuse { color: [bound; 3] },
+        ] {
+            assert_eq!(plastic_lobe_at_bound("floor", &model), None);
         }
     }
 
