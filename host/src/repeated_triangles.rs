@@ -35,6 +35,11 @@ pub fn repeated_triangle_warnings(triangles: &[Triangle], group_names: &[String]
             continue;
         };
         let key = corners_key(t);
+        // A corner given twice (`f 29 29 30`) makes no surface at all: no ray hits it, and
+        // copies of it are no copies of a face.
+        if key[0] == key[1] || key[1] == key[2] {
+            continue;
+        }
         let mut hasher = DefaultHasher::new();
         key.hash(&mut hasher);
         let first = *first_with.entry(hasher.finish()).or_insert(i);
@@ -121,5 +126,13 @@ mod tests {
             triangle(b, Surface::Group(1)),
         ];
         assert!(repeated_triangle_warnings(&apart, &names).is_empty());
+        // Faces of a corner given twice are no surface, however often given.
+        let point = [a[0], a[0], a[1]];
+        let degenerate = [
+            triangle(point, Surface::Group(0)),
+            triangle(point, Surface::Group(0)),
+            triangle([a[1], a[0], a[0]], Surface::Group(1)),
+        ];
+        assert!(repeated_triangle_warnings(&degenerate, &names).is_empty());
     }
 }
