@@ -421,16 +421,15 @@ pub(super) fn run(
             rec.models[g] = stage1;
             continue;
         };
-        r.add_comparison(
-            ComparisonReport::new(
-                "2 isotropic",
-                stage1.name(),
-                candidate.0.name(),
-                &c,
-                decision_spp,
-            ),
+        let mut report = ComparisonReport::new(
+            "2 isotropic",
+            stage1.name(),
+            candidate.0.name(),
             &c,
+            decision_spp,
         );
+        report.kept_complex &= candidate.0.has_lobe();
+        r.add_comparison(report, &c);
         let measured = format!(
             "accounts for {:.4} of relative error (removes {:.4} +- {:.4}) in a render at {decision_spp} spp (z {:.1}; diffuse {:.4}, specular {:.4})",
             c.effect(),

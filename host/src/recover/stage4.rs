@@ -531,7 +531,7 @@ pub(super) fn run(
             &c,
             decision_spp,
         );
-        report.kept_complex &= pattern.is_none_or(|t| t.passes());
+        report.kept_complex &= pattern.is_none_or(|t| t.passes()) && refined.model.has_lobe();
         r.add_comparison(report, &c);
         let measured = format!(
             "accounts for {:.4} of relative error (removes {:.4} +- {:.4}) in a render at {decision_spp} spp (z {:.1}; {} {:.4}, anisotropic {:.4})",
@@ -574,7 +574,7 @@ pub(super) fn run(
             ));
             rec.models[g] = refined.model;
             r.set_decided(c.complex_estimate());
-        } else if c.favours_complex() {
+        } else if c.favours_complex() && !refined.model.has_lobe() {
             r.decisions.push(format!(
                 "stage 4: stays {}: the best anisotropic fit {measured}, but it has no lobe (specularity 0): its gain is its colour's, which the colour polish takes up",
                 kept.name(),
