@@ -439,13 +439,7 @@ pub(super) fn run(
             c.error_simple,
             c.error_complex
         );
-        if c.favours_complex() && !candidate.0.has_lobe() {
-            r.decisions.push(format!(
-                "stage 2: stays diffuse: the fit that renders better (s {specularity:.4}) {measured}, but it has no lobe: its gain is its colour's, which the colour polish takes up"
-            ));
-            rec.models[g] = stage1;
-            r.set_decided(more_precise(r.latest_error, c.simple_estimate()));
-        } else if c.favours_complex() {
+        if c.favours_complex() && candidate.0.has_lobe() {
             r.decisions.push(format!(
                 "stage 2: {} {} (s {specularity:.4}, roughness {alpha:.4}; cache proposed s {:.4}) {measured}: {}",
                 candidate.0.name(),
@@ -494,9 +488,16 @@ pub(super) fn run(
                 None => Vec::new(),
             };
         } else {
+            // A fit of no lobe that renders better does so by its colour alone.
+            let why = match c.favours_complex() {
+                true => {
+                    "but it has no lobe: its gain is its colour's, which the colour polish takes up"
+                        .to_string()
+                }
+                false => format!("needs {}", keep_rule(&c)),
+            };
             r.decisions.push(format!(
-                "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: needs {}",
-                keep_rule(&c),
+                "stage 2: stays diffuse: the best isotropic fit (s {specularity:.4}, roughness {alpha:.4}) {measured}: {why}"
             ));
             rec.models[g] = stage1;
             r.set_decided(more_precise(r.latest_error, c.simple_estimate()));

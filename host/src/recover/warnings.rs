@@ -6,12 +6,12 @@
 //! any material's ([`darker_than_any_material`]).
 
 use relume_core::fit::{self, GroupFit};
+use relume_core::material::Kind;
 use relume_core::stages::diffuse;
 
 use super::kind;
 use super::model::GroupModel;
 use super::{Budget, GroupReport};
-use relume_core::material::Kind;
 
 /// Fewer pure pixels than this: specular parameters spread 10-100% over seeds, and the
 /// mirror turned isotropic at 64 pixels (docs/stability.md, "few pixels").
@@ -334,7 +334,6 @@ fn unestablished_specularity(report: &GroupReport) -> Option<(f64, f64)> {
 mod tests {
     use super::*;
     use crate::recover::{ComparisonReport, Effort};
-    use relume_core::material::Kind;
 
     /// A one-pixel fit whose panorama is `ratio` times the render in red.
     fn fit_with_red_ratio(ratio: f64) -> GroupFit {
