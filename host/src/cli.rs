@@ -409,7 +409,7 @@ fn print_check(report: &recover_cmd::CheckReport) {
         crate::text::counted(report.preview_renders, "render")
     );
     if report.light_readings.is_empty() {
-        println!("calibration: not checked (no view sees a light's emitting side in whole pixels)");
+        println!("{}", crate::recover::CALIBRATION_NOT_CHECKED);
     }
     for r in &report.light_readings {
         println!("calibration: {}", r.describe());
@@ -534,9 +534,7 @@ fn run(command: Command) -> Result<(), Error> {
                 );
             }
             match report.light_readings.as_slice() {
-                [] => println!(
-                    "calibration: not checked (no view sees a light's emitting side in whole pixels)"
-                ),
+                [] => println!("{}", crate::recover::CALIBRATION_NOT_CHECKED),
                 readings => {
                     for r in readings {
                         println!("calibration: {}", r.describe());

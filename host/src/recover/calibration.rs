@@ -129,6 +129,41 @@ fn factor_text(f: f64) -> String {
     }
 }
 
+/// What `check` and `recover` print where no reading was made.
+pub const NOT_CHECKED: &str = "calibration: not checked (no view sees a light's emitting side over a pixel and its four neighbours)";
+
+/// Where no pixel is interior to a light but some lie wholly on one beside its edge (a
+/// small light, or coarse views): says so, with the (view, light) that has the most of
+/// them. Such pixels are not read: a camera's or a filter's blur at the light's edge mixes
+/// in what surrounds it, and a warning from a blurred reading would blame the exposure.
+/// Before, the calibration was said to find no light "in whole pixels" where four were.
+pub fn unchecked_warning(
+    interior: &[LightPixel],
+    edges: &[LightPixel],
+    light_names: &[String],
+    view_names: &[String],
+) -> Option<String> {
+    if !interior.is_empty() || edges.is_empty() {
+        return None;
+    }
+    let mut counts = std::collections::BTreeMap::<(u32, u16), u32>::new();
+    for p in edges {
+        *counts.entry((p.view, p.light)).or_default() += 1;
+    }
+    // The most pixels; of equal counts the first view, then the first light.
+    let (&(view, light), &most) = counts
+        .iter()
+        .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(a.0)))?;
+    let (light, view) = (&light_names[light as usize], &view_names[view as usize]);
+    let which = match counts.len() {
+        1 => format!("the {} that see light '{light}' wholly, in view '{view}', lie beside its edge", counted(most, "pixel")),
+        _ => format!("the {} that see one wholly lie beside its edge (most, {most}, light '{light}' in view '{view}')", counted(edges.len() as u64, "pixel")),
+    };
+    Some(format!(
+        "the panorama's calibration (its exposure against the lights' radiance) is not checked: no pixel sees a light's emitting side together with its four neighbours, and {which}, where a camera's or a filter's blur mixes in what surrounds the light; views finer where they see a light would check it"
+    ))
+}
+
 /// A light declared dark (radiance 0) whose pixels read more than this fraction of the
 /// brightest light's radiance: far brighter than a lamp's glass or shade lit by the room
 /// (the references' groups read 0.2-1.5% of their lamp's radiance on average), so most
@@ -538,6 +573,34 @@ mod tests {
             [Some(12.0 / 11.0), Some(21.0 / 20.0), Some(1.0)]
         );
         assert_eq!(readings[2].ratio[0], Some(24.0 / 11.0));
+    }
+
+    /// Told only where no pixel is interior to a light and some lie wholly on one, with
+    /// the (view, light) holding the most.
+    #[test]
+    fn a_light_seen_only_beside_its_edge_says_why_the_calibration_is_unchecked() {
+        let lights = ["bulb".to_string(), "lamp".to_string()];
+        let views = ["a".to_string(), "b".to_string()];
+        let one_light = [pixel(1, 1, 1), pixel(1, 2, 1)];
+        let text = unchecked_warning(&[], &one_light, &lights, &views).unwrap();
+        assert!(
+            text.contains("not checked")
+                && text.contains(
+                    "the 2 pixels that see light 'lamp' wholly, in view 'b', lie beside its edge"
+                ),
+            "{text}"
+        );
+        let two = [pixel(0, 1, 0), pixel(1, 1, 1), pixel(1, 2, 1)];
+        let text = unchecked_warning(&[], &two, &lights, &views).unwrap();
+        assert!(
+            text.contains("the 3 pixels that see one wholly lie beside its edge (most, 2, light 'lamp' in view 'b')"),
+            "{text}"
+        );
+        assert_eq!(
+            unchecked_warning(&[pixel(0, 2, 0)], &two, &lights, &views),
+            None
+        );
+        assert_eq!(unchecked_warning(&[], &[], &lights, &views), None);
     }
 
     #[test]

@@ -307,6 +307,7 @@ pub(super) fn inspect(
     let pixels::Labels {
         pure,
         lights: light_pixels,
+        light_edges,
         light_backs,
         empty_views,
     } = {
@@ -354,6 +355,12 @@ pub(super) fn inspect(
     warnings.extend(calibration::calibration_warnings(
         &light_readings,
         owned.light_radiance(),
+    ));
+    warnings.extend(calibration::unchecked_warning(
+        &light_pixels,
+        &light_edges,
+        &owned.light_names,
+        &input.view_names,
     ));
     let back_readings = calibration::read_lights(
         &light_backs,

@@ -67,6 +67,7 @@ use crate::error::Error;
 use crate::images::Image;
 use crate::parallel;
 use crate::scene_file::GroupKind;
+pub use calibration::NOT_CHECKED as CALIBRATION_NOT_CHECKED;
 pub use inspect::{check, CheckReport, GroupSight};
 pub use model::GroupModel;
 pub use output::{output_files, UNSEEN_TOML};

@@ -134,6 +134,10 @@ pub struct Labels {
     pub pure: Vec<PurePixel>,
     /// Every light pixel (interior to a light), in view and row order.
     pub lights: Vec<LightPixel>,
+    /// Pixels wholly on a light's emitting side but beside its edge (a neighbour is not):
+    /// not read, since blur at the edge may reach them, but told of where no pixel is
+    /// interior ([`super::calibration::unchecked_warning`]).
+    pub light_edges: Vec<LightPixel>,
     /// Every pixel interior to a light's back (black as declared), in view and row order.
     pub light_backs: Vec<LightPixel>,
     /// The views with no pure pixel.
@@ -145,6 +149,7 @@ pub fn label_views(pool: &rayon::ThreadPool, scene: &Scene, views: &[View]) -> L
     let mut found = Labels {
         pure: Vec::new(),
         lights: Vec::new(),
+        light_edges: Vec::new(),
         light_backs: Vec::new(),
         empty_views: Vec::new(),
     };
@@ -196,13 +201,17 @@ pub fn label_views(pool: &rayon::ThreadPool, scene: &Scene, views: &[View]) -> L
                         y,
                         group,
                     }),
-                    Some(Surface::Light(light)) if neighbours_see(x, y, Surface::Light(light)) => {
-                        found.lights.push(LightPixel {
+                    Some(Surface::Light(light)) => {
+                        let pixel = LightPixel {
                             view: vi as u32,
                             x,
                             y,
                             light,
-                        })
+                        };
+                        match neighbours_see(x, y, Surface::Light(light)) {
+                            true => found.lights.push(pixel),
+                            false => found.light_edges.push(pixel),
+                        }
                     }
                     _ => {}
                 }
@@ -963,6 +972,40 @@ mod tests {
             assert!(!is_pure && share < 1.0, "{p:?}");
             if share >= 0.5 {
                 assert!(half[0].contains(&(p, share)), "{p:?}");
+            }
+        }
+    }
+
+    /// Cornell's light at 32 px per face holds pixels interior to it; at 8 px only four
+    /// lie wholly on it, each beside its edge: those are kept apart, not read and not lost.
+    #[test]
+    fn pixels_wholly_on_a_light_beside_its_edge_are_kept_apart_from_interior_ones() {
+        use crate::assemble::{load_and_assemble, MaterialSource};
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/scene.toml");
+        let mut owned = load_and_assemble(&path, MaterialSource::GeometryOnly).unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let fine = owned.views.clone();
+        let coarse: Vec<View> = (fine.iter())
+            .map(|v| View {
+                width: 8,
+                height: 8,
+                ..*v
+            })
+            .collect();
+        let scene = owned.build().unwrap();
+        let at_32 = label_views(&pool, &scene, &fine);
+        let at_8 = label_views(&pool, &scene, &coarse);
+        assert!(!at_32.lights.is_empty() && !at_32.light_edges.is_empty());
+        assert!(at_8.lights.is_empty());
+        assert_eq!(at_8.light_edges.len(), 4, "{:?}", at_8.light_edges);
+        // An edge pixel has a neighbour off the light; an interior one has none.
+        for labels in [&at_32, &at_8] {
+            for p in &labels.light_edges {
+                assert!(!labels.lights.contains(p), "{p:?}");
             }
         }
     }

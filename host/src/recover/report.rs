@@ -317,7 +317,7 @@ pub struct RecoverReport {
     pub panorama_noise_bound: f64,
     /// The panorama over each light it sees, against the light's declared radiance: the
     /// check of the views' exposure and the lights' radiance (empty where no view sees the
-    /// emitting side of a light in whole pixels).
+    /// emitting side of a light over a pixel and its four neighbours).
     pub light_readings: Vec<super::calibration::LightReading>,
     /// The final render against the panorama over each view's pure pixels: a view whose
     /// residual lies apart from the others' may have its exposure off.
