@@ -2362,6 +2362,43 @@ fn a_light_facing_away_is_named_by_the_view_that_sees_its_back_shine() {
     assert!(!stderr.contains("seen from behind"), "{stderr}");
 }
 
+/// A view placed inside cornell's sphere sees only its inside, which no light reaches:
+/// its pixels counted as the sphere's, and the sphere came out an anisotropic metal. The
+/// view is named and its pixels left out; with every view inside, the scene is refused.
+#[test]
+fn a_view_inside_a_closed_group_no_light_reaches_is_left_out() {
+    let text = cornell_scene_text();
+    let centre = "position = [2.1, 1.2, 0.35]";
+    let one_inside = text.replacen("position = [1.5, 0.9, 1.3]", centre, 1);
+    assert_ne!(one_inside, text);
+    let (code, stderr, report) = check_scene(&one_inside);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr
+            .contains("view 'px' is inside group 'sphere', a closed surface no light shines into")
+            && stderr.contains("so its 1024 pure pixels are left out of the fit"),
+        "{stderr}"
+    );
+    let report = report.unwrap();
+    let views = report["views"].as_array().unwrap();
+    let px = views.iter().position(|v| v == "px").unwrap();
+    for g in report["groups"].as_array().unwrap() {
+        assert_eq!(g["pure_pixels"][px], 0, "{g}");
+    }
+    // The bundled scene: no view is inside anything but the room, which holds the light.
+    let (_, stderr, _) = check_scene(&text);
+    assert!(!stderr.contains("is inside group"), "{stderr}");
+    // Every view inside: nothing is left to recover from.
+    let all_inside = text.replace("position = [1.5, 0.9, 1.3]", centre);
+    let (code, stderr, report) = check_scene(&all_inside);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("no view is left to recover from: view 'px' is inside group 'sphere'"),
+        "{stderr}"
+    );
+    assert!(report.is_none());
+}
+
 /// A group whose every object is hidden is not in the scene: `check` said only that no
 /// view saw it in whole pixels, which sent a user looking at the views; it now names
 /// `hide` as the cause, and says no more of that group.

@@ -19,6 +19,7 @@ pub mod cli;
 pub mod compare;
 pub mod coverage;
 pub mod downsample;
+pub mod enclosed_views;
 pub mod error;
 pub mod fsutil;
 pub mod images;

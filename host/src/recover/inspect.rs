@@ -24,6 +24,7 @@ use crate::images::{self, Image};
 use crate::obj::ObjObject;
 use crate::parallel;
 use crate::scene_file::{GroupDesc, GroupKind, SceneDesc, ViewDesc};
+use crate::text::counted;
 
 /// A scene read for recovery: its geometry assembled (no materials yet) and its panorama.
 pub(super) struct Input {
@@ -304,6 +305,7 @@ pub(super) fn inspect(
     input: &mut Input,
 ) -> Result<Inspection, Error> {
     let views = input.owned.views.clone();
+    let mut enclosed_warnings = Vec::new();
     let pixels::Labels {
         pure,
         lights: light_pixels,
@@ -311,8 +313,29 @@ pub(super) fn inspect(
         light_backs,
         empty_views,
     } = {
+        let group_names = input.owned.group_names.clone();
         let scene = input.owned.build()?;
-        let labels = pixels::label_views(pool, &scene, &views);
+        let mut labels = pixels::label_views(pool, &scene, &views);
+        for enclosed in crate::enclosed_views::enclosed_views(scene.triangles, &views) {
+            let view = enclosed.view as u32;
+            let before = labels.pure.len();
+            labels.pure.retain(|p| p.view != view);
+            enclosed_warnings.push(format!(
+                "view '{}' is inside group '{}', a closed surface no light shines into: no light reaches what the view sees, whatever the materials, so its {} are left out of the fit (is the view's position right, or does a light face away?)",
+                input.view_names[enclosed.view],
+                group_names[enclosed.group as usize],
+                counted((before - labels.pure.len()) as u64, "pure pixel")
+            ));
+        }
+        if labels.pure.is_empty() && !enclosed_warnings.is_empty() {
+            return Err(Error::input(
+                scene_file,
+                format!(
+                    "no view is left to recover from: {}",
+                    enclosed_warnings.join("; ")
+                ),
+            ));
+        }
         if labels.pure.is_empty() {
             return Err(no_pure_pixel(
                 scene_file,
@@ -324,7 +347,10 @@ pub(super) fn inspect(
         }
         labels
     };
-    let mut warnings = crate::light_placement::lights_against_surfaces(&mut input.owned)?;
+    let mut warnings = enclosed_warnings;
+    warnings.extend(crate::light_placement::lights_against_surfaces(
+        &mut input.owned,
+    )?);
     warnings.extend(crate::repeated_triangles::repeated_triangle_warnings(
         input.owned.triangles(),
         &input.owned.group_names,
