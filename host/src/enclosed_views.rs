@@ -44,17 +44,24 @@ pub fn enclosed_views(triangles: &[Triangle], views: &[View]) -> Vec<EnclosedVie
     }
     let size = relume_core::geometry::longest_side(triangles);
     let light_points = light_points(triangles, size * LIGHT_POINT_OFFSET);
+    // Per view, the first closed group holding it; a group's lights are looked for once,
+    // and only where it holds a view.
     let mut found = Vec::new();
+    let mut lit: Vec<Option<bool>> = vec![None; closed.len()];
     for (vi, view) in views.iter().enumerate() {
-        let position = view.position;
-        let enclosing = closed.iter().find(|surface| {
-            surface.holds(position) && !light_points.iter().any(|&p| surface.holds(p))
-        });
-        if let Some(surface) = enclosing {
-            found.push(EnclosedView {
-                view: vi,
-                group: surface.group,
-            });
+        for (s, surface) in closed.iter().enumerate() {
+            if !surface.holds(view.position) {
+                continue;
+            }
+            let holds_a_light =
+                *lit[s].get_or_insert_with(|| light_points.iter().any(|&p| surface.holds(p)));
+            if !holds_a_light {
+                found.push(EnclosedView {
+                    view: vi,
+                    group: surface.group,
+                });
+                break;
+            }
         }
     }
     found
