@@ -216,7 +216,7 @@ fn rgbe_half_step(pixel: [f32; 3]) -> [f32; 3] {
     // floor(log2(brightest)), exactly, from the f64 exponent (subnormal f32s included).
     let log2 = ((f64::from(brightest).to_bits() >> 52) & 0x7ff) as i32 - 1023;
     // A mantissa of 128-255 puts the step at 2^(log2 - 7); half of it is 2^(log2 - 8).
-    let half_step = 2f64.powi(log2 - 8);
+    let half_step = f64::from_bits(((log2 - 8 + 1023) as u64) << 52);
     pixel.map(|v| (f64::from(v) + half_step) as f32)
 }
 
@@ -1561,7 +1561,8 @@ mod tests {
         std::fs::write(&p, bytes).unwrap();
         let back = read_image(&p, 1.0).unwrap();
         // (128.5) 2^-7; (255.5, 0.5, 64.5) 2^-6; black; (200.5, 150.5, 100.5) 2^-135.
-        let tiny = |m: f32| (f64::from(m) * 2f64.powi(-135)) as f32;
+        let two_to_minus_135 = f64::from_bits((1023 - 135) << 52);
+        let tiny = |m: f32| (f64::from(m) * two_to_minus_135) as f32;
         assert_eq!(
             back.pixels,
             vec![
