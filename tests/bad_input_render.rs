@@ -382,6 +382,53 @@ fn a_hidden_light_is_a_light_switched_off() {
     assert!(stderr.contains("every pixel is black"), "{stderr}");
 }
 
+/// A view a few millimetres from the back wall is refused, naming what it sees there and
+/// that moving it away helps; `--view` of another view renders, and `compare views
+/// --view` compares, where both were refused because of the view not selected.
+#[test]
+fn a_view_too_close_to_a_wall_refuses_only_what_selects_it() {
+    let case = Case::new();
+    case.edit(
+        "scene.toml",
+        "name = \"py\"\nimage = \"views/py.exr\"\nposition = [1.5, 0.9, 1.3]",
+        "name = \"py\"\nimage = \"views/py.exr\"\nposition = [1.5, 2.995, 1.3]",
+    );
+    case.fails(
+        &render_args(&["materials.toml"]),
+        INPUT,
+        &[
+            "of the distance at which view 'py' sees the scene",
+            "on group 'walls_white'",
+            "Move the view away from what it sees",
+        ],
+    );
+    let mut px = render_args(&["materials.toml"]);
+    px.extend(["--view", "px"]);
+    let run = case.run(&px);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let run = case.run(&[
+        "compare",
+        "views",
+        "scene.toml",
+        "views",
+        "out",
+        "--view",
+        "px",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let mut py = render_args(&["materials.toml"]);
+    py.extend(["--view", "py"]);
+    case.fails(&py, INPUT, &["view 'py' sees the scene"]);
+}
+
 /// `--view` naming no view of the scene says which views it has.
 #[test]
 fn a_view_flag_naming_no_view_lists_the_views() {
@@ -564,6 +611,7 @@ fn a_scene_stretched_by_one_far_object_names_it() {
         &[
             "the geometry spans 1e6 units",
             "of the size of light 'light' (0.8 across)",
+            "Give the light at least 1000 across",
             "(without object 'speck' of geometry.obj, the geometry would span 3 units)",
         ],
     );

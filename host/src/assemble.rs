@@ -58,6 +58,10 @@ pub struct OwnedScene {
     group_planes: Vec<GroupPlane>,
     /// What the first build filled in the buffers; every later build reuses it.
     built: Option<BuiltCounts>,
+    /// The views a `--view` flag selected ([`OwnedScene::select_views`]; all when empty):
+    /// the checks at build look at these alone, so an unselected view does not refuse a
+    /// render of the others.
+    selected_views: Vec<String>,
 }
 
 /// An error when every face of the light `object` is degenerate: a light of no area
@@ -219,9 +223,10 @@ fn refuse_offsets_larger_than_a_light(
         return Err(Error::input(
             &desc.path,
             format!(
-                "{}: more than {MAX_OFFSET_PER_LIGHT_SIZE} of the size of light '{name}' ({} across), whose light would be lost or misplaced. {CROP}{hint}",
+                "{}: more than {MAX_OFFSET_PER_LIGHT_SIZE} of the size of light '{name}' ({} across), whose light would be lost or misplaced. Give the light at least {} across (its radiance scaled down for the same power), or {CROP}{hint}",
                 offset_said(size),
-                significant(extent.into())
+                significant(extent.into()),
+                significant((offset / MAX_OFFSET_PER_LIGHT_SIZE).into())
             ),
         ));
     }
@@ -284,7 +289,7 @@ fn what_to_crop(desc: &SceneDesc, objects: &[ObjObject]) -> String {
 }
 
 /// What to do about a scene too large for its details.
-const CROP: &str = "Leave out or crop the geometry far from what the views see";
+const CROP: &str = "leave out or crop the geometry far from what the views see";
 
 /// The ray offset of a scene of `size`, in words.
 fn offset_said(size: f32) -> String {
@@ -311,32 +316,46 @@ fn refuse_offsets_far_against_the_views(
     desc: &SceneDesc,
     scene: &Scene,
     views: &[View],
+    selected: &[String],
+    group_names: &[String],
+    light_names: &[String],
 ) -> Result<(), Error> {
     let offset = RAY_EPSILON * scene.size();
-    for (view, view_desc) in views.iter().zip(&desc.views) {
+    let chosen = views
+        .iter()
+        .zip(&desc.views)
+        .filter(|(_, d)| SceneDesc::view_selected(selected, &d.name));
+    for (view, view_desc) in chosen {
         let grid = |n: u32| {
             (0..DISTANCE_GRID.min(n))
                 .map(move |i| (i as f32 + 0.5) * n as f32 / DISTANCE_GRID.min(n) as f32)
         };
-        let mut distances: Vec<f32> = grid(view.height)
+        let mut hits: Vec<(f32, Surface)> = grid(view.height)
             .flat_map(|y| grid(view.width).map(move |x| (x, y)))
             .filter_map(|(x, y)| scene.intersect(&view.ray(x, y), f32::INFINITY))
-            .map(|hit| hit.t)
+            .filter_map(|hit| {
+                let triangle = scene.triangles.get(hit.triangle as usize)?;
+                Some((hit.t, triangle.surface))
+            })
             .collect();
-        if distances.is_empty() {
+        if hits.is_empty() {
             continue; // A view that sees nothing is warned of where it renders black.
         }
-        distances.sort_by(f32::total_cmp);
-        let distance = distances[distances.len() / 2];
+        hits.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (distance, surface) = hits[hits.len() / 2];
         if offset > MAX_OFFSET_PER_VIEW_DISTANCE * distance {
+            let what = match surface {
+                Surface::Group(g) => format!("group '{}'", group_names[g as usize]),
+                Surface::Light(l) => format!("light '{}'", light_names[l as usize]),
+            };
             return Err(Error::input(
                 &desc.path,
                 format!(
-                    "{}: more than {MAX_OFFSET_PER_VIEW_DISTANCE} of the distance at which view '{}' sees the scene ({}, the median over {} of its pixels), so its shadows and contacts would move by it. {CROP}",
+                    "{}: more than {MAX_OFFSET_PER_VIEW_DISTANCE} of the distance at which view '{}' sees the scene ({}, the median over {} of its pixels, on {what}), so its shadows and contacts would move by it. Move the view away from what it sees, or {CROP}",
                     offset_said(scene.size()),
                     view_desc.name,
                     significant(distance.into()),
-                    distances.len()
+                    hits.len()
                 ),
             ));
         }
@@ -533,6 +552,7 @@ pub fn assemble(
         light_table: vec![LightTriangle::default(); n_light_tris],
         group_planes: vec![GroupPlane::default(); group_count],
         built: None,
+        selected_views: Vec::new(),
     })
 }
 
@@ -877,6 +897,14 @@ impl OwnedScene {
     /// on the first call alone: the triangles and lights cannot change after assembly.
     /// (They were compared with a copy at every call, which on a scene of 600,000
     /// triangles took 3.6% of a recovery's CPU time on one thread, docs/renderer-vs-radiance.md.)
+    /// Selects the views a `--view` flag names (all when `names` is empty), refusing a
+    /// name the scene does not have; to be called before the first [`OwnedScene::build`].
+    pub fn select_views(&mut self, names: &[String]) -> Result<(), Error> {
+        self.desc.check_view_names(names)?;
+        self.selected_views = names.to_vec();
+        Ok(())
+    }
+
     pub fn build(&mut self) -> Result<Scene<'_>, Error> {
         let path = self.desc.path.display().to_string();
         let counts = match self.built {
@@ -900,7 +928,14 @@ impl OwnedScene {
                 )
                 .map_err(|e| Error::core(format!("{path}: building the scene"), e))
                 .and_then(|scene| {
-                    refuse_offsets_far_against_the_views(&self.desc, &scene, &self.views)?;
+                    refuse_offsets_far_against_the_views(
+                        &self.desc,
+                        &scene,
+                        &self.views,
+                        &self.selected_views,
+                        &self.group_names,
+                        &self.light_names,
+                    )?;
                     Ok(scene.built_counts())
                 })?;
                 self.built = Some(counts);

@@ -205,7 +205,7 @@ pub fn views_report_of(
     threads: Option<usize>,
 ) -> Result<ViewsReport, Error> {
     let mut owned = assemble::load_and_assemble(scene_path, MaterialSource::GeometryOnly)?;
-    owned.desc.check_view_names(selected)?;
+    owned.select_views(selected)?;
     let pool = parallel::thread_pool(threads)?;
     let descs = owned.desc.views.clone();
     let views = owned.views.clone();

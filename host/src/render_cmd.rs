@@ -69,7 +69,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         files.push(materials_file::load_materials(m)?);
     }
     let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::Files(&files))?;
-    owned.desc.check_view_names(&args.views)?;
+    owned.select_views(&args.views)?;
     let mut placement = crate::light_placement::lights_against_surfaces(&mut owned)?;
     placement.extend(crate::repeated_triangles::repeated_triangle_warnings(
         owned.triangles(),
