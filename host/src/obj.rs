@@ -42,6 +42,11 @@ pub struct ObjObject {
     pub triangles: Vec<[[f64; 3]; 3]>,
     /// Texture coordinates per triangle corner, when every face has them.
     pub uvs: Option<Vec<[[f32; 2]; 3]>>,
+    /// Named by a `g` statement (its file has no `o`): RADIANCE's obj2rad knows it as a
+    /// group, not an object (materials.map).
+    pub named_by_g: bool,
+    /// The line that names it.
+    pub line: usize,
 }
 
 /// What the checking pass learns about one object.
@@ -56,6 +61,8 @@ struct ObjectInfo {
 struct Checked {
     objects: Vec<ObjectInfo>,
     text: String,
+    /// The file names its objects by `g` (it has no `o`).
+    named_by_g: bool,
 }
 
 /// Reads one OBJ file into its objects.
@@ -173,6 +180,8 @@ pub fn load_obj(path: &Path) -> Result<Vec<ObjObject>, Error> {
             file: path.to_path_buf(),
             triangles,
             uvs,
+            named_by_g: checked.named_by_g,
+            line: info.line,
         });
     }
     Ok(out)
@@ -348,7 +357,11 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
             other => return Err(err(format!("unknown OBJ statement '{other}'"))),
         }
     }
-    Ok(Checked { objects, text: out })
+    Ok(Checked {
+        objects,
+        text: out,
+        named_by_g: !has_o,
+    })
 }
 
 /// Parses all arguments as finite numbers.

@@ -54,6 +54,10 @@ pub(super) struct Input {
     /// Whether a group's faces (those not hidden) have no area, every triangle degenerate:
     /// no view can see it.
     pub no_area: Vec<bool>,
+    /// How RADIANCE's obj2rad names the objects, for materials.map.
+    pub obj2rad: super::output::Obj2radNames,
+    /// The objects obj2rad cannot name, told with the input's warnings.
+    pub obj2rad_warnings: Vec<String>,
 }
 
 /// Reads the scene, its geometry and its panorama's images (each view's exposure applied).
@@ -107,6 +111,7 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
             !hidden && objects.iter().filter(shown).all(|o| !has_area(o))
         })
         .collect();
+    let (obj2rad, obj2rad_warnings) = super::output::Obj2radNames::new(&desc, &objects);
     let owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
     Ok(Input {
         owned,
@@ -121,6 +126,8 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         tiled,
         hidden,
         no_area,
+        obj2rad,
+        obj2rad_warnings,
     })
 }
 
@@ -401,6 +408,7 @@ pub(super) fn inspect(
         super::START_COLOR,
     ));
     warnings.extend(too_bright);
+    warnings.extend(std::mem::take(&mut input.obj2rad_warnings));
     warnings.extend(greyscale_warnings(&input.real, &input.view_names));
     warnings.extend(repeated_view_warnings(&owned.desc.views));
     warnings.extend(clipped_warnings(

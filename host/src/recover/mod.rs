@@ -873,6 +873,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         kinds,
         mapped,
         unfit_for_a_map,
+        obj2rad,
         ..
     } = input;
     let views = owned.views.clone();
@@ -1158,7 +1159,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         warnings_told,
         seconds: start.elapsed().as_secs_f64(),
     };
-    output::write_all(output, &args.out, &rec, &renders, &report)?;
+    output::write_all(output, &args.out, &rec, &renders, &report, &obj2rad)?;
     Ok(report)
 }
 

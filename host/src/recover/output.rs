@@ -15,6 +15,7 @@ use crate::error::Error;
 use crate::fsutil::OutputSet;
 use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialsDesc};
+use crate::obj::ObjObject;
 use crate::parallel;
 use crate::scene_file::{GroupKind, SceneDesc};
 
@@ -131,6 +132,7 @@ pub(super) fn write_all(
     rec: &Recovery,
     renders: &[Vec<Vec3>],
     report: &RecoverReport,
+    obj2rad: &Obj2radNames,
 ) -> Result<(), Error> {
     for (vi, pixels) in renders.iter().enumerate() {
         let name = &rec.owned.desc.views[vi].name;
@@ -162,7 +164,7 @@ pub(super) fn write_all(
     }
     let names = &rec.owned.group_names;
     let map_path = |g: usize| out.join(TEXTURES_DIR).join(format!("{}.exr", names[g]));
-    add_maps_and_radiance(&mut set, out, rec)?;
+    add_maps_and_radiance(&mut set, out, rec, obj2rad)?;
     // An earlier recovery's map of a group this one did not map, and its renders of views
     // this scene lacks (an earlier run of another scene), are no outputs of this run.
     for path in stale_outputs(&set, out) {
@@ -200,7 +202,12 @@ pub(super) fn write_all(
 /// Adds every textured group's map (`textures/<group>.exr`) and what RADIANCE is given:
 /// materials.rad, each picture's `.hdr` and `.cal`, a curved group's mesh
 /// (`meshes/<group>.obj`) and materials.map, obj2rad's rules.
-fn add_maps_and_radiance(set: &mut OutputSet, out: &Path, rec: &Recovery) -> Result<(), Error> {
+fn add_maps_and_radiance(
+    set: &mut OutputSet,
+    out: &Path,
+    rec: &Recovery,
+    obj2rad: &Obj2radNames,
+) -> Result<(), Error> {
     let names = &rec.owned.group_names;
     // The textured groups whose (u, v) RADIANCE reads on a mesh: materials.map leaves
     // their objects to it.
@@ -286,7 +293,7 @@ fn add_maps_and_radiance(set: &mut OutputSet, out: &Path, rec: &Recovery) -> Res
     set.add(&out.join(MATERIALS_RAD), rad.as_bytes())?;
     set.add(
         &out.join(MATERIALS_MAP),
-        obj2rad_map(&rec.owned.desc, names, &on_mesh).as_bytes(),
+        obj2rad_map(&rec.owned.desc, names, &on_mesh, obj2rad).as_bytes(),
     )
 }
 
@@ -342,33 +349,95 @@ fn mesh_obj<'a>(
     text
 }
 
-/// The name of light object `object`'s primitive in materials.rad: `light_<object>`, made
-/// longer while a group has that name.
-fn light_name(object: &str, groups: &[String]) -> String {
-    let mut name = format!("light_{object}");
-    while groups.contains(&name) {
-        name.insert(0, '_');
+/// The names of the lights' primitives in materials.rad, in the scene's order of lights:
+/// `light_<object>` with every character a RADIANCE identifier cannot hold made `_` (an
+/// object `ceiling lamp` gave `void light light_ceiling lamp`, which oconv cannot read),
+/// made longer while a group or an earlier light has that name.
+fn light_names(desc: &SceneDesc, groups: &[String]) -> Vec<String> {
+    let mut names: Vec<String> = Vec::with_capacity(desc.lights.len());
+    for light in &desc.lights {
+        let word: String = (light.object.chars())
+            .map(
+                |c| match c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
+                    true => c,
+                    false => '_',
+                },
+            )
+            .collect();
+        let mut name = format!("light_{word}");
+        while groups.contains(&name) || names.contains(&name) {
+            name.insert(0, '_');
+        }
+        names.push(name);
     }
-    name
+    names
 }
 
 /// The scene's lights as RADIANCE `light` primitives (radiance in W sr^-1 m^-2 per channel,
 /// as scene.toml gives it), so that materials.rad with the geometry is a whole scene.
 fn light_primitives(desc: &SceneDesc, groups: &[String]) -> String {
     let mut text = String::new();
-    for light in desc
-        .lights
-        .iter()
-        .filter(|l| !desc.hide.contains(&l.object))
-    {
+    for (light, name) in desc.lights.iter().zip(light_names(desc, groups)) {
+        if desc.hide.contains(&light.object) {
+            continue;
+        }
         let [r, g, b] = light.radiance;
         text.push_str(&format!(
-            "\n# light '{}' as scene.toml declares it\nvoid light {}\n0\n0\n3 {r} {g} {b}\n",
-            light.object,
-            light_name(&light.object, groups)
+            "\n# light '{}' as scene.toml declares it\nvoid light {name}\n0\n0\n3 {r} {g} {b}\n",
+            light.object
         ));
     }
     text
+}
+
+/// How RADIANCE's obj2rad names the scene's OBJ objects, for materials.map's rules: by the
+/// first word of an `o` statement, or as a group where a file names its objects by `g`.
+#[derive(Default)]
+pub(super) struct Obj2radNames {
+    /// Objects named by `g` (their files have no `o`): `(Group "name")`.
+    named_by_g: std::collections::HashSet<String>,
+}
+
+impl Obj2radNames {
+    /// The names of `objects`, and a warning for each object of a group or a light whose
+    /// name obj2rad cannot match (it holds a space or a quote), naming its file and line.
+    pub(super) fn new(desc: &SceneDesc, objects: &[ObjObject]) -> (Obj2radNames, Vec<String>) {
+        let used = |name: &String| {
+            !desc.hide.contains(name)
+                && (desc.groups.iter().any(|g| g.objects.contains(name))
+                    || desc.lights.iter().any(|l| &l.object == name))
+        };
+        let mut warnings = Vec::new();
+        for o in objects.iter().filter(|o| used(&o.name)) {
+            if !Self::matchable(&o.name) {
+                warnings.push(format!(
+                    "object '{}' ({}, line {}): RADIANCE's obj2rad names an object by one word, so materials.map cannot give it its material and obj2rad would leave its faces out; name it in one word without quotes to render the recovered scene in RADIANCE",
+                    o.name,
+                    o.file.display(),
+                    o.line
+                ));
+            }
+        }
+        let named_by_g = (objects.iter())
+            .filter(|o| o.named_by_g)
+            .map(|o| o.name.clone())
+            .collect();
+        (Obj2radNames { named_by_g }, warnings)
+    }
+
+    /// Whether obj2rad reads `name` whole: one word, and no quote to end its string.
+    fn matchable(name: &str) -> bool {
+        !name.is_empty() && !name.contains(|c: char| c.is_whitespace() || c == '"')
+    }
+
+    /// The rule's qualifier for `object`, `None` where no rule can match it.
+    fn qualifier(&self, object: &str) -> Option<&'static str> {
+        match (Self::matchable(object), self.named_by_g.contains(object)) {
+            (false, _) => None,
+            (true, true) => Some("Group"),
+            (true, false) => Some("Object"),
+        }
+    }
 }
 
 /// obj2rad's mapping rules: `obj2rad -m materials.map geometry.obj > geometry.rad` names
@@ -377,12 +446,23 @@ fn light_primitives(desc: &SceneDesc, groups: &[String]) -> String {
 /// no part of the recovered scene and get no rule. The objects of the groups `on_mesh`
 /// (by index) are obj2mesh's, as meshes/<group>.obj: their rule is `void`, which obj2rad
 /// skips, so that their faces are not polygons as well.
-fn obj2rad_map(desc: &SceneDesc, groups: &[String], on_mesh: &[usize]) -> String {
+fn obj2rad_map(
+    desc: &SceneDesc,
+    groups: &[String],
+    on_mesh: &[usize],
+    obj2rad: &Obj2radNames,
+) -> String {
     let mut text = String::from(
         "# relume: obj2rad -m materials.map <geometry.obj> > geometry.rad names each object's faces\n\
          # after its group's material in materials.rad; then oconv materials.rad geometry.rad\n",
     );
     let shown = |object: &&String| !desc.hide.contains(*object);
+    let rule = |text: &mut String, modifier: &str, object: &str| match obj2rad.qualifier(object) {
+        Some(q) => text.push_str(&format!("{modifier} ({q} \"{object}\") ;\n")),
+        None => text.push_str(&format!(
+            "# {modifier}: object {object:?} has no rule: obj2rad names objects by one word\n"
+        )),
+    };
     for (g, group) in desc.groups.iter().enumerate() {
         let modifier = if on_mesh.contains(&g) {
             text.push_str(&format!(
@@ -394,15 +474,13 @@ fn obj2rad_map(desc: &SceneDesc, groups: &[String], on_mesh: &[usize]) -> String
             group.name.as_str()
         };
         for object in group.objects.iter().filter(shown) {
-            text.push_str(&format!("{modifier} (Object \"{object}\") ;\n"));
+            rule(&mut text, modifier, object);
         }
     }
-    for light in desc.lights.iter().filter(|l| shown(&&l.object)) {
-        text.push_str(&format!(
-            "{} (Object \"{}\") ;\n",
-            light_name(&light.object, groups),
-            light.object
-        ));
+    for (light, name) in desc.lights.iter().zip(light_names(desc, groups)) {
+        if shown(&&light.object) {
+            rule(&mut text, &name, &light.object);
+        }
     }
     text
 }
@@ -616,11 +694,104 @@ fn add_radiance_picture(
 mod tests {
     use super::*;
 
+    /// A scene of `groups` (name, objects) and `lights` (objects), its own paths made up.
+    fn scene(groups: &[(&str, &[&str])], lights: &[&str]) -> SceneDesc {
+        SceneDesc {
+            path: "scene.toml".into(),
+            name: "s".into(),
+            geometry: vec!["g.obj".into()],
+            hide: Vec::new(),
+            views: Vec::new(),
+            lights: (lights.iter())
+                .map(|o| crate::scene_file::LightDesc {
+                    object: o.to_string(),
+                    radiance: [1.0; 3],
+                })
+                .collect(),
+            groups: (groups.iter().enumerate())
+                .map(|(i, (name, objects))| crate::scene_file::GroupDesc {
+                    name: name.to_string(),
+                    kind: GroupKind::Plastic,
+                    objects: objects.iter().map(|o| o.to_string()).collect(),
+                    line: i + 1,
+                })
+                .collect(),
+        }
+    }
+
+    /// An object named by OBJ `file` (`o` or `g` statements).
+    fn object(name: &str, named_by_g: bool) -> ObjObject {
+        ObjObject {
+            name: name.into(),
+            file: "g.obj".into(),
+            triangles: Vec::new(),
+            uvs: None,
+            named_by_g,
+            line: 7,
+        }
+    }
+
+    /// A light's primitive takes no group's name, nor another light's, and holds only
+    /// what a RADIANCE identifier may (`ceiling lamp` gave `light_ceiling lamp`).
     #[test]
-    fn a_light_primitive_takes_no_groups_name() {
+    fn a_light_primitive_is_an_identifier_of_its_own() {
+        let desc = scene(
+            &[("light_lamp", &["shade"])],
+            &["lamp", "bulb", "ceiling lamp", "ceiling_lamp"],
+        );
         let groups = ["light_lamp".to_string()];
-        assert_eq!(light_name("lamp", &groups), "_light_lamp");
-        assert_eq!(light_name("bulb", &groups), "light_bulb");
+        assert_eq!(
+            light_names(&desc, &groups),
+            [
+                "_light_lamp",
+                "light_bulb",
+                "light_ceiling_lamp",
+                "_light_ceiling_lamp"
+            ]
+        );
+    }
+
+    /// materials.map's rules as RADIANCE's obj2rad names objects: `Group` where the file
+    /// names them by `g`, and no rule (a comment) for a name of two words or a quote, which
+    /// obj2rad cannot match (`(Object "box"red")` was a malformed rule); such an object is
+    /// warned of, naming its file and line.
+    #[test]
+    fn materials_map_names_objects_as_obj2rad_does() {
+        let desc = scene(
+            &[
+                ("wall", &["north", "south"]),
+                ("box", &["box red", "box\"blue"]),
+            ],
+            &["lamp"],
+        );
+        let objects = [
+            object("north", false),
+            object("south", true),
+            object("box red", false),
+            object("box\"blue", false),
+            object("lamp", true),
+        ];
+        let (names, warnings) = Obj2radNames::new(&desc, &objects);
+        let groups = ["wall".to_string(), "box".to_string()];
+        let map = obj2rad_map(&desc, &groups, &[], &names);
+        let rules: Vec<&str> = map.lines().skip(2).collect();
+        assert_eq!(
+            rules,
+            [
+                "wall (Object \"north\") ;",
+                "wall (Group \"south\") ;",
+                "# box: object \"box red\" has no rule: obj2rad names objects by one word",
+                "# box: object \"box\\\"blue\" has no rule: obj2rad names objects by one word",
+                "light_lamp (Group \"lamp\") ;",
+            ]
+        );
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(
+            warnings[0].starts_with(
+                "object 'box red' (g.obj, line 7): RADIANCE's obj2rad names an object by one word"
+            ),
+            "{warnings:?}"
+        );
     }
 
     /// A group named `pict_X` took the name of X's picture pattern, and RADIANCE, binding
@@ -856,7 +1027,7 @@ objects = ["wrap"]
         assert!(rec.owned.origin[0] != 0.0, "the scene is moved");
         let out = dir.path().join("out");
         let mut set = OutputSet::keeping(Vec::new());
-        add_maps_and_radiance(&mut set, &out, &rec).unwrap();
+        add_maps_and_radiance(&mut set, &out, &rec, &Obj2radNames::default()).unwrap();
         set.commit().unwrap();
         let cal = std::fs::read_to_string(out.join("textures/label.cal")).unwrap();
         assert_label_cal_places_the_map(&cal, shift);
@@ -871,7 +1042,7 @@ objects = ["wrap"]
         rec.maps[0].wrap = Wrap::Repeat;
         let out = dir.path().join("out");
         let mut set = OutputSet::keeping(Vec::new());
-        add_maps_and_radiance(&mut set, &out, &rec).unwrap();
+        add_maps_and_radiance(&mut set, &out, &rec, &Obj2radNames::default()).unwrap();
         set.commit().unwrap();
         let read = |f: &str| std::fs::read_to_string(out.join(f)).unwrap();
         let label = read("textures/label.cal");
@@ -904,7 +1075,7 @@ objects = ["wrap"]
             std::fs::write(out.join(stale), b"an earlier run's").unwrap();
         }
         let mut set = OutputSet::keeping(Vec::new());
-        add_maps_and_radiance(&mut set, &out, &rec).unwrap();
+        add_maps_and_radiance(&mut set, &out, &rec, &Obj2radNames::default()).unwrap();
         for path in stale_outputs(&set, &out) {
             set.remove_on_commit(&path).unwrap();
         }
