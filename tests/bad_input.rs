@@ -2420,6 +2420,63 @@ fn a_group_all_hidden_is_told_as_hidden() {
     assert!(!stderr.contains("is hidden"), "{stderr}");
 }
 
+/// A textured plastic's map holds its diffuse reflectance, which with the specularity may
+/// reach 1 at most: a map of 1.0 under a specularity of 0.05 was rendered without a word.
+/// `render` warns, naming the file's line, the texel and the sum; within the bound, not.
+#[test]
+fn a_map_that_with_its_lobe_reflects_more_than_all_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), SCENE).unwrap();
+    std::fs::write(dir.path().join("geo.obj"), OBJ).unwrap();
+    relume::images::write_exr(
+        &dir.path().join("tex.exr"),
+        &relume::images::Image {
+            width: 2,
+            height: 2,
+            pixels: vec![[0.5; 3], [0.5, 0.97, 0.5], [0.9; 3], [0.2; 3]],
+        },
+    )
+    .unwrap();
+    let warnings = |specularity: f32| {
+        let materials = format!("format = 1\n\n[[material]]\ngroup = \"floor\"\nmodel = \"textured-isotropic\"\ndiffuse_map = \"tex.exr\"\nspecularity = {specularity}\nroughness = 0.1\n");
+        std::fs::write(dir.path().join("m.toml"), materials).unwrap();
+        let files = [relume::materials_file::load_materials(&dir.path().join("m.toml")).unwrap()];
+        let owned = relume::assemble::load_and_assemble(
+            &dir.path().join("scene.toml"),
+            relume::assemble::MaterialSource::Files(&files),
+        )
+        .unwrap();
+        owned.map_energy_warnings(&files)
+    };
+    let told = warnings(0.05);
+    assert_eq!(told.len(), 1, "{told:?}");
+    assert!(
+        told[0].contains("m.toml:3: group 'floor': its diffuse map reaches 0.97 in channel G at texel (x 1, y 0), which with specularity 0.05 reflects 1.02"),
+        "{told:?}"
+    );
+    assert_eq!(warnings(0.03), Vec::<String>::new());
+    // `render` says it.
+    warnings(0.05);
+    let run = common::relume_ok(
+        dir.path(),
+        &[
+            "render",
+            "scene.toml",
+            "--materials",
+            "m.toml",
+            "--out",
+            "r",
+            "--spp",
+            "1",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("relume: warning: ") && stderr.contains("its diffuse map reaches 0.97"),
+        "{stderr}"
+    );
+}
+
 /// A diffuse map that two groups share is read and held once: a 6000x6000 map on the
 /// floor and the ceiling was counted twice against MAX_TEXELS, and refused.
 #[test]

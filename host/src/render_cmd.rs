@@ -90,6 +90,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         })
         .collect();
     let clamped_tiles = owned.clamped_tile_warnings();
+    let map_energy = owned.map_energy_warnings(&files);
     let mut inputs = owned.desc.input_files();
     inputs.extend(files.iter().flat_map(|f| f.input_files()));
     let pool = parallel::thread_pool(args.threads)?;
@@ -148,6 +149,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     warnings.extend(fallbacks);
     warnings.extend(clamped_tiles);
     warnings.extend(files.iter().flat_map(|f| f.roughness_warnings()));
+    warnings.extend(map_energy);
     // A file that gives no material changes nothing: most likely the wrong file was given.
     warnings.extend(
         args.materials
