@@ -29,6 +29,7 @@ pub mod obj;
 pub mod overlapping_faces;
 pub mod panorama;
 pub mod parallel;
+pub mod polygon;
 pub mod recover;
 pub mod render_cmd;
 pub mod repeated_triangles;

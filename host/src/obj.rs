@@ -249,6 +249,8 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
     let mut objects: Vec<ObjectInfo> = Vec::new();
     let mut out = String::with_capacity(text.len());
     let (mut n_v, mut n_vt, mut n_vn) = (0usize, 0usize, 0usize);
+    // The vertices' positions, for the triangles of a concave face (`polygon`).
+    let mut positions: Vec<[f64; 3]> = Vec::new();
     for (line_no, raw_line) in &statements {
         let (line_no, raw_line) = (*line_no, raw_line.as_ref());
         let err = |msg: String| Error::at_line(path, line_no, msg);
@@ -277,6 +279,7 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                     )));
                 }
                 out.push_str(&format!("v {} {} {}\n", args[0], args[1], args[2]));
+                positions.push([0, 1, 2].map(|k| args[k].parse::<f64>().unwrap_or(0.0)));
                 n_v += 1;
             }
             "vt" => {
@@ -303,16 +306,18 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                     )));
                 }
                 let mut with_uv = 0;
-                let mut face = String::from("f");
+                let mut corners = Vec::with_capacity(args.len());
+                let mut tokens = Vec::with_capacity(args.len());
                 for a in &args {
                     let (v, vt) = face_vertex(a, n_v, n_vt, n_vn)
                         .map_err(|m| err(format!("face vertex '{a}': {m}")))?;
+                    corners.push(positions[v - 1]);
                     match vt {
                         Some(t) => {
                             with_uv += 1;
-                            face.push_str(&format!(" {v}/{t}"));
+                            tokens.push(format!("{v}/{t}"));
                         }
-                        None => face.push_str(&format!(" {v}")),
+                        None => tokens.push(format!("{v}")),
                     }
                 }
                 if with_uv != 0 && with_uv != args.len() {
@@ -323,8 +328,18 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                 }
                 current.n_triangles += args.len() - 2;
                 current.all_uv &= with_uv == args.len();
-                face.push('\n');
-                out.push_str(&face);
+                // A convex face stays one line, which tobj fans as before; a concave one
+                // becomes its ears. One that crosses itself is fanned, as before.
+                let triangles = crate::polygon::triangulate(&corners)
+                    .unwrap_or_else(|| (1..args.len() - 1).map(|i| [0, i, i + 1]).collect());
+                let fan = (triangles.iter().enumerate()).all(|(i, t)| *t == [0, i + 1, i + 2]);
+                if fan {
+                    out.push_str(&format!("f {}\n", tokens.join(" ")));
+                } else {
+                    for [a, b, c] in triangles {
+                        out.push_str(&format!("f {} {} {}\n", tokens[a], tokens[b], tokens[c]));
+                    }
+                }
             }
             "o" | "g" if key == naming => {
                 let name = rest_after_keyword(raw_line);
@@ -530,8 +545,41 @@ mod tests {
         }
     }
 
+    /// An L-shaped face: tobj's fan from its first corner, (2, 0), put a triangle over
+    /// its notch; its ears keep the polygon's area (3) and winding, with each corner's
+    /// texture coordinates.
     #[test]
-    fn polygons_are_fanned_from_their_first_vertex() {
+    fn a_concave_polygon_is_cut_into_ears_with_its_texture_coordinates() {
+        let objs = load(
+            "o l\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\n\
+             vt 1 0\nvt 1 0.5\nvt 0.5 0.5\nvt 0.5 1\nvt 0 1\nvt 0 0\n\
+             f 1/1 2/2 3/3 4/4 5/5 6/6\n",
+        );
+        let o = &objs[0];
+        assert_eq!(o.triangles.len(), 4);
+        let mut area = 0.0;
+        for (t, uv) in o.triangles.iter().zip(o.uvs.as_ref().unwrap()) {
+            let twice = (t[1][0] - t[0][0]) * (t[2][1] - t[0][1])
+                - (t[1][1] - t[0][1]) * (t[2][0] - t[0][0]);
+            assert!(twice > 0.0, "{t:?} turned over");
+            area += twice / 2.0;
+            // Each corner keeps its own coordinates (here half its position).
+            for (p, q) in t.iter().zip(uv) {
+                assert_eq!([p[0] as f32 / 2.0, p[1] as f32 / 2.0], *q);
+            }
+            // No triangle reaches into the notch (x > 1 and y > 1).
+            let p = [1.2, 1.2];
+            let side = |a: [f64; 3], b: [f64; 3]| {
+                (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) > 0.0
+            };
+            let holds = side(t[0], t[1]) && side(t[1], t[2]) && side(t[2], t[0]);
+            assert!(!holds, "{t:?} covers the notch");
+        }
+        assert_eq!(area, 3.0);
+    }
+
+    #[test]
+    fn convex_polygons_are_fanned_from_their_first_vertex() {
         let objs = load("o p\nv 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nf 1 2 3 4 5\n");
         let t: Vec<[f64; 3]> = objs[0]
             .triangles
