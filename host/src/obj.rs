@@ -199,13 +199,35 @@ pub fn object_line(path: &Path, name: &str) -> Option<usize> {
         .map(|(line, _)| *line)
 }
 
+/// The line of a `g name` statement in an OBJ file that names its objects by `o`, where
+/// `g` makes a group within an object and no object: for the message about a scene that
+/// names it as an object (Blender writes `o Cube` and then `g Cube_Material`).
+pub fn group_line_under_o(path: &Path, name: &str) -> Option<usize> {
+    let text = crate::fsutil::read_text(path).ok()?;
+    let statements = statements(&text);
+    if !statements.iter().any(|(_, l)| keyword(l) == Some("o")) {
+        return None;
+    }
+    statements
+        .iter()
+        .find(|(_, l)| keyword(l) == Some("g") && rest_after_keyword(l) == name)
+        .map(|(line, _)| *line)
+}
+
 /// The file's statements, each with the line (1-based) it starts on: a line that ends in
 /// `\` goes on in the next one (the OBJ format's line continuation, which some exporters
 /// use to wrap long faces).
 fn statements(text: &str) -> Vec<(usize, Cow<'_, str>)> {
     let mut out = Vec::new();
     let mut pending: Option<(usize, String)> = None;
-    for (i, line) in text.lines().enumerate() {
+    // Lines that end in CR alone (classic Mac OS) read as one line, and the file as one
+    // with no faces.
+    let cr_only = text.contains('\r') && !text.contains('\n');
+    let lines: Box<dyn Iterator<Item = &str>> = match cr_only {
+        true => Box::new(text.split('\r')),
+        false => Box::new(text.lines()),
+    };
+    for (i, line) in lines.enumerate() {
         // A comment ends at its line, whatever it ends in (a Windows path's `\`).
         let comment = pending.is_none() && line.trim_start().starts_with('#');
         let (body, continues) = match line.trim_end().strip_suffix('\\') {
@@ -543,6 +565,17 @@ mod tests {
             let names: Vec<String> = load(&text).into_iter().map(|o| o.name).collect();
             assert_eq!(names, expected, "from {text:?}");
         }
+    }
+
+    /// A file whose lines end in CR alone was one line, with no faces.
+    #[test]
+    fn lines_that_end_in_cr_alone_are_lines() {
+        let text = format!("o a\n{QUAD}f 1 2 3\n").replace('\n', "\r");
+        let objs = load(&text);
+        assert_eq!(objs.len(), 1);
+        assert_eq!(objs[0].triangles.len(), 1);
+        let (_dir, path) = write(&text);
+        assert_eq!(object_line(&path, "a"), Some(1));
     }
 
     /// An L-shaped face: tobj's fan from its first corner, (2, 0), put a triangle over

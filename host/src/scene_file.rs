@@ -513,9 +513,18 @@ pub fn check_objects(desc: &SceneDesc, objects: &[ObjObject]) -> Result<(), Erro
             .min()
             .map(|name| format!("; the geometry has object '{name}': OBJ reads all that follows `o` or `g` as one name"))
             .unwrap_or_default();
+        // `g floor` in a file of `o` statements is a group within an object, no object.
+        let under_o = desc.geometry.iter().find_map(|file| {
+            crate::obj::group_line_under_o(file, object).map(|l| {
+                format!("; {}:{l} has `g {object}`, but that file names its objects by `o`, and a `g` there is a group within an object, not an object: list the `o` names", file.display())
+            })
+        });
         let msg = match empty_at {
             Some(at) => format!("object '{object}' ({role}) has no faces in the geometry ({at})"),
-            None => format!("object '{object}' ({role}) is not in the geometry ({files}){spaced}"),
+            None => format!(
+                "object '{object}' ({role}) is not in the geometry ({files}){spaced}{}",
+                under_o.unwrap_or_default()
+            ),
         };
         match line {
             Some(l) => Error::at_line(&desc.path, l, msg),
@@ -1686,6 +1695,22 @@ objects = ["quad"]
         assert!(
             e.contains("object 'quad' (in group 'floor') is not in the geometry")
                 && e.contains("; the geometry has object 'quad extra': OBJ reads all that follows `o` or `g` as one name"),
+            "{e}"
+        );
+    }
+
+    /// A file of `o` objects with `g` groups inside them (as Blender writes): the scene
+    /// named a `g` and was told only that it was not in the geometry.
+    #[test]
+    fn a_group_within_an_object_named_as_an_object_is_pointed_to() {
+        let (_dir, path) = write("", "");
+        let obj = path.with_file_name("geo.obj");
+        std::fs::write(&obj, OBJ.replace("o quad\n", "o world\ng quad\n")).unwrap();
+        let d = load_scene(&path).unwrap();
+        let e = check_objects(&d, &objects_of(&d)).unwrap_err().to_string();
+        assert!(
+            e.contains("object 'quad' (in group 'floor') is not in the geometry")
+                && e.contains("geo.obj:2 has `g quad`, but that file names its objects by `o`"),
             "{e}"
         );
     }
