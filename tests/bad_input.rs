@@ -2399,6 +2399,33 @@ fn a_view_inside_a_closed_group_no_light_reaches_is_left_out() {
     assert!(report.is_none());
 }
 
+/// A closed box around cornell's light: no light leaves it, and the refusal listed every
+/// cause but that one. It now names the light and the box.
+#[test]
+fn a_light_inside_a_closed_group_is_named_where_no_light_reaches() {
+    let dir = tempfile::tempdir().unwrap();
+    let cornell = common::workspace().join("scenes/cornell");
+    let obj = std::fs::read_to_string(cornell.join("geometry.obj")).unwrap();
+    // A box from 1.0 to 2.0 in x and y, from 2.0 up to just under the ceiling (2.5),
+    // around the light at 2.49: its six faces share every edge.
+    let cube = "o cover\nv 1 1 2\nv 2 1 2\nv 2 2 2\nv 1 2 2\nv 1 1 2.495\nv 2 1 2.495\nv 2 2 2.495\nv 1 2 2.495\n\
+                f -8 -5 -6 -7\nf -4 -3 -2 -1\nf -8 -7 -3 -4\nf -7 -6 -2 -3\nf -6 -5 -1 -2\nf -5 -8 -4 -1\n";
+    let geometry = dir.path().join("covered.obj");
+    std::fs::write(&geometry, format!("{obj}\n{cube}")).unwrap();
+    let text = cornell_scene_text()
+        .replace(path_str(&cornell.join("geometry.obj")), path_str(&geometry))
+        + "\n[[group]]\nname = \"cover\"\nkind = \"plastic\"\nobjects = [\"cover\"]\n";
+    let (code, stderr, _) = check_scene(&text);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains("no light of the scene reaches what its views see")
+            && stderr.contains(
+                "light 'light' is inside group 'cover', a closed surface that no view is inside"
+            ),
+        "{stderr}"
+    );
+}
+
 /// A group whose every object is hidden is not in the scene: `check` said only that no
 /// view saw it in whole pixels, which sent a user looking at the views; it now names
 /// `hide` as the cause, and says no more of that group.

@@ -54,7 +54,7 @@ pub fn enclosed_views(triangles: &[Triangle], views: &[View]) -> Vec<EnclosedVie
                 continue;
             }
             let holds_a_light =
-                *lit[s].get_or_insert_with(|| light_points.iter().any(|&p| surface.holds(p)));
+                *lit[s].get_or_insert_with(|| light_points.iter().any(|&(_, p)| surface.holds(p)));
             if !holds_a_light {
                 found.push(EnclosedView {
                     view: vi,
@@ -65,6 +65,43 @@ pub fn enclosed_views(triangles: &[Triangle], views: &[View]) -> Vec<EnclosedVie
         }
     }
     found
+}
+
+/// Where no light reaches what the views see: the lights (by index) inside a closed group
+/// that holds no view, with the first such group for each. A lamp inside a closed box
+/// sheds no light past it, and the refusal listed every cause but that one.
+pub fn enclosed_lights(triangles: &[Triangle], views: &[View]) -> Vec<(u16, u16)> {
+    let closed = closed_groups(triangles);
+    let size = relume_core::geometry::longest_side(triangles);
+    let mut found = Vec::new();
+    for (light, point) in light_points(triangles, size * LIGHT_POINT_OFFSET) {
+        let enclosing = closed
+            .iter()
+            .find(|c| c.holds(point) && !views.iter().any(|v| c.holds(v.position)));
+        if let Some(c) = enclosing {
+            found.push((light, c.group));
+        }
+    }
+    found
+}
+
+/// [`enclosed_lights`] as words for a refusal or a warning that no light reaches the
+/// views: "; light 'lamp' is inside group 'box', ..." (empty where none is).
+pub fn enclosed_lights_said(
+    triangles: &[Triangle],
+    views: &[View],
+    light_names: &[String],
+    group_names: &[String],
+) -> String {
+    enclosed_lights(triangles, views)
+        .iter()
+        .map(|&(l, g)| {
+            format!(
+                "; light '{}' is inside group '{}', a closed surface that no view is inside, so none of its light reaches what the views see",
+                light_names[l as usize], group_names[g as usize]
+            )
+        })
+        .collect()
 }
 
 /// A closed group's triangles, with their bounds.
@@ -159,9 +196,9 @@ fn closed_groups(triangles: &[Triangle]) -> Vec<ClosedSurface> {
     closed
 }
 
-/// One point per light: `offset` in front of the centre of its largest triangle, on the
-/// side it emits from.
-fn light_points(triangles: &[Triangle], offset: f32) -> Vec<Vec3> {
+/// One point per light, with its index: `offset` in front of the centre of its largest
+/// triangle, on the side it emits from.
+fn light_points(triangles: &[Triangle], offset: f32) -> Vec<(u16, Vec3)> {
     let mut largest: std::collections::BTreeMap<u16, &Triangle> = Default::default();
     for t in triangles {
         if let Surface::Light(l) = t.surface {
@@ -172,11 +209,11 @@ fn light_points(triangles: &[Triangle], offset: f32) -> Vec<Vec3> {
         }
     }
     largest
-        .values()
-        .filter_map(|t| {
+        .iter()
+        .filter_map(|(&l, t)| {
             let normal = t.normal_area2().try_normalize()?;
             let centre = (t.v[0] + t.v[1] + t.v[2]) / 3.0;
-            Some(centre + offset * normal)
+            Some((l, centre + offset * normal))
         })
         .collect()
 }
@@ -253,10 +290,28 @@ mod tests {
         open.drain(12..14);
         assert_eq!(enclosed_views(&open, &views), []);
 
-        // With the light inside the crate, nothing is told of.
+        assert_eq!(enclosed_lights(&triangles, &views), []);
+
+        // With the light inside the crate, nothing is told of the views; the light is
+        // enclosed while no view is in the crate with it.
         let last = triangles.len() - 1;
         triangles[last].v = triangles[last].v.map(|p| p * 0.1 + Vec3::splat(1.5));
         assert_eq!(enclosed_views(&triangles, &views), []);
+        assert_eq!(enclosed_lights(&triangles, &views), []);
+        let outside = [views[0], views[2]];
+        assert_eq!(enclosed_lights(&triangles, &outside), [(0, 1)]);
+        let said = enclosed_lights_said(
+            &triangles,
+            &outside,
+            &["lamp".into()],
+            &["room".into(), "crate".into(), "shelf".into()],
+        );
+        assert!(
+            said.starts_with(
+                "; light 'lamp' is inside group 'crate', a closed surface that no view is inside"
+            ),
+            "{said}"
+        );
     }
 
     /// Parity from inside and outside a cube, for a point on the rays' axis-aligned

@@ -96,6 +96,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     let pool = parallel::thread_pool(args.threads)?;
     let view_descs = owned.desc.views.clone();
     let views = owned.views.clone();
+    let (light_names, group_names) = (owned.light_names.clone(), owned.group_names.clone());
     let scene = owned.build()?;
     let settings = RenderSettings {
         spp: args.spp,
@@ -175,8 +176,14 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
             args.scene.display()
         ));
     } else if all_black {
+        let enclosed = crate::enclosed_views::enclosed_lights_said(
+            scene.triangles,
+            &views,
+            &light_names,
+            &group_names,
+        );
         warnings.push(format!(
-            "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away? Or the cameras outside the room or inside an object, seeing the backs of surfaces no light reaches?)",
+            "every pixel is black: no light of {} reaches what the views see (a light hidden, of radiance 0, or facing away? Or the cameras outside the room or inside an object, seeing the backs of surfaces no light reaches?){enclosed}",
             args.scene.display()
         ));
     } else {

@@ -181,9 +181,15 @@ fn refuse_unlit_or_black(
     // (A scene whose views see no group whole is a different matter: every group unseen.)
     let lit = (0..n_groups).any(|g| pure_pixels[g] > 0 && unlit[g].is_none());
     if !lit && unlit.iter().any(Option::is_some) {
+        let enclosed = crate::enclosed_views::enclosed_lights_said(
+            rec.owned.triangles(),
+            &rec.views,
+            &rec.owned.light_names,
+            &rec.owned.group_names,
+        );
         return Err(Error::input(
             &rec.owned.desc.path,
-            "no light of the scene reaches what its views see: every group's pure pixels render black, so no material can be recovered (a light hidden, of radiance 0, facing away, or none? Or the views outside the room or inside an object, seeing the backs of surfaces no light reaches?)",
+            format!("no light of the scene reaches what its views see: every group's pure pixels render black, so no material can be recovered (a light hidden, of radiance 0, facing away, or none? Or the views outside the room or inside an object, seeing the backs of surfaces no light reaches?){enclosed}"),
         ));
     }
     // A panorama that is 0 over every lit group's pure pixels is not a room of black
