@@ -429,6 +429,36 @@ fn a_view_too_close_to_a_wall_refuses_only_what_selects_it() {
     case.fails(&py, INPUT, &["view 'py' sees the scene"]);
 }
 
+/// `render --view px` into a folder of an earlier full render left the other five views
+/// there, and `panorama join` joined them with the new one without a word: both say so.
+#[test]
+fn views_of_an_earlier_render_left_in_the_folder_are_told_of() {
+    let case = Case::new();
+    let run = case.run(&render_args(&["materials.toml"]));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(!String::from_utf8_lossy(&run.stderr).contains("earlier render"));
+    let mut px = render_args(&["materials.toml"]);
+    px.extend(["--view", "px", "--seed", "2"]);
+    let run = case.run(&px);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("out also holds views nx, py, ny, pz, nz from an earlier render"),
+        "{stderr}"
+    );
+    let run = case.run(&["panorama", "join", "scene.toml", "out", "--out", "pano.exr"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("views nx, py, ny, pz, nz are not of the last render into this folder (its render.json lists px)"),
+        "{stderr}"
+    );
+}
+
 /// `--view` naming no view of the scene says which views it has.
 #[test]
 fn a_view_flag_naming_no_view_lists_the_views() {

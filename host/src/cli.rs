@@ -603,7 +603,11 @@ fn run(command: Command) -> Result<(), Error> {
                 up: frame.up,
                 threads,
             };
-            let (width, k) = crate::panorama::join(&args)?;
+            let joined = crate::panorama::join(&args)?;
+            let (width, k) = (joined.width, joined.samples_per_side);
+            for w in &joined.warnings {
+                eprintln!("relume: warning: {w}");
+            }
             println!(
                 "wrote {} and its preview {} ({width}x{}, {k}x{k} samples per texel)",
                 args.out.display(),

@@ -331,7 +331,40 @@ fn apart(a: [f64; 3], b: [f64; 3], size: f64) -> bool {
 /// Joins the scene's views, all at one position, into one equirectangular image: each
 /// texel the mean of lookups on a grid over its footprint, each lookup in the view that
 /// sees its direction most centrally. Every direction must be seen by some view.
-pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
+/// What [`join`] made: the panorama's width, the samples per texel side, and warnings.
+pub struct Joined {
+    pub width: u32,
+    pub samples_per_side: u32,
+    pub warnings: Vec<String>,
+}
+
+/// Views in `dir` that its `render.json` (written by `relume render`) does not list: left
+/// by an earlier render, where a later one with `--view` rendered only some, and joined
+/// with the new ones without a word. Nothing where the folder has no render.json.
+fn views_not_of_the_last_render(dir: &Path, names: &[&str]) -> Option<String> {
+    let text = std::fs::read_to_string(dir.join("render.json")).ok()?;
+    let info: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let listed: Vec<&str> = info["views"]
+        .as_array()?
+        .iter()
+        .filter_map(|v| v.as_str())
+        .collect();
+    let older: Vec<&str> = names
+        .iter()
+        .copied()
+        .filter(|n| !listed.contains(n))
+        .collect();
+    (!older.is_empty()).then(|| {
+        format!(
+            "{}: views {} are not of the last render into this folder (its render.json lists {}): they are joined as they are, from an earlier render",
+            dir.display(),
+            older.join(", "),
+            listed.join(", ")
+        )
+    })
+}
+
+pub fn join(args: &JoinArgs) -> Result<Joined, Error> {
     let frame = Frame::new(args.forward, args.up)?;
     let (desc, objects) = assemble::load_scene(&args.scene)?;
     common_position(&desc, &objects)?;
@@ -393,7 +426,14 @@ pub fn join(args: &JoinArgs) -> Result<(u32, u32), Error> {
         images::write_png_preview(&preview, &image, Some(exposure), file)
     })?;
     set.commit()?;
-    Ok((width, k))
+    let names: Vec<&str> = desc.views.iter().map(|v| v.name.as_str()).collect();
+    Ok(Joined {
+        width,
+        samples_per_side: k,
+        warnings: views_not_of_the_last_render(&args.dir, &names)
+            .into_iter()
+            .collect(),
+    })
 }
 
 /// The longest side of views of these sizes (1 for none).

@@ -198,6 +198,17 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         .iter()
         .map(|&i| view_descs[i].name.as_str())
         .collect();
+    let earlier: Vec<&str> = (view_descs.iter())
+        .map(|v| v.name.as_str())
+        .filter(|n| !rendered.contains(n) && args.out.join(format!("{n}.exr")).is_file())
+        .collect();
+    if !earlier.is_empty() {
+        warnings.push(format!(
+            "{} also holds views {} from an earlier render, which this one (--view) leaves as they were; render.json lists this render's, and `panorama join` of the folder would join both",
+            args.out.display(),
+            earlier.join(", ")
+        ));
+    }
 
     let info = serde_json::json!({
         "scene": args.scene.display().to_string(),
