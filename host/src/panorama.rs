@@ -67,6 +67,10 @@ pub struct PanoramaSummary {
     pub warnings: Vec<String>,
 }
 
+/// The largest tilt of `--forward` off the horizon taken without a word: a vector typed
+/// by hand, or read off a model, is seldom exactly level.
+const MAX_FORWARD_TILT_DEG: f32 = 1.0;
+
 /// The scene frame of the panorama: `forward` on the horizon, `right = forward x up`.
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
@@ -116,6 +120,21 @@ impl Frame {
             forward: f,
             right: f.cross(u),
             up: u,
+        })
+    }
+
+    /// Where `--forward` (as given) leaves the horizon by more than
+    /// [`MAX_FORWARD_TILT_DEG`]: the panorama's centre column is taken on the horizon, which
+    /// a tilted `--forward` does not say (1,0,1 with up 0,0,1 gave a front face along x).
+    pub fn tilt_warning(&self, forward: [f32; 3]) -> Option<String> {
+        let given = to_unit_range(Vec3::from(forward)).normalize_or_zero();
+        let tilt = given.dot(self.up).clamp(-1.0, 1.0).asin().to_degrees();
+        (tilt.abs() > MAX_FORWARD_TILT_DEG).then(|| {
+            let f = self.forward;
+            format!(
+                "--forward {forward:?} is {:.1} degrees off the horizon of --up: the panorama's centre column looks along the horizon, [{:.3}, {:.3}, {:.3}], which the front face's direction follows",
+                tilt, f.x, f.y, f.z
+            )
         })
     }
 
@@ -529,7 +548,7 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
             "--size {size}: a face's side must be 1 to {max} pixels (config::MAX_VIEW_SIDE)"
         )));
     }
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = frame.tilt_warning(args.forward).into_iter().collect();
     if image.pixels.iter().all(|p| *p == [0.0; 3]) {
         warnings.push(format!(
             "{}: every texel is 0{}: the faces are black",
@@ -646,6 +665,22 @@ mod tests {
         let far = [100_001.5, -249_999.1, 30_001.3];
         assert!(apart(far, [far[0] - 1.0, far[1], far[2]], 3.0));
         assert!(!apart(far, [far[0] + 1e-6, far[1], far[2]], 3.0));
+    }
+
+    /// A `--forward` off the horizon is projected onto it, and said so past a degree.
+    #[test]
+    fn a_forward_off_the_horizon_is_told_of() {
+        let up = [0.0, 0.0, 1.0];
+        let tilted = Frame::new([1.0, 0.0, 1.0], up).unwrap();
+        assert_eq!(tilted.forward, Vec3::X);
+        let said = tilted.tilt_warning([1.0, 0.0, 1.0]).unwrap();
+        assert!(
+            said.contains("--forward [1.0, 0.0, 1.0] is 45.0 degrees off the horizon")
+                && said.contains("[1.000, 0.000, 0.000]"),
+            "{said}"
+        );
+        let level = [1.0, 0.0, 0.01];
+        assert_eq!(Frame::new(level, up).unwrap().tilt_warning(level), None);
     }
 
     #[test]
