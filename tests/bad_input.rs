@@ -1743,6 +1743,43 @@ fn a_splits_capture_and_template_are_checked_and_no_earlier_scene_is_left() {
         !dir.path().join("out/scene.toml").exists(),
         "the earlier scene"
     );
+    // A template with no `[[view]]`: its views are replaced anyway, so it is taken, with
+    // --position; without it, the position is asked for.
+    let skeleton = scene
+        .split("[[view]]")
+        .enumerate()
+        .map(|(i, part)| match i {
+            0 => part.to_string(),
+            // Each view table runs to the next table: keep what follows the view's keys.
+            _ => part
+                .split_once("\n\n[")
+                .map_or(String::new(), |(_, rest)| format!("\n\n[{rest}")),
+        })
+        .collect::<String>();
+    assert!(!skeleton.contains("[[view]]") && skeleton.contains("[[group]]"));
+    std::fs::write(dir.path().join("room/skeleton.toml"), &skeleton).unwrap();
+    let (code, stderr) = split(
+        &good,
+        &[
+            "--scene",
+            "room/skeleton.toml",
+            "--position",
+            "1.5,0.9,1.3",
+            "--size",
+            "4",
+        ],
+    );
+    assert_eq!(code, Some(0), "{stderr}");
+    let made = std::fs::read_to_string(dir.path().join("out/scene.toml")).unwrap();
+    assert_eq!(made.matches("[[view]]").count(), 6, "{made}");
+    let (code, stderr) = split(&good, &["--scene", "room/skeleton.toml", "--size", "4"]);
+    assert_eq!(code, Some(INPUT), "{stderr}");
+    assert!(
+        stderr.contains(
+            "skeleton.toml: has no view to take the panorama's position from: give --position"
+        ),
+        "{stderr}"
+    );
     let (code, stderr) = split(&image("one-zero.exr", 0.0), &at);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(

@@ -385,7 +385,17 @@ fn bounds<'a>(objects: impl Iterator<Item = &'a ObjObject>) -> ([f64; 3], [f64; 
 
 /// Reads scene.toml and its OBJ files and checks that objects, groups and lights agree.
 pub fn load_scene(scene_path: &Path) -> Result<(SceneDesc, Vec<ObjObject>), Error> {
-    let desc = scene_file::load_scene(scene_path)?;
+    with_objects(scene_file::load_scene(scene_path)?)
+}
+
+/// [`load_scene`] of a template, which may have no `[[view]]`
+/// ([`scene_file::load_template`]).
+pub fn load_template(scene_path: &Path) -> Result<(SceneDesc, Vec<ObjObject>), Error> {
+    with_objects(scene_file::load_template(scene_path)?)
+}
+
+/// The scene's OBJ objects, read and checked against it.
+fn with_objects(desc: SceneDesc) -> Result<(SceneDesc, Vec<ObjObject>), Error> {
     let mut objects = Vec::new();
     for file in &desc.geometry {
         objects.extend(obj::load_obj(file)?);

@@ -301,7 +301,10 @@ pub struct JoinArgs {
 /// apart (or a scene with none).
 fn common_position(desc: &SceneDesc, objects: &[ObjObject]) -> Result<[f64; 3], Error> {
     let Some(first) = desc.views.first() else {
-        return Err(Error::input(&desc.path, "has no view"));
+        return Err(Error::input(
+            &desc.path,
+            "has no view to take the panorama's position from: give --position",
+        ));
     };
     let size = geometry_size(objects);
     match desc
@@ -514,7 +517,7 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
         .scene
         .as_ref()
         .map(|scene| {
-            let (desc, objects) = assemble::load_scene(scene)?;
+            let (desc, objects) = assemble::load_template(scene)?;
             assemble::assemble(desc.clone(), &objects, MaterialSource::GeometryOnly)?;
             Ok::<_, Error>((desc, objects))
         })

@@ -227,6 +227,16 @@ struct RawGroup {
 
 /// Reads and validates a scene.toml.
 pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
+    load(path, true)
+}
+
+/// [`load_scene`] of a scene that may have no `[[view]]`: a template whose views are to be
+/// replaced (`panorama split --scene`), where a view written only to be dropped was asked for.
+pub fn load_template(path: &Path) -> Result<SceneDesc, Error> {
+    load(path, false)
+}
+
+fn load(path: &Path, needs_views: bool) -> Result<SceneDesc, Error> {
     let file = TomlFile::read(path)?;
     file.check_format()?;
     let raw: RawScene = file.parse()?;
@@ -264,7 +274,7 @@ pub fn load_scene(path: &Path) -> Result<SceneDesc, Error> {
         hide.push(n);
     }
 
-    if raw.views.is_empty() {
+    if needs_views && raw.views.is_empty() {
         return Err(Error::input(
             path,
             "no [[view]]: a scene needs at least one view",
