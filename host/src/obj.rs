@@ -1,4 +1,5 @@
-//! Wavefront OBJ geometry (scene-format.md): named objects of fan-triangulated faces.
+//! Wavefront OBJ geometry (scene-format.md): named objects of faces, fan-triangulated
+//! unless concave (`polygon`).
 //!
 //! Reading is two passes. Our own pass over the text checks every statement and reports
 //! `file:line` errors (tobj gives no positions), decides the object names, and writes a
@@ -352,15 +353,13 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                 current.all_uv &= with_uv == args.len();
                 // A convex face stays one line, which tobj fans as before; a concave one
                 // becomes its ears. One that crosses itself is fanned, as before.
-                let triangles = crate::polygon::triangulate(&corners)
-                    .unwrap_or_else(|| (1..args.len() - 1).map(|i| [0, i, i + 1]).collect());
-                let fan = (triangles.iter().enumerate()).all(|(i, t)| *t == [0, i + 1, i + 2]);
-                if fan {
-                    out.push_str(&format!("f {}\n", tokens.join(" ")));
-                } else {
-                    for [a, b, c] in triangles {
-                        out.push_str(&format!("f {} {} {}\n", tokens[a], tokens[b], tokens[c]));
+                match crate::polygon::ears(&corners) {
+                    Some(ears) => {
+                        for [a, b, c] in ears {
+                            out.push_str(&format!("f {} {} {}\n", tokens[a], tokens[b], tokens[c]));
+                        }
                     }
+                    None => out.push_str(&format!("f {}\n", tokens.join(" "))),
                 }
             }
             "o" | "g" if key == naming => {

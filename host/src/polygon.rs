@@ -4,24 +4,22 @@
 //! is, so relume triangulates a concave face by ear clipping in the face's own plane and
 //! keeps the fan for a convex one (the same triangles as before).
 
-/// The face's triangles as corner indices into `corners` (in the face's winding, so that
-/// each triangle faces as the polygon does); `None` where the polygon is not simple (it
-/// crosses itself, or its corners are not in a plane it can be seen flat in), which the
-/// caller fans as before and warns of.
-pub fn triangulate(corners: &[[f64; 3]]) -> Option<Vec<[usize; 3]>> {
+/// A concave face's triangles, as corner indices into `corners` (in the face's winding, so
+/// that each triangle faces as the polygon does). `None` where the fan from the first
+/// corner is right (a triangle, a convex polygon), and where the polygon is not simple (it
+/// crosses itself, or has no area and so no plane to be seen flat in): the caller leaves
+/// those to tobj's fan, as before.
+pub fn ears(corners: &[[f64; 3]]) -> Option<Vec<[usize; 3]>> {
     let n = corners.len();
-    let fan = || (1..n - 1).map(|i| [0, i, i + 1]).collect();
     if n <= 3 {
-        return Some(fan());
+        return None;
     }
     let flat = flatten(corners)?;
     // Counter-clockwise in the plane: the sign of the area (Newell's normal points along
     // the axis kept, so a face of either winding reads positive).
-    let turns: Vec<f64> = (0..n)
-        .map(|i| cross(flat[(i + n - 1) % n], flat[i], flat[(i + 1) % n]))
-        .collect();
-    if turns.iter().all(|&t| t >= 0.0) {
-        return Some(fan());
+    let convex = (0..n).all(|i| cross(flat[(i + n - 1) % n], flat[i], flat[(i + 1) % n]) >= 0.0);
+    if convex {
+        return None;
     }
     ear_clip(&flat)
 }
@@ -119,7 +117,7 @@ mod tests {
             if reversed {
                 corners.reverse();
             }
-            let triangles = triangulate(&corners).unwrap();
+            let triangles = ears(&corners).unwrap();
             assert_eq!(triangles.len(), 4);
             let sign = if reversed { -1.0 } else { 1.0 };
             assert_eq!(area(&corners, &triangles), sign * 6.0);
@@ -133,7 +131,7 @@ mod tests {
         }
     }
 
-    /// A convex face keeps tobj's fan; a triangle is itself.
+    /// A convex face keeps tobj's fan (no ears); so does a triangle.
     #[test]
     fn a_convex_face_keeps_its_fan() {
         let square = [
@@ -142,8 +140,8 @@ mod tests {
             [0.0, 1.0, 2.0],
             [0.0, 0.0, 2.0],
         ];
-        assert_eq!(triangulate(&square), Some(vec![[0, 1, 2], [0, 2, 3]]));
-        assert_eq!(triangulate(&square[..3]), Some(vec![[0, 1, 2]]));
+        assert_eq!(ears(&square), None);
+        assert_eq!(ears(&square[..3]), None);
     }
 
     /// A bow tie crosses itself, and a face of no area has no plane: the caller fans them.
@@ -155,8 +153,8 @@ mod tests {
             [1.0, 0.0, 0.0],
             [0.0, 1.0, 0.0],
         ];
-        assert_eq!(triangulate(&bow_tie), None);
+        assert_eq!(ears(&bow_tie), None);
         let line = [[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [3.0, 0.0, 0.0]];
-        assert_eq!(triangulate(&line), None);
+        assert_eq!(ears(&line), None);
     }
 }

@@ -116,6 +116,12 @@ impl ViewDesc {
     }
 }
 
+/// Whether `c` may stand in a name that is also a file name and a RADIANCE identifier
+/// (view and group names, materials.rad's primitives): ASCII letters, digits, `_`, `-`, `.`.
+pub fn identifier_char(c: char) -> bool {
+    c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.')
+}
+
 impl SceneDesc {
     /// Checks the names a `--view` flag gave (an empty list selects every view): each must
     /// be one of this scene's views, or the error lists them.
@@ -865,8 +871,7 @@ pub mod toml_src {
                     ),
                 ));
             }
-            let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
-            if !name.chars().all(allowed) || name.starts_with(['.', '-']) {
+            if !name.chars().all(super::identifier_char) || name.starts_with(['.', '-']) {
                 return Err(self.at(
                     s.span(),
                     format!(

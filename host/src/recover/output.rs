@@ -17,7 +17,7 @@ use crate::images::{self, Image};
 use crate::materials_file::{self, MaterialsDesc};
 use crate::obj::ObjObject;
 use crate::parallel;
-use crate::scene_file::{GroupKind, SceneDesc};
+use crate::scene_file::{identifier_char, GroupKind, SceneDesc};
 
 /// The final views, rendered twice with independent samples: what the views and error
 /// images show is their mean; the two halves give each group's bias-only error
@@ -357,12 +357,7 @@ fn light_names(desc: &SceneDesc, groups: &[String]) -> Vec<String> {
     let mut names: Vec<String> = Vec::with_capacity(desc.lights.len());
     for light in &desc.lights {
         let word: String = (light.object.chars())
-            .map(
-                |c| match c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.') {
-                    true => c,
-                    false => '_',
-                },
-            )
+            .map(|c| if identifier_char(c) { c } else { '_' })
             .collect();
         let mut name = format!("light_{word}");
         while groups.contains(&name) || names.contains(&name) {
