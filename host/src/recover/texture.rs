@@ -277,6 +277,17 @@ pub fn recover_map(
     })
 }
 
+/// The largest texel a textured `model`'s map may hold: a plastic's map is its diffuse
+/// reflectance, so with its white lobe it reflects at most all the light it receives
+/// (`1 - specularity`), and never past the diffuse colours' own bound.
+fn map_bound(model: &GroupModel) -> f32 {
+    let specularity = match model {
+        GroupModel::Textured { lobe, .. } => lobe.specularity(),
+        _ => 0.0,
+    };
+    (1.0 - specularity).clamp(0.0, MAX_DIFFUSE_REFLECTANCE) as f32
+}
+
 /// The share of the light of `real` (luminance, summed over a group's pixels) that a lobe
 /// renders, `specular` per pixel: 0 without light.
 ///
@@ -458,7 +469,7 @@ impl MapSolve<'_> {
         let unseen_texels = texture_map::solve_map(
             &observations,
             grid,
-            MAX_DIFFUSE_REFLECTANCE as f32,
+            map_bound(&rec.models[self.g]),
             &mut texels,
             &mut numerator,
             &mut denominator,
@@ -651,6 +662,27 @@ mod tests {
                 surface: Surface::Group(0),
             },
         ]
+    }
+
+    /// A white picture under a lobe: its map may not reflect, with the lobe, more than the
+    /// light it receives, which `render` would warn of.
+    #[test]
+    fn a_map_is_bounded_by_what_its_lobe_leaves() {
+        let textured = |lobe| GroupModel::Textured { map: 0, lobe };
+        let bound = |lobe| map_bound(&textured(lobe));
+        assert_eq!(bound(MapLobe::None), MAX_DIFFUSE_REFLECTANCE as f32);
+        assert_eq!(
+            bound(MapLobe::isotropic(0.005, 0.1)),
+            MAX_DIFFUSE_REFLECTANCE as f32
+        );
+        assert_eq!(bound(MapLobe::isotropic(0.05, 0.1)), 0.95);
+        let anisotropic = MapLobe::Anisotropic {
+            specularity: 0.2,
+            roughness_u: 0.1,
+            roughness_v: 0.2,
+            direction: [1.0, 0.0, 0.0],
+        };
+        assert_eq!(bound(anisotropic), 0.8);
     }
 
     /// A flat picture is placed for RADIANCE in millimetres as in kilometres (its sliver
