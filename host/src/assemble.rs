@@ -62,6 +62,9 @@ pub struct OwnedScene {
     /// the checks at build look at these alone, so an unselected view does not refuse a
     /// render of the others.
     selected_views: Vec<String>,
+    /// Faces of the shown objects that cross themselves, one warning per OBJ file
+    /// ([`crate::obj::crossing_face_warnings`]).
+    pub crossing_face_warnings: Vec<String>,
 }
 
 /// An error when every face of the light `object` is degenerate: a light of no area
@@ -546,6 +549,8 @@ pub fn assemble(
         .filter(|t| matches!(t.surface, Surface::Light(_)))
         .count();
     let group_count = materials.len();
+    let crossing_face_warnings =
+        crate::obj::crossing_face_warnings(objects.iter().filter(|o| !desc.hide.contains(&o.name)));
     Ok(OwnedScene {
         desc,
         triangles,
@@ -563,6 +568,7 @@ pub fn assemble(
         group_planes: vec![GroupPlane::default(); group_count],
         built: None,
         selected_views: Vec::new(),
+        crossing_face_warnings,
     })
 }
 

@@ -31,6 +31,7 @@ use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use crate::error::Error;
+use crate::polygon::Cut;
 
 /// One named object of an OBJ file.
 #[derive(Clone, Debug, PartialEq)]
@@ -48,6 +49,9 @@ pub struct ObjObject {
     pub named_by_g: bool,
     /// The line that names it.
     pub line: usize,
+    /// The lines of its faces that cross themselves: no triangles cover such a polygon,
+    /// so it is fanned from its first corner, as tobj does ([`crossing_face_warnings`]).
+    pub crossing_faces: Vec<usize>,
 }
 
 /// What the checking pass learns about one object.
@@ -56,6 +60,8 @@ struct ObjectInfo {
     line: usize,
     n_triangles: usize,
     all_uv: bool,
+    /// The lines of its faces that cross themselves (fanned, as tobj does).
+    crossing_faces: Vec<usize>,
 }
 
 /// The checking pass: per-object facts and the normalised text for tobj.
@@ -64,6 +70,40 @@ struct Checked {
     text: String,
     /// The file names its objects by `g` (it has no `o`).
     named_by_g: bool,
+}
+
+/// A warning per OBJ file whose faces (of `objects` that are shown) cross themselves,
+/// naming the first and how many: fanned, such a face covers what its author may not have
+/// meant, and RADIANCE renders its polygon otherwise.
+pub fn crossing_face_warnings<'a>(objects: impl IntoIterator<Item = &'a ObjObject>) -> Vec<String> {
+    let mut per_file: Vec<(&Path, &str, usize, usize)> = Vec::new();
+    for o in objects {
+        let Some(&first) = o.crossing_faces.first() else {
+            continue;
+        };
+        match per_file.iter_mut().find(|f| f.0 == o.file.as_path()) {
+            Some(f) => {
+                f.3 += o.crossing_faces.len();
+                if first < f.2 {
+                    (f.1, f.2) = (&o.name, first);
+                }
+            }
+            None => per_file.push((&o.file, &o.name, first, o.crossing_faces.len())),
+        }
+    }
+    per_file
+        .into_iter()
+        .map(|(file, name, line, count)| {
+            let others = match count {
+                1 => String::new(),
+                n => format!(" ({n} faces of this file cross themselves; this is the first)"),
+            };
+            format!(
+                "{}:{line}: a face of object '{name}' crosses itself{others}: it was cut into triangles fanned from its first corner, which cover parts twice or outside it; split it into faces that do not cross",
+                file.display()
+            )
+        })
+        .collect()
 }
 
 /// Reads one OBJ file into its objects.
@@ -183,6 +223,7 @@ pub fn load_obj(path: &Path) -> Result<Vec<ObjObject>, Error> {
             uvs,
             named_by_g: checked.named_by_g,
             line: info.line,
+            crossing_faces: info.crossing_faces.clone(),
         });
     }
     Ok(out)
@@ -349,17 +390,24 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                             .to_string(),
                     ));
                 }
-                current.n_triangles += args.len() - 2;
                 current.all_uv &= with_uv == args.len();
                 // A convex face stays one line, which tobj fans as before; a concave one
-                // becomes its ears. One that crosses itself is fanned, as before.
-                match crate::polygon::ears(&corners) {
-                    Some(ears) => {
+                // becomes its ears. One that crosses itself is fanned, and told of.
+                match crate::polygon::cut(&corners) {
+                    Cut::Ears(ears) => {
+                        // Fewer than a fan's where a corner was given twice.
+                        current.n_triangles += ears.len();
                         for [a, b, c] in ears {
                             out.push_str(&format!("f {} {} {}\n", tokens[a], tokens[b], tokens[c]));
                         }
                     }
-                    None => out.push_str(&format!("f {}\n", tokens.join(" "))),
+                    cut => {
+                        current.n_triangles += args.len() - 2;
+                        if cut == Cut::CrossesItself {
+                            current.crossing_faces.push(line_no);
+                        }
+                        out.push_str(&format!("f {}\n", tokens.join(" ")));
+                    }
                 }
             }
             "o" | "g" if key == naming => {
@@ -385,6 +433,7 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                     line: line_no,
                     n_triangles: 0,
                     all_uv: true,
+                    crossing_faces: Vec::new(),
                 });
                 out.push_str(&format!("o {name}\n"));
             }
@@ -608,6 +657,29 @@ mod tests {
             assert!(!holds, "{t:?} covers the notch");
         }
         assert_eq!(area, 3.0);
+    }
+
+    /// A bow tie is fanned, as tobj fans it, and its line kept for the warning, which names
+    /// the file, the first such line and how many; an L given one corner twice (once an ulp
+    /// off) loses only that corner's triangle.
+    #[test]
+    fn a_face_that_crosses_itself_is_fanned_and_told() {
+        let objs = load(
+            "o bow\nv 0 0 0\nv 2 1 0\nv 2 0 0\nv 0 3 0\nf 1 2 3 4\n\
+             o l\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 1.0000000000000002 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\n\
+             f 5 6 7 8 9 10 11\nf 4 3 2 1\n",
+        );
+        assert_eq!(objs[0].crossing_faces, vec![6]);
+        assert_eq!(objs[0].triangles.len(), 2);
+        assert_eq!(objs[1].crossing_faces, vec![16]);
+        assert_eq!(objs[1].triangles.len(), 4 + 2);
+        let warnings = crossing_face_warnings(&objs);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].contains(".obj:6: a face of object 'bow' crosses itself (2 faces of this file cross themselves; this is the first)"),
+            "{warnings:?}"
+        );
+        assert!(crossing_face_warnings(&objs[1..])[0].contains(":16: a face of object 'l'"));
     }
 
     #[test]

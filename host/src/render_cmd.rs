@@ -70,7 +70,8 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     }
     let mut owned = assemble::load_and_assemble(&args.scene, MaterialSource::Files(&files))?;
     owned.select_views(&args.views)?;
-    let mut placement = crate::light_placement::lights_against_surfaces(&mut owned)?;
+    let mut placement = owned.crossing_face_warnings.clone();
+    placement.extend(crate::light_placement::lights_against_surfaces(&mut owned)?);
     placement.extend(crate::repeated_triangles::repeated_triangle_warnings(
         owned.triangles(),
         &owned.group_names,

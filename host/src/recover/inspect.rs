@@ -355,6 +355,7 @@ pub(super) fn inspect(
         labels
     };
     let mut warnings = enclosed_warnings;
+    warnings.extend(input.owned.crossing_face_warnings.iter().cloned());
     warnings.extend(crate::light_placement::lights_against_surfaces(
         &mut input.owned,
     )?);

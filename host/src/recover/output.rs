@@ -723,6 +723,7 @@ mod tests {
             uvs: None,
             named_by_g,
             line: 7,
+            crossing_faces: Vec::new(),
         }
     }
 
