@@ -30,6 +30,7 @@ pub mod overlapping_faces;
 pub mod panorama;
 pub mod parallel;
 pub mod polygon;
+pub mod progress;
 pub mod recover;
 pub mod render_cmd;
 pub mod repeated_triangles;

@@ -6,7 +6,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
 use relume_core::geometry::View;
 use relume_core::render::RenderSettings;
 use relume_core::scene::Scene;
@@ -109,10 +108,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
         .filter(|&i| SceneDesc::view_selected(&args.views, &view_descs[i].name))
         .collect();
     let total_rows: u64 = selected.iter().map(|&i| views[i].height as u64).sum();
-    let progress = ProgressBar::new(total_rows).with_style(
-        ProgressStyle::with_template("{msg:>8} [{bar:40}] {pos}/{len} rows, {eta} left")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let progress = crate::progress::bar(total_rows, "render", "rows");
     // One set: a failure on any file leaves none of this render's outputs. Each view is
     // staged as soon as it is rendered, so that only one view's pixels are held at a time.
     // Before a long render, not after: no output may replace an input (a render into
@@ -128,7 +124,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     let mut samples = 0u64;
     let mut black_views = Vec::new();
     for &i in &selected {
-        progress.set_message(view_descs[i].name.clone());
+        progress.set_message(format!("render {}", view_descs[i].name));
         let start = Instant::now();
         let pixels =
             parallel::render_view(&pool, &scene, &views[i], i as u32, &settings, &progress);

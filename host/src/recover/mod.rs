@@ -51,7 +51,7 @@ mod warnings;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use relume_core::fit::{self, GroupFit};
 use relume_core::geometry::View;
 use relume_core::material::Kind;
@@ -606,12 +606,7 @@ fn error_estimate_of(terms: &[([f64; 2], f64)]) -> Option<fit::ErrorEstimate> {
 }
 
 fn progress_bar(len: u64, what: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len).with_style(
-        ProgressStyle::with_template("{msg:>14} [{bar:40}] {pos}/{len} {eta} left")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    bar.set_message(what.to_string());
-    bar
+    crate::progress::bar(len, what, "")
 }
 
 /// The best isotropic Ward fit of a group's cache for one kind: roughness searched
