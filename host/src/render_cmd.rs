@@ -3,7 +3,7 @@
 //! settings and timing.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use glam::Vec3;
 use relume_core::geometry::View;
@@ -49,6 +49,60 @@ pub fn output_files<'a>(out: &Path, views: impl IntoIterator<Item = &'a str>) ->
         .collect();
     files.push(out.join(RENDER_JSON));
     files
+}
+
+/// From this many samples a pixel a render first times a pilot ([`estimate_time`]).
+const PILOT_FROM_SPP: u32 = 64;
+
+/// A pilot renders at least this many samples, so that starting its threads does not
+/// count for much of its time.
+const PILOT_SAMPLES: u64 = 1 << 16;
+
+/// A render estimated to take this long is announced with its estimate.
+const ANNOUNCE_PAST_SECONDS: f64 = 60.0;
+
+/// How long a render will take, from a pilot.
+struct Estimate {
+    seconds: f64,
+    samples: u64,
+    pilot_spp: u32,
+}
+
+/// Times the first selected view at a fraction of the samples (at most 1/64 of them, at
+/// least [`PILOT_SAMPLES`] in all) and scales by the render's samples: the bar's estimate
+/// comes only as rows are done, and a view of one row at 4e9 samples a pixel gave none.
+/// `None` below [`PILOT_FROM_SPP`], where the render is soon done anyway. The pilot's
+/// pixels are dropped, so the render's are the same.
+fn estimate_time(
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    views: &[View],
+    selected: &[usize],
+    settings: &RenderSettings,
+) -> Option<Estimate> {
+    if settings.spp < PILOT_FROM_SPP {
+        return None;
+    }
+    let first = *selected.first()?;
+    let pixels = views[first].n_pixels() as u64;
+    let wanted = PILOT_SAMPLES.div_ceil(pixels.max(1)).min(u32::MAX as u64) as u32;
+    let pilot = RenderSettings {
+        spp: wanted.clamp(1, settings.spp / PILOT_FROM_SPP),
+        ..*settings
+    };
+    let start = Instant::now();
+    let hidden = indicatif::ProgressBar::hidden();
+    parallel::render_view(pool, scene, &views[first], first as u32, &pilot, &hidden);
+    let per_sample = start.elapsed().as_secs_f64() / (pixels * pilot.spp as u64).max(1) as f64;
+    let samples: u64 = selected
+        .iter()
+        .map(|&i| views[i].n_pixels() as u64 * settings.spp as u64)
+        .sum();
+    Some(Estimate {
+        seconds: per_sample * samples as f64,
+        samples,
+        pilot_spp: pilot.spp,
+    })
 }
 
 pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
@@ -107,6 +161,17 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     let selected: Vec<usize> = (0..views.len())
         .filter(|&i| SceneDesc::view_selected(&args.views, &view_descs[i].name))
         .collect();
+    if let Some(estimate) = estimate_time(&pool, &scene, &views, &selected, &settings) {
+        if estimate.seconds >= ANNOUNCE_PAST_SECONDS {
+            eprintln!(
+                "relume: render: {} samples, about {} (timed on {} samples a pixel of view '{}')",
+                estimate.samples,
+                indicatif::HumanDuration(Duration::from_secs_f64(estimate.seconds.min(1e12))),
+                estimate.pilot_spp,
+                view_descs[selected[0]].name
+            );
+        }
+    }
     let total_rows: u64 = selected.iter().map(|&i| views[i].height as u64).sum();
     let progress = crate::progress::bar(total_rows, "render", "rows");
     // One set: a failure on any file leaves none of this render's outputs. Each view is
@@ -237,4 +302,36 @@ fn sees_geometry(scene: &Scene, view: &View) -> bool {
             scene.intersect(&ray, f32::INFINITY).is_some()
         })
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Below [`PILOT_FROM_SPP`] no pilot; above it, one of at most 1/64 of the samples a
+    /// pixel and at least [`PILOT_SAMPLES`] in all, scaled to every selected view.
+    #[test]
+    fn a_long_render_is_estimated_from_a_small_pilot() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/scene.toml");
+        let mut owned = assemble::load_and_assemble(&path, MaterialSource::GeometryOnly).unwrap();
+        let views = owned.views.clone();
+        let scene = owned.build().unwrap();
+        let pool = parallel::thread_pool(Some(2)).unwrap();
+        let at = |spp: u32, selected: &[usize]| {
+            let settings = RenderSettings {
+                spp,
+                ..RenderSettings::default()
+            };
+            estimate_time(&pool, &scene, &views, selected, &settings)
+        };
+        assert!(at(PILOT_FROM_SPP - 1, &[0]).is_none());
+        let pixels = views[0].n_pixels() as u64;
+        let e = at(PILOT_FROM_SPP, &[0, 1]).unwrap();
+        assert_eq!(e.pilot_spp, 1);
+        assert_eq!(e.samples, 2 * pixels * PILOT_FROM_SPP as u64);
+        let e = at(u32::MAX, &[2]).unwrap();
+        assert_eq!(e.pilot_spp as u64, PILOT_SAMPLES.div_ceil(pixels));
+        assert_eq!(e.samples, pixels * u32::MAX as u64);
+        assert!(e.seconds > 0.0 && e.seconds.is_finite(), "{}", e.seconds);
+    }
 }
