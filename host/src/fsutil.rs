@@ -265,6 +265,7 @@ impl OutputSet {
     /// cannot replace (a folder) is found before the first rename, so that case too leaves
     /// no part of the set.
     pub fn commit(mut self) -> Result<(), Error> {
+        let _locks = lock_folders(self.staged.iter().map(|(_, target)| folder_of(target)));
         for (_, target) in &self.staged {
             if std::fs::symlink_metadata(target).is_ok_and(|m| m.is_dir()) {
                 return Err(Error::io(
@@ -320,6 +321,27 @@ impl OutputSet {
         }
         refuse_unwritable(dir)
     }
+}
+
+/// Exclusive locks on each of `folders` (resolved, each once, in one order), released when
+/// the files are dropped. Two runs into one `--out` each commit under them, so that their
+/// commits follow one another and the folder holds one run's whole set, where their
+/// renames interleaved and left views of both. A folder that cannot be locked (a file
+/// system without locks) is committed into unlocked, as before.
+fn lock_folders<'a>(folders: impl Iterator<Item = &'a Path>) -> Vec<File> {
+    let mut resolved: Vec<PathBuf> = folders
+        .filter_map(|f| std::fs::canonicalize(f).ok())
+        .collect();
+    resolved.sort();
+    resolved.dedup();
+    resolved
+        .iter()
+        .filter_map(|dir| {
+            let folder = File::open(dir).ok()?;
+            folder.lock().ok()?;
+            Some(folder)
+        })
+        .collect()
 }
 
 /// `path` with its folder resolved (links, `..`), not the file itself: what a rename onto
@@ -582,6 +604,26 @@ mod tests {
         std::fs::write(&path, b"o quad\nv 0 0 0\nv 1 \xff 0\n").unwrap();
         let err = read_text(&path).unwrap_err().to_string();
         assert!(err.contains("a.obj:3") && err.contains("0xff"), "{err}");
+    }
+
+    /// A commit waits while another holds its folder (two runs into one `--out`): none of
+    /// its files is in place until the other lets go, then all are.
+    #[test]
+    fn a_commit_waits_for_another_into_the_same_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.txt"), dir.path().join("b.txt"));
+        let mut set = OutputSet::default();
+        set.add(&a, b"a").unwrap();
+        set.add(&b, b"b").unwrap();
+        let other_run = lock_folders([dir.path()].into_iter());
+        assert_eq!(other_run.len(), 1, "this file system takes no locks");
+        let commit = std::thread::spawn(move || set.commit());
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        assert!(!a.exists() && !b.exists(), "committed under another's lock");
+        drop(other_run);
+        commit.join().unwrap().unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"a");
+        assert_eq!(std::fs::read(&b).unwrap(), b"b");
     }
 
     #[test]
