@@ -802,6 +802,27 @@ fn first_class_change(
         .min_by(|a, b| family.severity(a.0).total_cmp(&family.severity(b.0)))
 }
 
+/// Where `family`'s perturbations first change a class; "not run" where none of its sizes
+/// applied (views of 16 px have no smaller resolution that divides them), which read "no
+/// class changes in the tested range" although nothing was tested.
+fn family_verdict(runs: &[StabilityRun], baseline: &Judged, family: Family) -> String {
+    if !runs.iter().any(|r| r.family == family) {
+        return format!(
+            "{}: not run (none of its perturbations applies to this scene)",
+            family.name()
+        );
+    }
+    match first_class_change(runs, baseline, family) {
+        Some((size, n)) => format!(
+            "{}: classes first change at {} ({} group(s))",
+            family.name(),
+            size,
+            n
+        ),
+        None => format!("{}: no class changes in the tested range", family.name()),
+    }
+}
+
 fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread]) {
     println!();
     let worst = spread
@@ -858,15 +879,7 @@ fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread]) {
         }
     }
     for family in Family::ALL {
-        match first_class_change(runs, baseline, family) {
-            Some((size, n)) => println!(
-                "{}: classes first change at {} ({} group(s))",
-                family.name(),
-                size,
-                n
-            ),
-            None => println!("{}: no class changes in the tested range", family.name()),
-        }
+        println!("{}", family_verdict(runs, baseline, family));
     }
     // Whether a user would have been told: the runs whose report warned of its input (the
     // pixel family's input is whole; its warnings are the limited group's own).
@@ -1050,6 +1063,18 @@ mod tests {
         assert_eq!(first(Family::Pixels), Some((64.0, 1)));
         assert_eq!(first(Family::Exposure), Some((-5.0, 1)));
         assert_eq!(first(Family::Noise), None);
+        // Noise was not run at all: not "no class changes".
+        let verdict = |f| family_verdict(&runs, &base.judged, f);
+        assert_eq!(
+            verdict(Family::Noise),
+            "noise: not run (none of its perturbations applies to this scene)"
+        );
+        assert!(verdict(Family::Resolution).contains("first change at 32"));
+        let unchanged = vec![base.clone(), run(Family::Noise, 1.0, Model::Diffuse)];
+        assert_eq!(
+            family_verdict(&unchanged, &base.judged, Family::Noise),
+            "noise: no class changes in the tested range"
+        );
     }
 
     #[test]
