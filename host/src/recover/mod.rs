@@ -1105,6 +1105,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
             .zip(rec.views.iter().map(|v| v.width.min(v.height)))
             .collect::<Vec<_>>(),
         budget: &args.budget,
+        mapped: &mapped,
     }));
     let report = RecoverReport {
         scene: args.scene.display().to_string(),

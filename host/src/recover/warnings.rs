@@ -56,6 +56,9 @@ pub struct Inputs<'a> {
     /// Each view's name and shorter side, in pixels.
     pub view_sides: &'a [(String, u32)],
     pub budget: &'a Budget,
+    /// Per group, whether every object has texture coordinates: without them stage 3
+    /// tests no texture, which a misfit may then be.
+    pub mapped: &'a [bool],
 }
 
 /// The warnings, input-wide first, then group by group.
@@ -100,7 +103,7 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
             inputs.budget.loop_spp
         ));
     }
-    for (report, model) in inputs.groups.iter().zip(inputs.models) {
+    for (g, (report, model)) in inputs.groups.iter().zip(inputs.models).enumerate() {
         let name = &report.group;
         let specular = match model {
             GroupModel::Diffuse { .. } | GroupModel::Unseen { .. } => false,
@@ -141,8 +144,15 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
             ));
         }
         if let Some(error) = report.error_final.filter(|&e| e > MISFIT_ERROR) {
+            // A picture without vt came out an anisotropic lobe at 0.27, and the reason
+            // was only in report.json.
+            let unmapped = if inputs.mapped.get(g) == Some(&false) {
+                "; or it shows a texture, which stage 3 did not look for: some of its objects have no texture coordinates (vt on every face), which a diffuse map needs"
+            } else {
+                ""
+            };
             warnings.push(format!(
-                "group '{name}': its recovered model ({}) still leaves a relative error of {error:.3} over its {} pure pixels, more than MISFIT_ERROR {MISFIT_ERROR} (right models left at most 0.10 on the references at 64 px): no model of its kind explains them; the group may hold objects of different materials (a group is one material), or the geometry, a view or a light may not match the panorama (the error images in errors/ show where)",
+                "group '{name}': its recovered model ({}) still leaves a relative error of {error:.3} over its {} pure pixels, more than MISFIT_ERROR {MISFIT_ERROR} (right models left at most 0.10 on the references at 64 px): no model of its kind explains them; the group may hold objects of different materials (a group is one material), or the geometry, a view or a light may not match the panorama (the error images in errors/ show where){unmapped}",
                 model.name(),
                 report.pure_pixels
             ));
@@ -476,6 +486,7 @@ mod tests {
             panorama_noise_bound: noise,
             view_sides: &[("front".into(), side), ("back".into(), 2 * side)],
             budget: &effort.budget(),
+            mapped: &vec![true; groups.len()],
         })
     }
 
@@ -538,7 +549,24 @@ mod tests {
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(
             w[0].starts_with("group 'room': its recovered model (diffuse) still leaves a relative error of 0.366 over its 5000 pure pixels")
-                && w[0].contains("objects of different materials"),
+                && w[0].contains("objects of different materials")
+                && !w[0].contains("texture"),
+            "{}",
+            w[0]
+        );
+        // Without texture coordinates, a texture is one more cause, which stage 3 did not
+        // test.
+        let w = stability_warnings(&Inputs {
+            groups: &groups,
+            models: &models,
+            panorama_noise_bound: 0.025,
+            view_sides: &[("front".into(), 64)],
+            budget: &Effort::Default.budget(),
+            mapped: &[false, true, false],
+        });
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].ends_with("or it shows a texture, which stage 3 did not look for: some of its objects have no texture coordinates (vt on every face), which a diffuse map needs"),
             "{}",
             w[0]
         );
