@@ -2292,6 +2292,40 @@ fn check_scene(text: &str) -> (Option<i32>, String, Option<serde_json::Value>) {
     (run.status.code(), stderr, report)
 }
 
+/// cornell without its back wall (hidden here, as an OBJ that lacks it), while its
+/// panorama shows the wall: view py sees out of the room where the panorama is bright,
+/// which every render leaves black whatever the materials. Told, naming the view; the
+/// whole cornell tells nothing.
+#[test]
+fn check_tells_of_views_that_see_out_of_the_scene_where_the_panorama_is_bright() {
+    let cornell = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+    let scene = std::fs::read_to_string(cornell.join("scene.toml"))
+        .unwrap()
+        .replace(
+            "geometry = [\"geometry.obj\"]",
+            &format!("geometry = [{:?}]", cornell.join("geometry.obj")),
+        )
+        .replace(
+            "image = \"views/",
+            &format!("image = \"{}/views/", cornell.display()),
+        );
+    let told = "of its 1024 pixels see out of the scene (no geometry there, so every render is black) where the panorama is bright";
+    let (code, stderr, _) = check_scene(&scene);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("see out of the scene"), "{stderr}");
+    let (code, stderr, _) = check_scene(&scene.replace("hide = []", "hide = [\"wall_back\"]"));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("view 'py': ") && stderr.contains(told),
+        "{stderr}"
+    );
+    assert_eq!(
+        stderr.matches("see out of the scene").count(),
+        1,
+        "{stderr}"
+    );
+}
+
 /// `relume check` on small scenes: views of 8 pixels are warned of as recover warns after
 /// its work, and a panorama that sees no group whole is refused as recover refuses it,
 /// before any render, writing nothing.

@@ -313,6 +313,7 @@ pub(super) fn inspect(
 ) -> Result<Inspection, Error> {
     let views = input.owned.views.clone();
     let mut enclosed_warnings = Vec::new();
+    let outside_warnings;
     let pixels::Labels {
         pure,
         lights: light_pixels,
@@ -323,6 +324,13 @@ pub(super) fn inspect(
         let group_names = input.owned.group_names.clone();
         let scene = input.owned.build()?;
         let mut labels = pixels::label_views(pool, &scene, &views);
+        outside_warnings = super::seen_outside::bright_outside_warnings(
+            pool,
+            &scene,
+            &views,
+            &input.real,
+            &input.view_names,
+        );
         for enclosed in crate::enclosed_views::enclosed_views(scene.triangles, &views) {
             let view = enclosed.view as u32;
             let before = labels.pure.len();
@@ -355,6 +363,7 @@ pub(super) fn inspect(
         labels
     };
     let mut warnings = enclosed_warnings;
+    warnings.extend(outside_warnings);
     warnings.extend(input.owned.crossing_face_warnings.iter().cloned());
     warnings.extend(crate::light_placement::lights_against_surfaces(
         &mut input.owned,

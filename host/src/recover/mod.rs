@@ -36,6 +36,7 @@ mod pixels;
 mod polish;
 mod refine;
 mod report;
+mod seen_outside;
 mod stage1;
 mod stage2;
 mod stage3;
