@@ -869,6 +869,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         kinds,
         mapped,
         unfit_for_a_map,
+        overlapping_uv,
         obj2rad,
         ..
     } = input;
@@ -955,8 +956,11 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
         &mut rec,
         &mut reports,
         &kinds,
-        &mapped,
-        &unfit_for_a_map,
+        &stage3::Coordinates {
+            mapped: &mapped,
+            unfit_for_a_map: &unfit_for_a_map,
+            overlapping: &overlapping_uv,
+        },
         verify_spp,
         args.seed,
     )?;

@@ -25,6 +25,17 @@ pub(super) struct Stage3 {
     pub warnings: Vec<String>,
 }
 
+/// What the groups' texture coordinates allow a map, per group (`inspect::Input`).
+#[derive(Clone, Copy)]
+pub(super) struct Coordinates<'a> {
+    /// Every object has them.
+    pub mapped: &'a [bool],
+    /// Why no map can be laid over them (over no area), if so.
+    pub unfit_for_a_map: &'a [Option<String>],
+    /// Where its faces lie over the same texels, if they do.
+    pub overlapping: &'a [Option<String>],
+}
+
 /// Runs stage 3 with renders at `4 * verify_spp` on `seed`, recording each tested group's
 /// contrast and decision in `reports`. Groups without texture coordinates (`mapped`
 /// false) are not tested; one that shows a texture over coordinates no map can be laid
@@ -33,11 +44,15 @@ pub(super) fn run(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
     kinds: &[GroupKind],
-    mapped: &[bool],
-    unfit_for_a_map: &[Option<String>],
+    coordinates: &Coordinates,
     verify_spp: u32,
     seed: u64,
 ) -> Result<Stage3, Error> {
+    let Coordinates {
+        mapped,
+        unfit_for_a_map,
+        overlapping,
+    } = *coordinates;
     let n_groups = reports.len();
     let stage_start = Instant::now();
     let mut evaluations = 0;
@@ -164,6 +179,12 @@ pub(super) fn run(
                 fit::TEXTURE_CONTRAST_THRESHOLD
             ));
             continue;
+        }
+        if let Some(why) = &overlapping[g] {
+            warnings.push(format!(
+                "group '{}': its pixels show a texture, and {why}",
+                r.group
+            ));
         }
         textured[g] = true;
         r.decisions.push(decision);
