@@ -161,6 +161,18 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     let selected: Vec<usize> = (0..views.len())
         .filter(|&i| SceneDesc::view_selected(&args.views, &view_descs[i].name))
         .collect();
+    // One set: a failure on any file leaves none of this render's outputs. Each view is
+    // staged as soon as it is rendered, so that only one view's pixels are held at a time.
+    // Before a long render, not after: no output may replace an input (a render into
+    // the panorama's folder would put itself over the views' images), and the folder must
+    // be made.
+    let mut set = OutputSet::keeping(inputs);
+    set.check_targets(output_files(
+        &args.out,
+        selected.iter().map(|&i| view_descs[i].name.as_str()),
+    ))?;
+    set.create_dir(&args.out)?;
+    // Timed once the outputs are known to be writable, before the bar is drawn.
     if let Some(estimate) = estimate_time(&pool, &scene, &views, &selected, &settings) {
         if estimate.seconds >= ANNOUNCE_PAST_SECONDS {
             eprintln!(
@@ -174,17 +186,6 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     }
     let total_rows: u64 = selected.iter().map(|&i| views[i].height as u64).sum();
     let progress = crate::progress::bar(total_rows, "render", "rows");
-    // One set: a failure on any file leaves none of this render's outputs. Each view is
-    // staged as soon as it is rendered, so that only one view's pixels are held at a time.
-    // Before a long render, not after: no output may replace an input (a render into
-    // the panorama's folder would put itself over the views' images), and the folder must
-    // be made.
-    let mut set = OutputSet::keeping(inputs);
-    set.check_targets(output_files(
-        &args.out,
-        selected.iter().map(|&i| view_descs[i].name.as_str()),
-    ))?;
-    set.create_dir(&args.out)?;
     let mut seconds = 0.0;
     let mut samples = 0u64;
     let mut black_views = Vec::new();
