@@ -11,7 +11,9 @@ use std::io::{IsTerminal, Write};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, TermLike};
+use indicatif::{
+    HumanDuration, ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle, TermLike,
+};
 
 /// How long work goes on before its first line off a terminal.
 pub const FIRST_LINE_AFTER: Duration = Duration::from_secs(10);
@@ -31,12 +33,20 @@ pub fn bar(len: u64, what: &str, unit: &str) -> ProgressBar {
         ProgressBar::new(len).with_style(style(&template))
     } else {
         let target = ProgressDrawTarget::term_like_with_hz(Box::new(LogLines::new()), 1);
-        let template =
-            format!("relume: {{msg}}: {{pos}}/{{len}}{unit} after {{elapsed}}, about {{eta}} left");
-        ProgressBar::with_draw_target(Some(len), target).with_style(style(&template))
+        let template = format!("relume: {{msg}}: {{pos}}/{{len}}{unit} after {{elapsed}}{{left}}");
+        let style = style(&template).with_key("left", time_left);
+        ProgressBar::with_draw_target(Some(len), target).with_style(style)
     };
     bar.set_message(what.to_string());
     bar
+}
+
+/// ", about 1m left" once a step is done; nothing before, where indicatif's estimate reads
+/// 0 s ("diffuse again: 0/30 after 0s, about 0s left").
+fn time_left(state: &ProgressState, w: &mut dyn std::fmt::Write) {
+    if state.pos() > 0 {
+        let _ = write!(w, ", about {} left", HumanDuration(state.eta()));
+    }
 }
 
 fn style(template: &str) -> ProgressStyle {
