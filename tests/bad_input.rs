@@ -2324,6 +2324,35 @@ fn check_tells_of_views_that_see_out_of_the_scene_where_the_panorama_is_bright()
         1,
         "{stderr}"
     );
+    // A panorama of the open box itself (rendered by relume) is black where the views see
+    // out of it, and bright on the rim of the opening, where pixels see the rim over part
+    // of their footprint: nothing to tell.
+    let open = scene.replace("hide = []", "hide = [\"wall_back\"]");
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), &open).unwrap();
+    let materials = cornell.join("materials.toml");
+    let args = [
+        "render",
+        "scene.toml",
+        "--materials",
+        path_str(&materials),
+        "--out",
+        "views",
+        "--spp",
+        "16",
+    ];
+    let run = relume(dir.path(), &args);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let own = open.replace(&format!("{}/views/", cornell.display()), "views/");
+    std::fs::write(dir.path().join("scene.toml"), own).unwrap();
+    let run = relume(dir.path(), &["check", "scene.toml"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{stderr}");
+    assert!(!stderr.contains("see out of the scene"), "{stderr}");
 }
 
 /// `relume check` on small scenes: views of 8 pixels are warned of as recover warns after
