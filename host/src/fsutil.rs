@@ -334,14 +334,43 @@ fn lock_folders<'a>(folders: impl Iterator<Item = &'a Path>) -> Vec<File> {
         .collect();
     resolved.sort();
     resolved.dedup();
-    resolved
-        .iter()
-        .filter_map(|dir| {
-            let folder = File::open(dir).ok()?;
-            folder.lock().ok()?;
-            Some(folder)
-        })
-        .collect()
+    lock_each(&resolved)
+}
+
+/// Locks each of `dirs` once: one folder under two paths (a bind mount of a folder into
+/// itself, which resolving the paths does not undo) would be locked twice, and the second
+/// lock wait on the first for ever.
+fn lock_each(dirs: &[PathBuf]) -> Vec<File> {
+    let mut held: Vec<(FolderId, File)> = Vec::new();
+    for dir in dirs {
+        let Ok(folder) = File::open(dir) else {
+            continue;
+        };
+        let id = folder_id(&folder);
+        if id.is_some() && held.iter().any(|(h, _)| *h == id) {
+            continue;
+        }
+        if folder.lock().is_ok() {
+            held.push((id, folder));
+        }
+    }
+    held.into_iter().map(|(_, f)| f).collect()
+}
+
+/// A folder's device and inode, where the platform has them.
+type FolderId = Option<(u64, u64)>;
+
+fn folder_id(folder: &File) -> FolderId {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        folder.metadata().ok().map(|m| (m.dev(), m.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = folder;
+        None
+    }
 }
 
 /// `path` with its folder resolved (links, `..`), not the file itself: what a rename onto
@@ -617,6 +646,16 @@ mod tests {
         set.add(&b, b"b").unwrap();
         let other_run = lock_folders([dir.path()].into_iter());
         assert_eq!(other_run.len(), 1, "this file system takes no locks");
+        // One folder by two paths (here a link, not resolved; a bind mount alike) is
+        // locked once: a second lock would wait on the first for ever.
+        let other = tempfile::tempdir().unwrap();
+        let link = other.path().join("again");
+        std::os::unix::fs::symlink(other.path(), &link).unwrap();
+        let (sent, got) = std::sync::mpsc::channel();
+        let paths = [other.path().to_path_buf(), link];
+        std::thread::spawn(move || sent.send(lock_each(&paths).len()));
+        let locked = got.recv_timeout(std::time::Duration::from_secs(30));
+        assert_eq!(locked, Ok(1), "one folder by two paths");
         let commit = std::thread::spawn(move || set.commit());
         std::thread::sleep(std::time::Duration::from_millis(300));
         assert!(!a.exists() && !b.exists(), "committed under another's lock");

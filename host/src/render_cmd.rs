@@ -68,11 +68,14 @@ struct Estimate {
     pilot_spp: u32,
 }
 
-/// Times the first selected view at a fraction of the samples (at most 1/64 of them, at
-/// least [`PILOT_SAMPLES`] in all) and scales by the render's samples: the bar's estimate
-/// comes only as rows are done, and a view of one row at 4e9 samples a pixel gave none.
-/// `None` below [`PILOT_FROM_SPP`], where the render is soon done anyway. The pilot's
-/// pixels are dropped, so the render's are the same.
+/// Times every selected view at a fraction of the samples (at most 1/64 of them, at least
+/// [`PILOT_SAMPLES`] in all) and scales by the render's samples: the bar's estimate comes
+/// only as rows are done, and a view of one row at 4e9 samples a pixel gave none. Every
+/// view, since views differ in cost (one looking away from the room took the first view's
+/// pilot to say nothing of a render of 83 s). `None` below [`PILOT_FROM_SPP`], and where
+/// the pilot would be smaller than [`PILOT_SAMPLES`] (it would time starting its threads;
+/// such a render is over in seconds). The pilot's pixels are dropped, so the render's are
+/// the same.
 fn estimate_time(
     pool: &rayon::ThreadPool,
     scene: &Scene,
@@ -83,25 +86,27 @@ fn estimate_time(
     if settings.spp < PILOT_FROM_SPP {
         return None;
     }
-    let first = *selected.first()?;
-    let pixels = views[first].n_pixels() as u64;
-    let wanted = PILOT_SAMPLES.div_ceil(pixels.max(1)).min(u32::MAX as u64) as u32;
+    let pixels: u64 = selected.iter().map(|&i| views[i].n_pixels() as u64).sum();
+    let wanted = PILOT_SAMPLES.div_ceil(pixels.max(1));
+    let pilot_spp = wanted.min((settings.spp / PILOT_FROM_SPP) as u64) as u32;
+    if pixels * (pilot_spp as u64) < PILOT_SAMPLES {
+        return None;
+    }
     let pilot = RenderSettings {
-        spp: wanted.clamp(1, settings.spp / PILOT_FROM_SPP),
+        spp: pilot_spp,
         ..*settings
     };
-    let start = Instant::now();
     let hidden = indicatif::ProgressBar::hidden();
-    parallel::render_view(pool, scene, &views[first], first as u32, &pilot, &hidden);
-    let per_sample = start.elapsed().as_secs_f64() / (pixels * pilot.spp as u64).max(1) as f64;
-    let samples: u64 = selected
-        .iter()
-        .map(|&i| views[i].n_pixels() as u64 * settings.spp as u64)
-        .sum();
+    let start = Instant::now();
+    for &i in selected {
+        parallel::render_view(pool, scene, &views[i], i as u32, &pilot, &hidden);
+    }
+    let per_sample = start.elapsed().as_secs_f64() / (pixels * pilot_spp as u64) as f64;
+    let samples = pixels * settings.spp as u64;
     Some(Estimate {
         seconds: per_sample * samples as f64,
         samples,
-        pilot_spp: pilot.spp,
+        pilot_spp,
     })
 }
 
@@ -176,11 +181,10 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary, Error> {
     if let Some(estimate) = estimate_time(&pool, &scene, &views, &selected, &settings) {
         if estimate.seconds >= ANNOUNCE_PAST_SECONDS {
             eprintln!(
-                "relume: render: {} samples, about {} (timed on {} samples a pixel of view '{}')",
+                "relume: render: {} samples, about {} (timed on {} samples a pixel)",
                 estimate.samples,
                 indicatif::HumanDuration(Duration::from_secs_f64(estimate.seconds.min(1e12))),
                 estimate.pilot_spp,
-                view_descs[selected[0]].name
             );
         }
     }
@@ -309,8 +313,9 @@ fn sees_geometry(scene: &Scene, view: &View) -> bool {
 mod tests {
     use super::*;
 
-    /// Below [`PILOT_FROM_SPP`] no pilot; above it, one of at most 1/64 of the samples a
-    /// pixel and at least [`PILOT_SAMPLES`] in all, scaled to every selected view.
+    /// Below [`PILOT_FROM_SPP`] no pilot; above it, one over every selected view of at most
+    /// 1/64 of the samples a pixel and at least [`PILOT_SAMPLES`] in all, and none where
+    /// that is not enough samples to time.
     #[test]
     fn a_long_render_is_estimated_from_a_small_pilot() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell/scene.toml");
@@ -327,9 +332,12 @@ mod tests {
         };
         assert!(at(PILOT_FROM_SPP - 1, &[0]).is_none());
         let pixels = views[0].n_pixels() as u64;
-        let e = at(PILOT_FROM_SPP, &[0, 1]).unwrap();
-        assert_eq!(e.pilot_spp, 1);
-        assert_eq!(e.samples, 2 * pixels * PILOT_FROM_SPP as u64);
+        // 1024 pixels a view: 64 samples a pixel give 1 for the pilot, too few to time.
+        assert!(at(PILOT_FROM_SPP, &[0, 1]).is_none());
+        let spp = 64 * PILOT_FROM_SPP;
+        let e = at(spp, &[0, 1]).unwrap();
+        assert_eq!(e.pilot_spp as u64, PILOT_SAMPLES.div_ceil(2 * pixels));
+        assert_eq!(e.samples, 2 * pixels * spp as u64);
         let e = at(u32::MAX, &[2]).unwrap();
         assert_eq!(e.pilot_spp as u64, PILOT_SAMPLES.div_ceil(pixels));
         assert_eq!(e.samples, pixels * u32::MAX as u64);
