@@ -202,7 +202,7 @@ fn ear_clip(flat: &[[f64; 2]]) -> Option<Vec<[usize; 3]>> {
     let mut next: Vec<usize> = (0..n).map(|i| (i + 1) % n).collect();
     let turn =
         |prev: &[usize], next: &[usize], i: usize| cross(flat[prev[i]], flat[i], flat[next[i]]);
-    let mut reflex: Vec<usize> = (0..n).filter(|&i| turn(&prev, &next, i) <= 0.0).collect();
+    let mut reflex = ReflexGrid::new(flat, (0..n).filter(|&i| turn(&prev, &next, i) <= 0.0));
     // Twice the area not yet cut off, and what counts as none of it.
     let mut remaining: f64 = (0..n)
         .map(|i| cross([0.0, 0.0], flat[i], flat[(i + 1) % n]))
@@ -221,7 +221,7 @@ fn ear_clip(flat: &[[f64; 2]]) -> Option<Vec<[usize; 3]>> {
         let area = turn(&prev, &next, b);
         let ear = area > 0.0
             && area <= remaining + none_left
-            && !reflex.iter().any(|&p| {
+            && !reflex.any_in([flat[a], flat[b], flat[c]], |p| {
                 p != a
                     && p != b
                     && p != c
@@ -242,8 +242,10 @@ fn ear_clip(flat: &[[f64; 2]]) -> Option<Vec<[usize; 3]>> {
         next[a] = c;
         prev[c] = a;
         left -= 1;
-        reflex.retain(|&p| p != a && p != b && p != c);
-        reflex.extend([a, c].into_iter().filter(|&k| turn(&prev, &next, k) <= 0.0));
+        reflex.remove(b);
+        for k in [a, c] {
+            reflex.set(k, turn(&prev, &next, k) <= 0.0);
+        }
         (at, tried) = (c, 0);
     }
     let (a, b, c) = (prev[at], at, next[at]);
@@ -252,6 +254,96 @@ fn ear_clip(flat: &[[f64; 2]]) -> Option<Vec<[usize; 3]>> {
     }
     triangles.push([a, b, c]);
     Some(triangles)
+}
+
+/// The corners that do not turn left, the only ones an ear can hold, on a uniform grid
+/// over the face, so that an ear is tested against those near it alone: tested against all
+/// of them, a comb of 10^5 corners took 10 s and a spiral 14 s.
+struct ReflexGrid<'a> {
+    flat: &'a [[f64; 2]],
+    low: [f64; 2],
+    /// Cells a unit of length.
+    scale: [f64; 2],
+    side: usize,
+    /// The corners in each cell, in row order; one no longer reflex stays until skipped.
+    cells: Vec<Vec<usize>>,
+    is_reflex: Vec<bool>,
+}
+
+impl<'a> ReflexGrid<'a> {
+    fn new(flat: &'a [[f64; 2]], reflex: impl Iterator<Item = usize>) -> ReflexGrid<'a> {
+        let reflex: Vec<usize> = reflex.collect();
+        let side = (libm::sqrt(reflex.len() as f64) as usize).clamp(1, 1024);
+        let (mut low, mut high) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in flat {
+            for k in 0..2 {
+                low[k] = low[k].min(p[k]);
+                high[k] = high[k].max(p[k]);
+            }
+        }
+        let scale = [0, 1].map(|k| {
+            let span = high[k] - low[k];
+            if span > 0.0 && span.is_finite() {
+                side as f64 / span
+            } else {
+                0.0
+            }
+        });
+        let mut grid = ReflexGrid {
+            flat,
+            low,
+            scale,
+            side,
+            cells: vec![Vec::new(); side * side],
+            is_reflex: vec![false; flat.len()],
+        };
+        for p in reflex {
+            grid.set(p, true);
+        }
+        grid
+    }
+
+    /// The cell column or row of coordinate `x` along axis `k`, clamped to the grid.
+    fn cell(&self, k: usize, x: f64) -> usize {
+        let c = (x - self.low[k]) * self.scale[k];
+        if c >= 0.0 {
+            (c as usize).min(self.side - 1)
+        } else {
+            0
+        }
+    }
+
+    fn set(&mut self, p: usize, reflex: bool) {
+        if reflex && !self.is_reflex[p] {
+            let [x, y] = self.flat[p];
+            let cell = self.cell(1, y) * self.side + self.cell(0, x);
+            self.cells[cell].push(p);
+        }
+        self.is_reflex[p] = reflex;
+    }
+
+    fn remove(&mut self, p: usize) {
+        self.is_reflex[p] = false;
+    }
+
+    /// Whether `test` holds for a reflex corner in a cell the triangle's box meets.
+    fn any_in(&self, triangle: [[f64; 2]; 3], test: impl Fn(usize) -> bool) -> bool {
+        let range = |k: usize| {
+            let lo = triangle.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
+            let hi = triangle
+                .iter()
+                .map(|p| p[k])
+                .fold(f64::NEG_INFINITY, f64::max);
+            self.cell(k, lo)..=self.cell(k, hi)
+        };
+        range(1).any(|row| {
+            range(0).any(|column| {
+                self.cells[row * self.side + column]
+                    .iter()
+                    .any(|&p| self.is_reflex[p] && test(p))
+            })
+        })
+    }
 }
 
 /// Whether `p` lies in the counter-clockwise triangle (a, b, c) or on its edges.
