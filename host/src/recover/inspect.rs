@@ -113,11 +113,7 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
         .groups
         .iter()
         .zip(&hidden)
-        .map(|(g, &hidden)| {
-            let shown =
-                |o: &&ObjObject| g.objects.contains(&o.name) && !desc.hide.contains(&o.name);
-            !hidden && objects.iter().filter(shown).all(|o| !has_area(o))
-        })
+        .map(|(g, &hidden)| !hidden && shown_objects(&desc, &objects, g).all(|o| !has_area(o)))
         .collect();
     let (obj2rad, obj2rad_warnings) = super::output::Obj2radNames::new(&desc, &objects);
     let owned = assemble::assemble(desc, &objects, MaterialSource::GeometryOnly)?;
@@ -140,6 +136,17 @@ pub(super) fn read(scene: &Path) -> Result<Input, Error> {
     })
 }
 
+/// The objects of `group` that the scene does not hide.
+fn shown_objects<'a>(
+    desc: &'a SceneDesc,
+    objects: &'a [ObjObject],
+    group: &'a GroupDesc,
+) -> impl Iterator<Item = &'a ObjObject> {
+    objects
+        .iter()
+        .filter(|o| group.objects.contains(&o.name) && !desc.hide.contains(&o.name))
+}
+
 /// The first object of `group` (not hidden) whose OBJ texture coordinates no map can be
 /// laid over, and why: coordinates that cover no area (an exporter's `vt 0 0` at every
 /// corner), where every pixel would read one texel, or one line of them. Coordinates past
@@ -149,8 +156,7 @@ fn coordinates_unfit_for_a_map(
     objects: &[ObjObject],
     group: &GroupDesc,
 ) -> Option<String> {
-    let shown = |o: &&ObjObject| group.objects.contains(&o.name) && !desc.hide.contains(&o.name);
-    objects.iter().filter(shown).find_map(|o| {
+    shown_objects(desc, objects, group).find_map(|o| {
         let faces = o.uvs.as_deref()?;
         let area: f64 = faces
             .iter()
@@ -190,8 +196,7 @@ fn overlapping_coordinates(
     objects: &[ObjObject],
     group: &GroupDesc,
 ) -> Option<String> {
-    let shown = |o: &&ObjObject| group.objects.contains(&o.name) && !desc.hide.contains(&o.name);
-    let shown: Vec<&ObjObject> = objects.iter().filter(shown).collect();
+    let shown: Vec<&ObjObject> = shown_objects(desc, objects, group).collect();
     let faces: Vec<(usize, [[f32; 2]; 3])> = (shown.iter().enumerate())
         .filter_map(|(k, o)| Some((k, o.uvs.as_deref()?)))
         .flat_map(|(k, uvs)| uvs.iter().map(move |uv| (k, *uv)))
@@ -273,10 +278,7 @@ fn cells_inside(uv: [[f32; 2]; 3]) -> Vec<usize> {
 /// past [0, 1] (`assemble::past_the_unit_square`): its texture is tiled over it, and a
 /// map recovered for it repeats (`OwnedScene::tiles_its_map`, from the same coordinates).
 fn tiled_coordinates(desc: &SceneDesc, objects: &[ObjObject], group: &GroupDesc) -> Option<String> {
-    let shown = |o: &&ObjObject| group.objects.contains(&o.name) && !desc.hide.contains(&o.name);
-    let faces: Vec<[[f32; 2]; 3]> = objects
-        .iter()
-        .filter(shown)
+    let faces: Vec<[[f32; 2]; 3]> = shown_objects(desc, objects, group)
         .filter_map(|o| o.uvs.as_deref())
         .flatten()
         .copied()
