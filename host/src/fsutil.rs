@@ -122,6 +122,9 @@ pub struct OutputSet {
     inputs: Vec<(PathBuf, String)>,
     /// Earlier outputs that this set's files make stale, removed at its commit.
     stale: Vec<PathBuf>,
+    /// Folders whose files of these extensions that the set does not write are stale,
+    /// found at the commit ([`OutputSet::remove_unwritten_on_commit`]).
+    unwritten_in: Vec<(PathBuf, &'static [&'static str])>,
 }
 
 impl OutputSet {
@@ -133,6 +136,7 @@ impl OutputSet {
             staged: Vec::new(),
             dirs: Vec::new(),
             stale: Vec::new(),
+            unwritten_in: Vec::new(),
             inputs: inputs
                 .into_iter()
                 .flat_map(|(path, what)| {
@@ -261,11 +265,47 @@ impl OutputSet {
         Ok(())
     }
 
+    /// Removes, when the set commits, the files of folder `dir` with one of `extensions`
+    /// that the set does not write (an earlier run's renders of views this one lacks, its
+    /// maps of groups this one did not map), other than the run's inputs. They are found
+    /// at the commit, under its lock: found before it, another run's commit in between
+    /// could leave its files beside this set.
+    pub fn remove_unwritten_on_commit(&mut self, dir: &Path, extensions: &'static [&'static str]) {
+        self.unwritten_in.push((dir.to_path_buf(), extensions));
+    }
+
+    /// The files of `dir` with one of `extensions` that the set does not write, and that
+    /// are no input of the run, in name order.
+    fn unwritten_files(&self, dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return Vec::new();
+        };
+        let mut found: Vec<PathBuf> = entries
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| {
+                p.extension()
+                    .and_then(|e| e.to_str())
+                    .is_some_and(|e| extensions.contains(&e))
+            })
+            // An input of this run (a panorama kept there under other names) stays.
+            .filter(|p| p.is_file() && !self.stages(p) && self.check_target(p).is_ok())
+            .collect();
+        found.sort();
+        found
+    }
+
     /// Renames every file into place, then removes the stale ones. A target that a file
     /// cannot replace (a folder) is found before the first rename, so that case too leaves
     /// no part of the set.
     pub fn commit(mut self) -> Result<(), Error> {
-        let _locks = lock_folders(self.staged.iter().map(|(_, target)| folder_of(target)));
+        let folders = (self.staged.iter().map(|(_, target)| folder_of(target)))
+            .chain(self.unwritten_in.iter().map(|(dir, _)| dir.as_path()));
+        let _locks = lock_folders(folders);
+        let unwritten: Vec<PathBuf> = (self.unwritten_in.iter())
+            .flat_map(|(dir, extensions)| self.unwritten_files(dir, extensions))
+            .collect();
+        self.stale.extend(unwritten);
         for (_, target) in &self.staged {
             if std::fs::symlink_metadata(target).is_ok_and(|m| m.is_dir()) {
                 return Err(Error::io(

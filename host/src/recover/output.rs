@@ -167,8 +167,8 @@ pub(super) fn write_all(
     add_maps_and_radiance(&mut set, out, rec, obj2rad)?;
     // An earlier recovery's map of a group this one did not map, and its renders of views
     // this scene lacks (an earlier run of another scene), are no outputs of this run.
-    for path in stale_outputs(&set, out) {
-        set.remove_on_commit(&path)?;
+    for (dir, extensions) in WRITTEN {
+        set.remove_unwritten_on_commit(&out.join(dir), extensions);
     }
     let materials_path = out.join(MATERIALS_TOML);
     let materials = MaterialsDesc {
@@ -532,40 +532,18 @@ fn add_unseen_stand_ins(
     set.add(path, text.as_bytes())
 }
 
-/// The files of `out/views`, `out/errors` (`.exr`, `.png`), `out/textures` (`.exr`,
-/// `.hdr`, `.cal`) and `out/meshes` (`.obj`, `.rtm`) that `set` does not write: an
-/// earlier recovery's renders of views this scene lacks and maps this recovery did not
-/// make, which its materials do not name, and every mesh obj2mesh made (`.rtm`), which
-/// holds the materials of the run it was made from. Files of other kinds, and the run's
-/// inputs, are left alone.
-fn stale_outputs(set: &OutputSet, out: &Path) -> Vec<PathBuf> {
-    let written = [
-        (VIEWS_DIR, &["exr", "png"][..]),
-        (ERRORS_DIR, &["exr", "png"]),
-        (TEXTURES_DIR, &["exr", "hdr", "cal"]),
-        (MESHES_DIR, &["obj", "rtm"]),
-    ];
-    let mut stale = Vec::new();
-    for (dir, extensions) in written {
-        let Ok(entries) = std::fs::read_dir(out.join(dir)) else {
-            continue;
-        };
-        let mut found: Vec<PathBuf> = entries
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| {
-                p.extension()
-                    .and_then(|e| e.to_str())
-                    .is_some_and(|e| extensions.contains(&e))
-            })
-            // An input of this run (a panorama kept there under other names) stays.
-            .filter(|p| p.is_file() && !set.stages(p) && set.check_target(p).is_ok())
-            .collect();
-        found.sort();
-        stale.extend(found);
-    }
-    stale
-}
+/// The folders of a recovery's outputs and the kinds of file it writes there: of these,
+/// the files a recovery does not write are stale ([`OutputSet::remove_unwritten_on_commit`])
+/// — an earlier recovery's renders of views this scene lacks and maps this recovery did
+/// not make, which its materials do not name, and every mesh obj2mesh made (`.rtm`),
+/// which holds the materials of the run it was made from. Files of other kinds, and the
+/// run's inputs, are left alone.
+const WRITTEN: [(&str, &[&str]); 4] = [
+    (VIEWS_DIR, &["exr", "png"]),
+    (ERRORS_DIR, &["exr", "png"]),
+    (TEXTURES_DIR, &["exr", "hdr", "cal"]),
+    (MESHES_DIR, &["obj", "rtm"]),
+];
 
 /// The files a recovery into `out` writes (or removes) for a mapped group `name`: its
 /// map, its RADIANCE picture and mapping, and a curved group's mesh faces and an earlier
@@ -800,11 +778,11 @@ mod tests {
         assert_eq!(pattern_name("floor", &groups[..1]), "pict_floor");
     }
 
-    /// Of an earlier run's outputs, those this run does not write again are stale: maps
-    /// of groups it did not map, of this scene or another's, and the renders and error
-    /// images of views it lacks (a recovery of another scene into the same folder left
-    /// them beside this one's). A file of another kind in those folders, and an input of
-    /// the run, are not the recovery's to remove.
+    /// Of an earlier run's outputs, those this run does not write again are stale and
+    /// removed at its commit: maps of groups it did not map, of this scene or another's,
+    /// and the renders and error images of views it lacks (a recovery of another scene
+    /// into the same folder left them beside this one's). A file of another kind in those
+    /// folders, and an input of the run, are not the recovery's to remove.
     #[test]
     fn an_earlier_runs_outputs_that_this_run_does_not_write_are_stale() {
         let dir = tempfile::tempdir().unwrap();
@@ -833,21 +811,33 @@ mod tests {
         for file in ["textures/wall.exr", "views/px.exr", "views/px.png"] {
             set.add(&dir.path().join(file), b"this run").unwrap();
         }
-        let stale = stale_outputs(&set, dir.path());
-        let expected: Vec<PathBuf> = [
-            "views/lamp.exr",
-            "views/lamp.png",
-            "errors/lamp.exr",
-            "errors/lamp.png",
-            "textures/picture.cal",
-            "textures/picture.exr",
-            "textures/picture.hdr",
-            "textures/statue.exr",
-        ]
-        .iter()
-        .map(|f| dir.path().join(f))
-        .collect();
-        assert_eq!(stale, expected);
+        for (folder, extensions) in WRITTEN {
+            set.remove_unwritten_on_commit(&dir.path().join(folder), extensions);
+        }
+        // Found at the commit: a map another run wrote meanwhile goes too.
+        std::fs::write(dir.path().join("textures/door.exr"), b"another run").unwrap();
+        set.commit().unwrap();
+        let mut left: Vec<String> = files
+            .iter()
+            .chain(&["textures/door.exr"])
+            .filter(|f| dir.path().join(f).exists())
+            .map(|f| f.to_string())
+            .collect();
+        left.sort();
+        assert_eq!(
+            left,
+            [
+                "textures/notes.txt",
+                "textures/wall.exr",
+                "views/pano_nz.exr",
+                "views/px.exr",
+                "views/px.png"
+            ]
+        );
+        assert_eq!(
+            std::fs::read(dir.path().join("views/px.exr")).unwrap(),
+            b"this run"
+        );
     }
 }
 
@@ -1072,8 +1062,8 @@ objects = ["wrap"]
         }
         let mut set = OutputSet::keeping(Vec::new());
         add_maps_and_radiance(&mut set, &out, &rec, &Obj2radNames::default()).unwrap();
-        for path in stale_outputs(&set, &out) {
-            set.remove_on_commit(&path).unwrap();
+        for (folder, extensions) in WRITTEN {
+            set.remove_unwritten_on_commit(&out.join(folder), extensions);
         }
         set.commit().unwrap();
         let read = |f: &str| std::fs::read_to_string(out.join(f)).unwrap();
