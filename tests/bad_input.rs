@@ -1630,12 +1630,7 @@ fn a_panorama_of_the_wrong_shape_or_frame_is_refused() {
         "--out",
         "placed",
     ];
-    let run = relume(dir.path(), &args);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    common::relume_ok(dir.path(), &args);
     let views = std::fs::read_to_string(dir.path().join("placed/views.toml")).unwrap();
     assert_eq!(
         views.matches("position = [1.5, 0.9, 1.3]").count(),
@@ -2341,12 +2336,7 @@ fn check_tells_of_views_that_see_out_of_the_scene_where_the_panorama_is_bright()
         "--spp",
         "16",
     ];
-    let run = relume(dir.path(), &args);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    common::relume_ok(dir.path(), &args);
     let own = open.replace(&format!("{}/views/", cornell.display()), "views/");
     std::fs::write(dir.path().join("scene.toml"), own).unwrap();
     let run = relume(dir.path(), &["check", "scene.toml"]);

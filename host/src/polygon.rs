@@ -43,7 +43,8 @@ pub fn cut(corners: &[[f64; 3]]) -> Cut {
             Cut::Fan
         };
     };
-    let size = extent(&flat);
+    let box_ = bounds(&flat);
+    let size = extent(box_);
     // A corner given twice, the second rounded a hair off the first (an exporter's teeth,
     // each ending where the next begins), lies on every ear beside it: it is one corner.
     let ring = distinct_corners(&flat, SAME_CORNER * size);
@@ -67,7 +68,7 @@ pub fn cut(corners: &[[f64; 3]]) -> Cut {
             Cut::Fan
         };
     }
-    match ear_clip(&at) {
+    match ear_clip(&at, box_) {
         Some(triangles) => Cut::Ears(triangles.into_iter().map(|t| t.map(|k| ring[k])).collect()),
         None => Cut::CrossesItself,
     }
@@ -77,9 +78,11 @@ pub fn cut(corners: &[[f64; 3]]) -> Cut {
 /// rounding of its coordinates (1e-16 of its size), far below a length one could see.
 const SAME_CORNER: f64 = 1e-9;
 
-/// The largest side of the box around `flat`.
-fn extent(flat: &[[f64; 2]]) -> f64 {
-    let (lo, hi) = flat.iter().fold(
+/// The box around `flat`: its lower and upper corners.
+type Bounds = ([f64; 2], [f64; 2]);
+
+fn bounds(flat: &[[f64; 2]]) -> Bounds {
+    flat.iter().fold(
         ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
         |(lo, hi), p| {
             (
@@ -87,7 +90,11 @@ fn extent(flat: &[[f64; 2]]) -> f64 {
                 [hi[0].max(p[0]), hi[1].max(p[1])],
             )
         },
-    );
+    )
+}
+
+/// The largest side of the box `(lo, hi)`.
+fn extent((lo, hi): Bounds) -> f64 {
     (hi[0] - lo[0]).max(hi[1] - lo[1])
 }
 
@@ -184,30 +191,31 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 
 /// Twice the signed area of the triangle (a, b, c): positive where it turns left at b.
-fn cross(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+pub fn cross(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
     (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
 }
 
-/// Ear clipping of a counter-clockwise simple polygon: repeatedly cut off a convex corner
-/// whose triangle holds no other corner. `None` where no ear is left before the end (a
-/// polygon that crosses itself).
+/// Ear clipping of a counter-clockwise simple polygon (within the box `box_`): repeatedly
+/// cut off a convex corner whose triangle holds no other corner. `None` where no ear is
+/// left before the end (a polygon that crosses itself).
 ///
 /// The corners left are a ring (`prev`, `next`), walked round from the last ear cut; only a
 /// corner that does not turn left can lie in an ear, so only those are tested, and cutting
 /// an ear only makes its neighbours turn more to the left. A face of 15,000 corners, a
 /// comb, took 21 s with every corner tested from the start of the ring each time.
-fn ear_clip(flat: &[[f64; 2]]) -> Option<Vec<[usize; 3]>> {
+fn ear_clip(flat: &[[f64; 2]], box_: Bounds) -> Option<Vec<[usize; 3]>> {
     let n = flat.len();
     let mut prev: Vec<usize> = (0..n).map(|i| (i + n - 1) % n).collect();
     let mut next: Vec<usize> = (0..n).map(|i| (i + 1) % n).collect();
     let turn =
         |prev: &[usize], next: &[usize], i: usize| cross(flat[prev[i]], flat[i], flat[next[i]]);
-    let mut reflex = ReflexGrid::new(flat, (0..n).filter(|&i| turn(&prev, &next, i) <= 0.0));
+    let reflex_corners = (0..n).filter(|&i| turn(&prev, &next, i) <= 0.0);
+    let mut reflex = ReflexGrid::new(flat, box_, reflex_corners);
     // Twice the area not yet cut off, and what counts as none of it.
     let mut remaining: f64 = (0..n)
         .map(|i| cross([0.0, 0.0], flat[i], flat[(i + 1) % n]))
         .sum();
-    let size = extent(flat);
+    let size = extent(box_);
     let none_left = SAME_CORNER * size * size;
     let mut triangles = Vec::with_capacity(n - 2);
     let (mut left, mut at, mut tried) = (n, 0, 0);
@@ -271,16 +279,14 @@ struct ReflexGrid<'a> {
 }
 
 impl<'a> ReflexGrid<'a> {
-    fn new(flat: &'a [[f64; 2]], reflex: impl Iterator<Item = usize>) -> ReflexGrid<'a> {
+    /// The grid over `flat`, whose box is `(low, high)`, holding the corners `reflex`.
+    fn new(
+        flat: &'a [[f64; 2]],
+        (low, high): Bounds,
+        reflex: impl Iterator<Item = usize>,
+    ) -> ReflexGrid<'a> {
         let reflex: Vec<usize> = reflex.collect();
         let side = (libm::sqrt(reflex.len() as f64) as usize).clamp(1, 1024);
-        let (mut low, mut high) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in flat {
-            for k in 0..2 {
-                low[k] = low[k].min(p[k]);
-                high[k] = high[k].max(p[k]);
-            }
-        }
         let scale = [0, 1].map(|k| {
             let span = high[k] - low[k];
             if span > 0.0 && span.is_finite() {

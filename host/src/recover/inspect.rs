@@ -244,9 +244,7 @@ fn overlapping_coordinates(
 /// the triangle `uv` (so that two faces sharing an edge share no cell), in row order.
 fn cells_inside(uv: [[f32; 2]; 3]) -> Vec<usize> {
     let [a, b, c] = uv.map(|p| [p[0] as f64, p[1] as f64]);
-    let cross = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
-        (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
-    };
+    let cross = crate::polygon::cross;
     let turn = cross(a, b, c);
     if turn.is_nan() || turn == 0.0 {
         return Vec::new();
