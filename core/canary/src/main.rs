@@ -2,10 +2,28 @@
 //! its solver run without std or an allocator, as on a small target: it renders a small
 //! scene (a checksum of a few pixels), then recovers a glossy floor's material from a
 //! "panorama" rendered with known materials, by stage 1's diffuse iteration and stage 2's
-//! closed-form isotropic fit over the transport cache, streamed pixel by pixel. It prints
-//! through libc `write` and exits with 1 when the recovery misses the known material.
+//! closed-form isotropic fit over the transport cache, streamed pixel by pixel; stage 3's
+//! contrast must call a checker floor textured and the glossy one not, and stage 5 must
+//! recover the checker's map (`textured.rs`). It exits with 1 when a recovery misses the
+//! known material, and prints a checksum of every bit it recovered.
+//!
+//! It builds for two targets, each with its own entry point, output and panic handler:
+//! this machine (`platform_libc.rs`: libc's `main` and `write`, the CI's proof) and a
+//! bare Cortex-M4F (`platform_cortex_m.rs`: cortex-m-rt's reset handler, semihosting
+//! output; `run-cortex-m4` runs it under QEMU and checks that both print the same bytes).
 #![no_std]
 #![no_main]
+
+#[cfg(not(target_os = "none"))]
+#[path = "platform_libc.rs"]
+mod platform;
+
+#[cfg(target_os = "none")]
+#[path = "platform_cortex_m.rs"]
+mod platform;
+
+mod brushed;
+mod textured;
 
 use relume_core::bvh::{Bvh, BvhBuffers, BvhNode, PackedTriangle};
 use relume_core::fit::GroupFit;
@@ -18,19 +36,6 @@ use relume_core::stages::{diffuse, isotropic};
 use relume_core::transport::{
     self, IncidentSample, LobePoint, INCIDENT_PER_SAMPLE, MAX_INCIDENT_PER_SAMPLE,
 };
-
-extern "C" {
-    fn write(fd: i32, buf: *const u8, count: usize) -> isize;
-}
-
-#[panic_handler]
-fn panic(_: &core::panic::PanicInfo) -> ! {
-    loop {}
-}
-
-#[cfg(debug_assertions)]
-#[unsafe(no_mangle)]
-pub extern "C" fn rust_eh_personality() {}
 
 /// A line of text built without an allocator.
 struct Line {
@@ -86,26 +91,48 @@ impl Line {
         self
     }
 
+    /// `value` in decimal.
+    fn integer(&mut self, value: u32) -> &mut Line {
+        let mut digits = [0u8; 10];
+        let (mut n, mut rest) = (0, value);
+        while n == 0 || rest > 0 {
+            digits[n] = b'0' + (rest % 10) as u8;
+            rest /= 10;
+            n += 1;
+        }
+        for i in (0..n).rev() {
+            self.raw(&[digits[i]]);
+        }
+        self
+    }
+
+    /// `value` as eight hexadecimal digits.
+    fn hex(&mut self, value: u32) -> &mut Line {
+        for i in 0..8 {
+            self.raw(&[b"0123456789abcdef"[((value >> (28 - 4 * i)) & 0xf) as usize]]);
+        }
+        self
+    }
+
     fn print(&mut self) {
         self.text("\n");
-        // SAFETY: `bytes[..len]` is a valid buffer for its length; fd 1 is stdout.
-        unsafe {
-            write(1, self.bytes.as_ptr(), self.len);
-        }
+        platform::print(&self.bytes[..self.len]);
     }
 }
 
+/// Two triangles of the quad `a b c d`, with texture coordinates `((x + 1) / 2, (y + 1) / 2)`
+/// (the floor's [-1, 1]^2 over the map's [0, 1]^2).
 fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3, surface: Surface) -> [Triangle; 2] {
-    let uv = [Vec2::ZERO; 3];
+    let uv = |p: Vec3| Vec2::new((p.x + 1.0) * 0.5, (p.y + 1.0) * 0.5);
     [
         Triangle {
             v: [a, b, c],
-            uv,
+            uv: [uv(a), uv(b), uv(c)],
             surface,
         },
         Triangle {
             v: [a, c, d],
-            uv,
+            uv: [uv(a), uv(c), uv(d)],
             surface,
         },
     ]
@@ -199,55 +226,101 @@ fn recover_diffuse(scene: &Scene, view: &View, real: &[Vec3; PIXELS]) -> ([f64; 
     )
 }
 
-/// The normal equations of the floor's pixels for a unit lobe of roughness `alpha`, from
-/// the transport cache traced pixel by pixel (the same fixed random numbers every time), so
-/// that no more than one pixel's samples are held at once.
+/// Room for one pixel's cache: its incident samples and their lobe points, at `spp`
+/// samples. Lent by the caller, sized for its samples: at 256 it is 54 KiB.
+struct PixelCache<'a> {
+    entries: &'a mut [IncidentSample],
+    points: &'a mut [LobePoint],
+    spp: u32,
+}
+
+/// The normal equations of the floor's pixels for unit lobes `lobe(0)`, `lobe(1)`, ... into
+/// `sums` (one each), from the transport cache traced pixel by pixel (the same fixed random
+/// numbers every time), so that no more than one pixel's samples are held at once, however
+/// many lobes are measured on them. Not inlined, so that its frame is given back before the
+/// next stage's is taken.
+#[inline(never)]
 fn floor_sums(
+    scene: &Scene,
+    view: &View,
+    real: &[Vec3; PIXELS],
+    cache: PixelCache,
+    lobe: impl Fn(usize) -> Material,
+    sums: &mut [isotropic::LinearSums],
+) {
+    let spp = cache
+        .spp
+        .min((cache.entries.len() / INCIDENT_PER_SAMPLE) as u32);
+    let settings = RenderSettings {
+        spp,
+        seed: 3,
+        ..RenderSettings::default()
+    };
+    sums.fill(isotropic::LinearSums::default());
+    for (i, real) in real.iter().enumerate() {
+        let (x, y) = (i as u32 % SIDE, i as u32 / SIDE);
+        let mut n = 0;
+        for sample in 0..spp {
+            // The scene has no mirror: INCIDENT_PER_SAMPLE are written at most.
+            let mut out = [IncidentSample::default(); MAX_INCIDENT_PER_SAMPLE];
+            let written =
+                transport::trace_pixel_sample(scene, view, 0, x, y, sample, 0, &settings, &mut out);
+            cache.entries[n..n + written].copy_from_slice(&out[..written]);
+            n += written;
+        }
+        let mut m = 0;
+        for e in &cache.entries[..n] {
+            if let Some(p) = transport::lobe_point(e) {
+                cache.points[m] = p;
+                m += 1;
+            }
+        }
+        let d = transport::diffuse_part(&cache.entries[..n], spp);
+        for (k, sums) in sums.iter_mut().enumerate() {
+            let b = transport::specular_part(&cache.points[..m], spp, &lobe(k));
+            sums.add(d.to_array(), b.to_array(), real.to_array());
+        }
+    }
+}
+
+/// [`floor_sums`] of the unit isotropic lobe of roughness `alpha` at `CACHE_SPP`.
+fn isotropic_sums(
     scene: &Scene,
     view: &View,
     real: &[Vec3; PIXELS],
     alpha: f64,
 ) -> isotropic::LinearSums {
-    let settings = RenderSettings {
-        spp: CACHE_SPP,
-        seed: 3,
-        ..RenderSettings::default()
-    };
-    let lobe = transport::unit_isotropic_lobe(alpha as f32);
     let mut entries = [IncidentSample::default(); INCIDENT_PER_SAMPLE * CACHE_SPP as usize];
     let mut points = [LobePoint::default(); INCIDENT_PER_SAMPLE * CACHE_SPP as usize];
-    let mut sums = isotropic::LinearSums::default();
-    for (i, real) in real.iter().enumerate() {
-        let (x, y) = (i as u32 % SIDE, i as u32 / SIDE);
-        let mut n = 0;
-        for sample in 0..CACHE_SPP {
-            // The scene has no mirror: INCIDENT_PER_SAMPLE are written at most.
-            let mut out = [IncidentSample::default(); MAX_INCIDENT_PER_SAMPLE];
-            let written =
-                transport::trace_pixel_sample(scene, view, 0, x, y, sample, 0, &settings, &mut out);
-            entries[n..n + written].copy_from_slice(&out[..written]);
-            n += written;
-        }
-        let mut m = 0;
-        for e in &entries[..n] {
-            if let Some(p) = transport::lobe_point(e) {
-                points[m] = p;
-                m += 1;
-            }
-        }
-        let d = transport::diffuse_part(&entries[..n], CACHE_SPP);
-        let b = transport::specular_part(&points[..m], CACHE_SPP, &lobe);
-        sums.add(d.to_array(), b.to_array(), real.to_array());
-    }
-    sums
+    let cache = PixelCache {
+        entries: &mut entries,
+        points: &mut points,
+        spp: CACHE_SPP,
+    };
+    let lobe = transport::unit_isotropic_lobe(alpha as f32);
+    let mut sums = [isotropic::LinearSums::default()];
+    floor_sums(scene, view, real, cache, |_| lobe, &mut sums);
+    sums[0]
+}
+
+/// Every pixel of `view` rendered from `scene` at `spp` samples with `seed`.
+fn render_view(scene: &Scene, view: &View, spp: u32, seed: u64) -> [Vec3; PIXELS] {
+    let settings = RenderSettings {
+        spp,
+        seed,
+        ..RenderSettings::default()
+    };
+    core::array::from_fn(|i| {
+        render_pixel(scene, view, 0, i as u32 % SIDE, i as u32 / SIDE, &settings)
+    })
 }
 
 /// Recovers the floor of `scene` (group 0) as the core's stages would, and checks it
-/// against the material the "panorama" was rendered with. Returns whether it matched.
-fn recover_floor(scene: &Scene) -> bool {
-    let Some(view) = looking_down(SIDE) else {
-        return false;
-    };
+/// against the material the "panorama" was rendered with: whether it matched, and stage
+/// 3's statistic of the floor under the recovered lobe. Mixes the recovered numbers into
+/// `checksum`.
+#[inline(never)]
+fn recover_floor(scene: &Scene, view: &View, checksum: &mut u32) -> (bool, Option<f64>) {
     // The "panorama": the floor rendered with its true material.
     let truth = Material::Ward {
         rho_d: Vec3::from(TRUE_COLOR) * (1.0 - TRUE_SPECULARITY),
@@ -257,23 +330,9 @@ fn recover_floor(scene: &Scene) -> bool {
     let materials = floor_material(truth);
     let mut true_scene = *scene;
     true_scene.materials = &materials;
-    let settings = RenderSettings {
-        spp: PANORAMA_SPP,
-        seed: 1,
-        ..RenderSettings::default()
-    };
-    let real: [Vec3; PIXELS] = core::array::from_fn(|i| {
-        render_pixel(
-            &true_scene,
-            &view,
-            0,
-            i as u32 % SIDE,
-            i as u32 / SIDE,
-            &settings,
-        )
-    });
+    let real = render_view(&true_scene, view, PANORAMA_SPP, 1);
 
-    let (rho_d, diffuse_error) = recover_diffuse(scene, &view, &real);
+    let (rho_d, diffuse_error) = recover_diffuse(scene, view, &real);
     Line::new("stage 1: diffuse ")
         .number(rho_d[0])
         .text(" ")
@@ -285,8 +344,9 @@ fn recover_floor(scene: &Scene) -> bool {
         .print();
 
     // Stage 2: the best roughness by grid and golden section, reflectances in closed form.
-    let sse =
-        |alpha: f64| isotropic::solve(Kind::Plastic, &floor_sums(scene, &view, &real, alpha)).sse;
+    let sse = |alpha: f64| {
+        isotropic::solve(Kind::Plastic, &isotropic_sums(scene, view, &real, alpha)).sse
+    };
     let (alpha, _) = isotropic::minimise_1d(
         sse,
         isotropic::ROUGHNESS_MIN,
@@ -295,7 +355,7 @@ fn recover_floor(scene: &Scene) -> bool {
         isotropic::ROUGHNESS_REFINE_STEPS,
         true,
     );
-    let sums = floor_sums(scene, &view, &real, alpha);
+    let sums = isotropic_sums(scene, view, &real, alpha);
     let lobe = isotropic::solve(Kind::Plastic, &sums);
     let without_lobe = isotropic::solve_diffuse(&sums);
     Line::new("stage 2: plastic colour ")
@@ -315,15 +375,43 @@ fn recover_floor(scene: &Scene) -> bool {
         .text(" diffuse")
         .print();
 
+    let lobe_numbers = [lobe.specularity, alpha, lobe.relative_error];
+    for value in rho_d.iter().chain(&lobe.color).chain(&lobe_numbers) {
+        mix(checksum, *value);
+    }
+    // Stage 3 under the recovered lobe: what is left is noise, not texture.
+    let s = lobe.specularity as f32;
+    let color = Vec3::new(
+        lobe.color[0] as f32,
+        lobe.color[1] as f32,
+        lobe.color[2] as f32,
+    );
+    let recovered = floor_material(Material::Ward {
+        rho_d: color * (1.0 - s),
+        rho_s: Vec3::splat(s),
+        alpha: alpha as f32,
+    });
+    let mut recovered_scene = *scene;
+    recovered_scene.materials = &recovered;
+    let contrast = textured::contrast(&recovered_scene, view, &real);
+
     let off = |value: f64, truth: f32| (value / truth as f64 - 1.0).abs();
     let color_ok = (0..3).all(|c| off(lobe.color[c], TRUE_COLOR[c]) <= COLOR_TOLERANCE);
     let lobe_ok = off(lobe.specularity, TRUE_SPECULARITY) <= LOBE_TOLERANCE
         && off(alpha, TRUE_ROUGHNESS) <= LOBE_TOLERANCE;
-    color_ok && lobe_ok && lobe.relative_error < without_lobe.relative_error
+    let ok = color_ok && lobe_ok && lobe.relative_error < without_lobe.relative_error;
+    (ok, contrast)
 }
 
-#[unsafe(no_mangle)]
-pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
+/// Mixes every bit of `value` into `checksum`, so that two machines' results can be
+/// compared exactly.
+fn mix(checksum: &mut u32, value: f64) {
+    let bits = value.to_bits();
+    *checksum = checksum.rotate_left(5) ^ (bits as u32) ^ ((bits >> 32) as u32);
+}
+
+/// Renders the checksum scene and recovers its floor; whether the floor came out right.
+fn run() -> bool {
     let floor = quad(
         Vec3::new(-1.0, -1.0, 0.0),
         Vec3::new(1.0, -1.0, 0.0),
@@ -348,7 +436,7 @@ pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
     let mut group_planes = [GroupPlane::default(); 1];
     if n_nodes > nodes.len() {
         Line::new("canary: BVH buffer too small").print();
-        return 1;
+        return false;
     }
     let textures = Textures::default();
     let scene = match Scene::build(
@@ -368,11 +456,11 @@ pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
         Ok(s) => s,
         Err(_) => {
             Line::new("canary: scene build failed").print();
-            return 1;
+            return false;
         }
     };
     let Some(view) = looking_down(4) else {
-        return 1;
+        return false;
     };
     let settings = RenderSettings {
         spp: 16,
@@ -385,17 +473,34 @@ pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
             checksum = checksum.rotate_left(5) ^ c.x.to_bits() ^ c.y.to_bits() ^ c.z.to_bits();
         }
     }
-    let mut hex = [0u8; 8];
-    for (i, h) in hex.iter_mut().enumerate() {
-        *h = b"0123456789abcdef"[((checksum >> (28 - 4 * i)) & 0xf) as usize];
-    }
-    Line::new("relume-core canary: checksum ").raw(&hex).print();
+    Line::new("relume-core canary: checksum ")
+        .hex(checksum)
+        .print();
 
-    if recover_floor(&scene) {
-        Line::new("relume-core canary: the floor's material recovered").print();
-        0
-    } else {
-        Line::new("relume-core canary: the floor's recovered material is off its truth").print();
-        1
+    let Some(view) = looking_down(SIDE) else {
+        return false;
+    };
+    let mut recovered = 0u32;
+    let (floor_ok, glossy_contrast) = recover_floor(&scene, &view, &mut recovered);
+    let checker_ok = textured::recover_checker(&scene, &view, glossy_contrast, &mut recovered);
+    let brushed_ok = brushed::recover_brushed(&scene, &view, &mut recovered);
+    Line::new("relume-core canary: recovery checksum ")
+        .hex(recovered)
+        .print();
+    if !floor_ok {
+        Line::new("relume-core canary: the glossy floor's recovered material is off its truth")
+            .print();
     }
+    if !checker_ok {
+        Line::new("relume-core canary: the checker floor is misclassified or its map is off")
+            .print();
+    }
+    if !brushed_ok {
+        Line::new("relume-core canary: the brushed floor's recovered lobe is off its truth")
+            .print();
+    }
+    if floor_ok && checker_ok && brushed_ok {
+        Line::new("relume-core canary: the floors' materials recovered").print();
+    }
+    floor_ok && checker_ok && brushed_ok
 }
