@@ -483,15 +483,9 @@ impl<'a> Bvh<'a> {
                 what: "built bvh: node count does not match the triangles",
             });
         }
-        let forward = |(i, node): (usize, &BvhNode)| {
-            node.child.iter().zip(node.count).all(|(&child, count)| {
-                let child = child as usize;
-                count > 0 || child == EMPTY_SLOT as usize || (child > i && child < node_count)
-            })
-        };
-        if !nodes.iter().enumerate().all(forward) {
+        if !in_build_order(nodes) {
             return Err(Error::InvalidValue {
-                what: "built bvh: an interior node's children are not after it",
+                what: "built bvh: the nodes are not a tree in the order Bvh::build lays one out",
             });
         }
         Ok(Bvh { nodes, packed })
@@ -596,6 +590,44 @@ impl<'a> Bvh<'a> {
             cur = stack[sp & STACK_MASK];
         }
     }
+}
+
+/// Whether `nodes` are a tree in [`build_nodes`]' order: depth first from node 0, each
+/// node's node children taken last slot first, nodes fewer than [`MAX_BVH_DEPTH`] deep.
+/// Every node but the root is then the child of exactly one node, after it, so that a walk
+/// visits each node at most once and its stack never fills. Checking that every child
+/// points forward is not enough: nodes whose children all name the next node are walked
+/// 4^depth times. One pass, with a stack as deep as the build's.
+fn in_build_order(nodes: &[BvhNode]) -> bool {
+    // The children announced and not yet met, with their depths.
+    let mut announced = [(0u32, 0usize); STACK];
+    let mut sp = 0usize;
+    for (i, node) in nodes.iter().enumerate() {
+        let depth = if i == 0 {
+            0
+        } else {
+            // Node i is the child announced last and not yet met.
+            let Some(top) = sp.checked_sub(1) else {
+                return false;
+            };
+            sp = top;
+            let (child, depth) = announced[sp];
+            if child as usize != i || depth >= MAX_BVH_DEPTH {
+                return false;
+            }
+            depth
+        };
+        for (&child, &count) in node.child.iter().zip(&node.count) {
+            if count == 0 && child != EMPTY_SLOT {
+                let Some(entry) = announced.get_mut(sp) else {
+                    return false;
+                };
+                *entry = (child, depth + 1);
+                sp += 1;
+            }
+        }
+    }
+    sp == 0
 }
 
 /// `packed[start..end]` as a [`Range`]: its box, and its split by the binary rule (the
@@ -1043,6 +1075,9 @@ mod tests {
             return;
         }
         assert!(nodes.len() <= tris.len().max(1));
+        // What the build laid out, `from_built` takes back.
+        assert!(in_build_order(nodes));
+        assert!(Bvh::from_built(tris, nodes, packed, nodes.len()).is_ok());
         let mut seen = vec![false; tris.len()];
         let mut visited = vec![false; nodes.len()];
         let everything = Aabb {
@@ -1441,19 +1476,53 @@ mod tests {
         let child = nodes[1].child[slot];
         assert!(used > 2 && nodes[0].count == [0; WIDTH] && child > 1);
         assert!(Bvh::from_built(&tris, &nodes, &packed, used).is_ok());
+        let refused = Some(Error::InvalidValue {
+            what: "built bvh: the nodes are not a tree in the order Bvh::build lays one out",
+        });
         // A node child that is its parent, before it, or past the end once made traversal
-        // loop for ever or stop short.
-        for bad_child in [0, 1, used as u32] {
+        // loop for ever or stop short; one named twice is walked twice.
+        for bad_child in [0, 1, used as u32, child + 1] {
             let mut bad = nodes.clone();
             bad[1].child[slot] = bad_child;
-            assert_eq!(
-                Bvh::from_built(&tris, &bad, &packed, used).err(),
-                Some(Error::InvalidValue {
-                    what: "built bvh: an interior node's children are not after it"
-                }),
-                "child {bad_child}"
-            );
+            let got = Bvh::from_built(&tris, &bad, &packed, used).err();
+            assert_eq!(got, refused, "child {bad_child}");
         }
+    }
+
+    #[test]
+    fn built_buffers_whose_nodes_share_children_are_refused() {
+        // Forty nodes, each with four children that are all the next node: every child
+        // after its parent, yet a walk would visit the last node 4^39 times (fuzzing the
+        // core's API, 2026-12-06: from_built took it and a ray never came back).
+        let tris = random_soup(12, 8, 0.1);
+        let mut nodes = vec![BvhNode::default(); 40];
+        for (i, node) in nodes.iter_mut().enumerate().take(39) {
+            node.min = [[-1.0; WIDTH]; 3];
+            node.max = [[1.0; WIDTH]; 3];
+            node.child = [i as u32 + 1; WIDTH];
+        }
+        nodes[39].min = [[-1.0; WIDTH]; 3];
+        nodes[39].max = [[1.0; WIDTH]; 3];
+        nodes[39].child = [0; WIDTH];
+        nodes[39].count = [2; WIDTH];
+        let packed = vec![PackedTriangle::default(); tris.len()];
+        assert_eq!(
+            Bvh::from_built(&tris, &nodes, &packed, 40).err(),
+            Some(Error::InvalidValue {
+                what: "built bvh: the nodes are not a tree in the order Bvh::build lays one out",
+            })
+        );
+        // A path of single children is a tree in the build's order: taken as deep as the
+        // build makes nodes, refused deeper.
+        for node in &mut nodes[..39] {
+            node.child = [node.child[0], EMPTY_SLOT, EMPTY_SLOT, EMPTY_SLOT];
+        }
+        let mut path = nodes[40 - MAX_BVH_DEPTH..].to_vec();
+        for (i, node) in path.iter_mut().enumerate().take(MAX_BVH_DEPTH - 1) {
+            node.child[0] = i as u32 + 1;
+        }
+        assert!(Bvh::from_built(&tris, &path, &packed, MAX_BVH_DEPTH).is_ok());
+        assert!(Bvh::from_built(&tris, &nodes, &packed, 40).is_err());
     }
 
     #[test]
