@@ -8,13 +8,24 @@
 /// `1 / df` instead of inverting the exact distribution (its error there is below 1e-6).
 const EXPANSION_FROM: u32 = 100;
 
+/// Degrees of freedom up to which [`upper_tail`] sums its exact series (one term per two
+/// degrees of freedom: 50,000 at most); past them it takes the normal tail of Abramowitz
+/// and Stegun's 26.7.8 transform, whose error there is below 1e-11.
+const SERIES_TO: u32 = 100_000;
+
 /// The probability that t with `df` degrees of freedom exceeds `t` (for `t >= 0`), from
-/// the exact finite sums for whole degrees of freedom (Abramowitz and Stegun 26.7.3-4).
+/// the exact finite sums for whole degrees of freedom (Abramowitz and Stegun 26.7.3-4) up
+/// to [`SERIES_TO`], whose cost grows with `df`, and from a transform to the normal
+/// past it. With no degrees of freedom, 0.5 (nothing is known).
 pub fn upper_tail(t: f64, df: u32) -> f64 {
     if df == 0 {
         return 0.5;
     }
     let nu = df as f64;
+    if df > SERIES_TO {
+        let x = t * (1.0 - 0.25 / nu) / libm::sqrt(1.0 + t * t / (2.0 * nu));
+        return normal_upper_tail(x);
+    }
     let theta = libm::atan(t.abs() / libm::sqrt(nu));
     let (s, c) = (libm::sin(theta), libm::cos(theta));
     let c2 = c * c;
@@ -52,18 +63,27 @@ pub fn upper_tail(t: f64, df: u32) -> f64 {
 }
 
 /// The value t with `df` degrees of freedom exceeds with probability `p` (`0 < p < 0.5`;
-/// NaN outside it, where the bisection's bracket would grow without end).
+/// NaN outside it, where the bisection's bracket would grow without end). With no degrees
+/// of freedom no value is known to be exceeded that rarely: infinity, which no test passes.
 pub fn critical_value(p: f64, df: u32) -> f64 {
     if !(p > 0.0 && p < 0.5) {
         return f64::NAN;
+    }
+    if df == 0 {
+        return f64::INFINITY;
     }
     let z = normal_critical_value(p);
     if df >= EXPANSION_FROM {
         return cornish_fisher(z, df as f64);
     }
-    // Bisection on the exact tail: t's quantile is above the normal's.
+    // Bisection on the exact tail: t's quantile is above the normal's. The bracket
+    // doubles some 1,000 times at most (one degree of freedom, p near the smallest
+    // double), and stops at infinity.
     let (mut lo, mut hi) = (z, z.max(1.0));
     while upper_tail(hi, df) > p {
+        if !hi.is_finite() {
+            return f64::INFINITY;
+        }
         hi *= 2.0;
     }
     for _ in 0..100 {
@@ -142,6 +162,37 @@ mod tests {
         let values: [f64; 6] = [15, 16, 80, 100, 1000, 1_000_000].map(|df| critical_value(p, df));
         assert!(values.windows(2).all(|w| w[0] > w[1]), "{values:?}");
         assert!((values[0] - 3.59).abs() < 0.01 && (values[5] - 3.0).abs() < 1e-4);
+    }
+
+    #[test]
+    fn no_degrees_of_freedom_and_very_many_answer_at_once() {
+        // df 0 once doubled the bisection's bracket for ever; 4e9 summed 2e9 terms.
+        assert_eq!(critical_value(0.01, 0), f64::INFINITY);
+        assert_eq!(upper_tail(2.0, 0), 0.5);
+        let p = normal_upper_tail(3.0);
+        for df in [SERIES_TO + 1, 1 << 24, u32::MAX] {
+            // Above the normal's tail, by less as df grows (24 / df of it at t = 3).
+            let tail = upper_tail(3.0, df);
+            assert!(
+                tail > p && tail - p < 30.0 / df as f64 * p,
+                "df {df}: {tail}"
+            );
+            assert!(critical_value(p, df).is_finite());
+        }
+        // The series and the transform meet where one takes over from the other.
+        for t in [0.0, 0.5, 2.0, 4.0, 8.0] {
+            let (series, transform) = (upper_tail(t, SERIES_TO), upper_tail(t, SERIES_TO + 1));
+            assert!(
+                (series - transform).abs() < 1e-9,
+                "t {t}: {series} {transform}"
+            );
+        }
+        // The smallest probabilities with one degree of freedom end too: the tail's
+        // doubles reach 0 near t = 1e16, where its bracket stops growing.
+        for p in [1e-300, f64::MIN_POSITIVE, 5e-324] {
+            let t = critical_value(p, 1);
+            assert!(t > 1e15, "p {p}: {t}");
+        }
     }
 
     #[test]
