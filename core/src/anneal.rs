@@ -142,13 +142,13 @@ impl<const D: usize> Annealer<D> {
         if accept {
             self.current = p;
             self.current_cost = cost;
-            self.accepted_in_level += 1;
+            self.accepted_in_level = self.accepted_in_level.saturating_add(1);
         }
         if cost < self.best_cost {
             self.best = p;
             self.best_cost = cost;
         }
-        self.steps_done += 1;
+        self.steps_done = self.steps_done.saturating_add(1);
         if self
             .steps_done
             .is_multiple_of(self.schedule.steps_per_level)

@@ -37,7 +37,7 @@ impl GroupFit {
 
     /// Adds one pixel: the panorama's value, our render and its variance.
     pub fn add(&mut self, real: Vec3, rendered: Vec3, render_variance: Vec3) {
-        self.pixels += 1;
+        self.pixels = self.pixels.saturating_add(1);
         let d = rendered - real;
         for c in 0..3 {
             self.sum_real[c] += real[c] as f64;
@@ -51,7 +51,7 @@ impl GroupFit {
 
     /// Merges the sums of another part of the same group (fixed order keeps bits stable).
     pub fn merge(&mut self, other: &GroupFit) {
-        self.pixels += other.pixels;
+        self.pixels = self.pixels.saturating_add(other.pixels);
         for c in 0..3 {
             self.sum_real[c] += other.sum_real[c];
             self.sum_rendered[c] += other.sum_rendered[c];
@@ -149,7 +149,7 @@ impl ErrorEstimate {
         }
         let (mut n, mut q, mut variance) = (0u32, 0.0f64, 0.0f64);
         for t in terms {
-            n += 1;
+            n = n.saturating_add(1);
             q += 0.5 * (t[0] + t[1]);
             variance += 0.25 * (t[0] - t[1]) * (t[0] - t[1]);
         }
@@ -255,7 +255,7 @@ impl ModelComparison {
         let (mut n, mut q_simple, mut q_complex, mut variance) = (0u32, 0.0, 0.0, 0.0f64);
         let (mut variance_simple, mut variance_complex) = (0.0f64, 0.0f64);
         for t in terms {
-            n += 1;
+            n = n.saturating_add(1);
             q_simple += 0.5 * (t.simple[0] + t.simple[1]);
             q_complex += 0.5 * (t.complex[0] + t.complex[1]);
             let spread = (t.simple[0] - t.complex[0]) - (t.simple[1] - t.complex[1]);

@@ -170,6 +170,14 @@ impl View {
         Ray::new(self.position, d.normalize())
     }
 
+    /// The row-major index of pixel `(x, y)`, which keys its random streams. A pixel
+    /// outside the view (which a caller may render: its ray is well defined) wraps round
+    /// rather than overflow.
+    #[inline]
+    pub fn pixel_index(&self, x: u32, y: u32) -> u32 {
+        y.wrapping_mul(self.width).wrapping_add(x)
+    }
+
     #[inline]
     pub fn n_pixels(&self) -> usize {
         self.width as usize * self.height as usize

@@ -128,7 +128,7 @@ impl<const D: usize> NelderMead<D> {
     pub fn tell(&mut self, cost: f64) {
         let Some(p) = self.pending.take() else { return };
         let cost = finite_or_worst(cost);
-        self.evaluations += 1;
+        self.evaluations = self.evaluations.saturating_add(1);
         if cost < self.best_cost {
             self.best = p;
             self.best_cost = cost;

@@ -156,7 +156,7 @@ fn camera_sample(
     seed: u64,
     s: u32,
 ) -> (Ray, Sampler) {
-    let mut sampler = Sampler::for_pixel_sample(seed, view_index, y * view.width + x, s);
+    let mut sampler = Sampler::for_pixel_sample(seed, view_index, view.pixel_index(x, y), s);
     let [jx, jy] = sampler.next_2d();
     (view.ray(x as f32 + jx, y as f32 + jy), sampler)
 }
@@ -989,6 +989,31 @@ pub(crate) mod tests {
         assert_eq!(pixel_light_back(&scene, &from_outside, 1, 1, 4), Some(0));
         assert_eq!(pixel_light_back(&scene, &from_inside, 1, 1, 4), None);
         assert_eq!(pixel_light_back(&scene, &floor, 1, 1, 4), None);
+    }
+
+    /// A pixel past the view's edge has a ray like any other; its index into the random
+    /// streams once overflowed (`y * width + x`) and panicked in debug builds (fuzzing the
+    /// core, 2026-12-06). Inside the view the index is the row-major one.
+    #[test]
+    fn a_pixel_outside_the_view_renders_without_overflow() {
+        use crate::transport::{trace_pixel_sample, IncidentSample, MAX_INCIDENT_PER_SAMPLE};
+        let triangles = furnace_sphere(8, 16, 40.0);
+        let (materials, radiance) = (diffuse(0.5), [Vec3::splat(1.0)]);
+        let mut storage = LentStorage::new(triangles.len());
+        let scene = storage.build(&triangles, &materials, &radiance);
+        let view = View::new(Vec3::ZERO, -Vec3::Z, Vec3::X, [60.0, 60.0], [2, 2]).unwrap();
+        let settings = RenderSettings {
+            spp: 2,
+            ..RenderSettings::default()
+        };
+        for (x, y) in [(0, u32::MAX), (u32::MAX, 1), (u32::MAX, u32::MAX)] {
+            assert!(math::is_finite(render_pixel(
+                &scene, &view, 0, x, y, &settings
+            )));
+            let mut out = [IncidentSample::default(); MAX_INCIDENT_PER_SAMPLE];
+            trace_pixel_sample(&scene, &view, 0, x, y, 0, 0, &settings, &mut out);
+        }
+        assert_eq!(view.pixel_index(1, 1), 3);
     }
 
     /// A quad `a b c d` (counter-clockwise seen from its front) as two triangles.

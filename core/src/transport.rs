@@ -115,7 +115,7 @@ pub fn trace_pixel_sample(
     settings: &RenderSettings,
     out: &mut [IncidentSample; MAX_INCIDENT_PER_SAMPLE],
 ) -> usize {
-    let pixel = y * view.width + x;
+    let pixel = view.pixel_index(x, y);
     let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, sample);
     let [jx, jy] = sampler.next_2d();
     let ray = view.ray(x as f32 + jx, y as f32 + jy);

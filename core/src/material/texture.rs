@@ -103,10 +103,19 @@ fn axis_repeat(x: f32, n: u32) -> (usize, usize, f32) {
 }
 
 impl<'a> Textures<'a> {
-    /// Checks that every texture fits in the pool and the capacities.
+    /// Checks that every texture fits in the pool and the capacities, and that every
+    /// texel is a finite, non-negative reflectance (an infinite one rendered NaN pixels).
     pub fn new(infos: &'a [TextureInfo], texels: &'a [Vec3]) -> Result<Textures<'a>, Error> {
         check_capacity("config::MAX_TEXTURES", config::MAX_TEXTURES, infos.len())?;
         check_capacity("config::MAX_TEXELS", config::MAX_TEXELS, texels.len())?;
+        if !texels
+            .iter()
+            .all(|t| math::is_finite(*t) && t.min_element() >= 0.0)
+        {
+            return Err(Error::InvalidValue {
+                what: "texture: a texel is not a finite reflectance >= 0",
+            });
+        }
         for info in infos {
             let TextureGrid { width, height, .. } = info.grid;
             if width == 0 || height == 0 {
@@ -179,12 +188,16 @@ impl TextureGrid {
                 axis_repeat((1.0 - repeat_unit(uv.y)) * height as f32 - 0.5, height),
             ),
         };
+        // Saturating: a grid too large for the target's addresses (70,000 texels a side
+        // on 32 bits) gives indices past any texel pool, which lookups refuse, rather
+        // than an overflow or another texel's index.
         let w = width as usize;
+        let at = |j: usize, i: usize| j.saturating_mul(w).saturating_add(i);
         [
-            (j0 * w + i0, (1.0 - tx) * (1.0 - ty)),
-            (j0 * w + i1, tx * (1.0 - ty)),
-            (j1 * w + i0, (1.0 - tx) * ty),
-            (j1 * w + i1, tx * ty),
+            (at(j0, i0), (1.0 - tx) * (1.0 - ty)),
+            (at(j0, i1), tx * (1.0 - ty)),
+            (at(j1, i0), (1.0 - tx) * ty),
+            (at(j1, i1), tx * ty),
         ]
     }
 }
@@ -194,9 +207,9 @@ mod tests {
     use super::*;
     use std::vec::Vec;
 
-    /// A 3 x 2 texture after a 1-texel padding: texel (i, j) = (i, j, 10 + i + 3 j).
+    /// A 3 x 2 texture after a 1-texel padding of 99: texel (i, j) = (i, j, 10 + i + 3 j).
     fn pool() -> (Vec<TextureInfo>, Vec<Vec3>) {
-        let mut texels = std::vec![Vec3::splat(-1.0)];
+        let mut texels = std::vec![Vec3::splat(99.0)];
         for j in 0..2 {
             for i in 0..3 {
                 texels.push(Vec3::new(i as f32, j as f32, (10 + i + 3 * j) as f32));
@@ -258,7 +271,7 @@ mod tests {
         ));
         // A 1 x 1 texture is constant.
         for uv in [Vec2::ZERO, Vec2::ONE, Vec2::new(0.3, 0.8)] {
-            assert_eq!(t.lookup(TextureId(1), uv), Vec3::splat(-1.0));
+            assert_eq!(t.lookup(TextureId(1), uv), Vec3::splat(99.0));
         }
     }
 
@@ -418,5 +431,17 @@ mod tests {
             }
         );
         assert!(Textures::new(&many[..config::MAX_TEXTURES], &texels).is_ok());
+        // A texel of infinity rendered NaN pixels (fuzzing the core, 2026-12-06).
+        for bad in [f32::INFINITY, f32::NAN, -0.1] {
+            let mut pool = texels.clone();
+            pool[5] = Vec3::new(0.5, bad, 0.5);
+            assert_eq!(
+                Textures::new(&[info(4, 3, 0)], &pool).unwrap_err(),
+                Error::InvalidValue {
+                    what: "texture: a texel is not a finite reflectance >= 0"
+                },
+                "{bad}"
+            );
+        }
     }
 }

@@ -93,8 +93,9 @@ pub struct JointSecant<S> {
 
 impl<S: AsRef<[f64]> + AsMut<[f64]>> JointSecant<S> {
     /// Values each of `u` and `w` needs to learn from `steps` steps of `n` groups.
+    /// (Saturating: a size past the addresses is one no storage can lend.)
     pub const fn storage_len(n: usize, steps: usize) -> usize {
-        n * steps
+        n.saturating_mul(steps)
     }
 
     /// An estimate for `n` groups, the identity until it learns, in the room `u` and `w`

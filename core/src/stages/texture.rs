@@ -27,7 +27,7 @@ pub fn texture_feature(diffs: &[f32]) -> Option<f64> {
         .filter(|d| d.is_finite())
         .map(|&d| libm::fabs(d as f64))
         .filter(|&d| d > floor)
-        .fold((0.0f64, 0u32), |(s, n), d| (s + d, n + 1));
+        .fold((0.0f64, 0u64), |(s, n), d| (s + d, n + 1));
     Some(sum / n.max(1) as f64 / max)
 }
 
@@ -42,7 +42,7 @@ pub fn texture_feature(diffs: &[f32]) -> Option<f64> {
 pub fn cross_contrast(pairs: impl Iterator<Item = (f64, f64)>) -> Option<f64> {
     let (sum, n) = pairs
         .filter(|(a, b)| a.is_finite() && b.is_finite())
-        .fold((0.0f64, 0u32), |(s, n), (a, b)| (s + a * b, n + 1));
+        .fold((0.0f64, 0u64), |(s, n), (a, b)| (s + a * b, n + 1));
     (n > 0).then(|| libm::sqrt((sum / n as f64).max(0.0)))
 }
 
