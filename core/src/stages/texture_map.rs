@@ -139,6 +139,7 @@ pub fn solve_map(
         (&mut texels[..n], &mut numerator[..n], &mut denominator[..n]);
     let usable = |o: &MapObservation| {
         o.weight > 0.0
+            && o.weight.is_finite()
             && o.uv.iter().all(|uv| uv.is_finite())
             && o.gain.is_finite()
             && o.target.is_finite()
@@ -176,9 +177,11 @@ pub fn solve_map(
         }
         for k in 0..n {
             for c in 0..3 {
-                if denominator[k][c] > 0.0 {
-                    texels[k][c] = (texels[k][c] + numerator[k][c] / denominator[k][c])
-                        .clamp(0.0, max_reflectance);
+                // Past f32's range (a gain of 1e20 squares to infinity) the step is NaN,
+                // which a clamp lets through: such a texel keeps its value.
+                let step = numerator[k][c] / denominator[k][c];
+                if denominator[k][c] > 0.0 && step.is_finite() {
+                    texels[k][c] = (texels[k][c] + step).clamp(0.0, max_reflectance);
                 }
             }
         }
@@ -217,7 +220,7 @@ impl LobeScaleSums {
             self.bb += b * b;
             self.rr += r * r;
         }
-        self.pixels += 1;
+        self.pixels = self.pixels.saturating_add(1);
     }
 
     /// The best specularity (0 where the lobe cannot help) and the sum of squared
@@ -525,6 +528,29 @@ mod tests {
             );
         }
         assert!(solve_map(&obs, grid(4, 4), 1.0, map, a, b).is_ok());
+    }
+
+    #[test]
+    fn gains_and_weights_past_f32s_range_leave_no_nan() {
+        // A finite gain of 1e20 squared to infinity and a weight of infinity once made
+        // every texel NaN, past the clamp the doc promises (fuzzing the core, 2026-12-06).
+        let observation = |gain: f32, weight: f32| MapObservation {
+            uv: [Vec2::splat(0.5); FOOTPRINT_SAMPLES],
+            gain: Vec3::splat(gain),
+            target: Vec3::ONE,
+            weight,
+        };
+        for o in [observation(1e20, 1.0), observation(1.0, f32::INFINITY)] {
+            let mut map = vec![Vec3::splat(0.5); 4];
+            let (mut a, mut b) = (vec![Vec3::ZERO; 4], vec![Vec3::ZERO; 4]);
+            assert!(solve_map(&[o], grid(2, 2), 1.0, &mut map, &mut a, &mut b).is_ok());
+            assert!(
+                map.iter()
+                    .flat_map(|t| t.to_array())
+                    .all(|x| (0.0..=1.0).contains(&x)),
+                "{o:?}: {map:?}"
+            );
+        }
     }
 
     /// A picture with detail at every scale the pixels can hold: a checker of 7 x 7
