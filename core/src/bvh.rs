@@ -459,11 +459,12 @@ impl<'a> Bvh<'a> {
     /// A view of buffers that [`Bvh::build`] filled for these `triangles`, using
     /// `node_count` nodes ([`Bvh::node_count`]): recovery renders the same geometry many
     /// times under new materials, and building costs as much as a few hundred thousand
-    /// rays. Errors if the buffers are too short for the counts, or if a node child is not
-    /// after its parent (the build's order, which makes every traversal step move forward
-    /// and so end). Traversal checks every index, so
-    /// buffers that were not built for these triangles give wrong hits, never a panic or
-    /// a hang.
+    /// rays. Errors if the buffers are too short for the counts, or if the nodes are not a
+    /// tree laid out as the build lays one (`in_build_order`: each node walked at most
+    /// once, so every walk ends, and within the walk's stack). Traversal checks every
+    /// index, so buffers that were not built for these triangles give wrong hits, never a
+    /// panic or a hang. A small target can keep a tree built elsewhere in read-only
+    /// memory and view it here.
     pub fn from_built(
         triangles: &[Triangle],
         nodes: &'a [BvhNode],
