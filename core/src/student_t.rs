@@ -15,7 +15,7 @@ const SERIES_TO: u32 = 100_000;
 
 /// The probability that t with `df` degrees of freedom exceeds `t` (for `t >= 0`), from
 /// the exact finite sums for whole degrees of freedom (Abramowitz and Stegun 26.7.3-4) up
-/// to [`SERIES_TO`], whose cost grows with `df`, and from a transform to the normal
+/// to `SERIES_TO`, whose cost grows with `df`, and from a transform to the normal
 /// past it. With no degrees of freedom, 0.5 (nothing is known).
 pub fn upper_tail(t: f64, df: u32) -> f64 {
     if df == 0 {

@@ -393,7 +393,7 @@ pub fn diffuse_part(entries: &[IncidentSample], n_samples: u32) -> Vec3 {
 /// exactly zero there (for finite weights, which the tracer's are).
 ///
 /// A Ward lobe alone, what the fits try by the dozen, is evaluated [`math::LANES`] samples
-/// at a time ([`LobeQueue`]); any other material one sample at a time.
+/// at a time (`LobeQueue`); any other material one sample at a time.
 pub fn specular_part(points: &[LobePoint], n_samples: u32, specular_lobe: &Material) -> Vec3 {
     let scale = 1.0 / n_samples.max(1) as f32;
     // Whether the material is a Ward lobe alone depends on its diffuse colour only, not on

@@ -348,7 +348,7 @@ pub struct HalfVectorLanes {
     pub length_squared: [f32; math::LANES],
 }
 
-/// [`ward_lobe`] at each lane of `h`, the same bits, evaluated as vectors (the exponential
+/// `ward_lobe` at each lane of `h`, the same bits, evaluated as vectors (the exponential
 /// by [`math::exp_lanes`]): where a fit evaluates the lobe at thousands of cached samples
 /// for each candidate. Every lane is computed; a caller ignores those it did not fill.
 pub fn ward_lobes(h: &HalfVectorLanes, au: f32, av: f32) -> [f32; math::LANES] {

@@ -146,7 +146,7 @@ impl<S: AsRef<[f64]> + AsMut<[f64]>> JointSecant<S> {
 
     /// Learns from a step: `s` the change of the log reflectances it made, `y` the change
     /// of the log renders it caused (0 for a group outside the iteration). A step whose
-    /// largest component is under [`MIN_LOG_STEP`] is not learnt from (the render's noise
+    /// largest component is under `MIN_LOG_STEP` is not learnt from (the render's noise
     /// would dominate), nor one whose correction is ill-conditioned. Returns whether it
     /// learnt.
     pub fn learn(&mut self, s: &[f64], y: &[f64]) -> bool {
