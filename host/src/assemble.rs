@@ -45,7 +45,7 @@ pub struct OwnedScene {
     pub light_names: Vec<String>,
     pub views: Vec<View>,
     /// The point of the scene's own coordinates that `triangles` and `views` are placed
-    /// relative to ([`far_scene_centre`]): zero unless the scene lies far from its origin.
+    /// relative to (`far_scene_centre`): zero unless the scene lies far from its origin.
     pub origin: [f64; 3],
     pub materials: Vec<SurfaceMaterial>,
     /// Fixed once assembled, as the triangles are ([`OwnedScene::light_radiance`]).
@@ -861,7 +861,7 @@ fn resolve_materials(
 /// before it is taken to mean tiles.
 const UV_SLACK: f32 = 1e-3;
 
-/// Whether texture coordinate `(u, v)` lies past [0, 1]^2 by more than [`UV_SLACK`]: a
+/// Whether texture coordinate `(u, v)` lies past [0, 1]^2 by more than `UV_SLACK`: a
 /// texture laid over its face as tiles (OpenGL's and the exporters' reading).
 pub fn past_the_unit_square([u, v]: [f32; 2]) -> bool {
     let past = |x: f32| !(-UV_SLACK..=1.0 + UV_SLACK).contains(&x);

@@ -124,7 +124,7 @@ impl Frame {
     }
 
     /// Where `--forward` (as given) leaves the horizon by more than
-    /// [`MAX_FORWARD_TILT_DEG`]: the panorama's centre column is taken on the horizon, which
+    /// `MAX_FORWARD_TILT_DEG`: the panorama's centre column is taken on the horizon, which
     /// a tilted `--forward` does not say (1,0,1 with up 0,0,1 gave a front face along x).
     pub fn tilt_warning(&self, forward: [f32; 3]) -> Option<String> {
         let given = to_unit_range(Vec3::from(forward)).normalize_or_zero();

@@ -3,7 +3,7 @@
 //! On a terminal, indicatif's bar. Off one (a log, `nohup`, a CI job) indicatif draws
 //! nothing, so a recovery of five minutes said nothing until it ended and a render of
 //! absurd samples never said how long it would take. There the bar's text is written as a
-//! plain line now and then instead ([`LogLines`]): once work has gone on for
+//! plain line now and then instead (`LogLines`): once work has gone on for
 //! [`FIRST_LINE_AFTER`], then at most every [`LINE_EVERY`], so that short runs (and the
 //! tests) print none.
 

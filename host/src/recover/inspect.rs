@@ -602,7 +602,7 @@ pub struct GroupSight {
     pub kind: String,
     /// Its pure pixels in each view, in the scene's order of views.
     pub pure_pixels: Vec<u32>,
-    /// Its diffuse colour after stage 1's iteration at [`PREVIEW_SPP`] samples per pixel:
+    /// Its diffuse colour after stage 1's iteration at `PREVIEW_SPP` samples per pixel:
     /// a first reading, before any lobe is tried (`null` where no pixel sees the group or
     /// no light reaches it).
     pub preview_colour: Option<[f64; 3]>,
@@ -628,7 +628,7 @@ pub struct CheckReport {
     /// recovered on them was seen to change with the seed.
     pub few_pixels: Vec<(String, u32)>,
     /// The groups whose texture coordinates no map can be laid over, and why
-    /// ([`coordinates_unfit_for_a_map`]): a texture they show is told, not mapped.
+    /// (`coordinates_unfit_for_a_map`): a texture they show is told, not mapped.
     pub unfit_for_a_map: Vec<(String, String)>,
     /// The groups whose texture coordinates reach past [0, 1], and their span: a texture
     /// is tiled over them, and a map recovered for one repeats.
