@@ -410,7 +410,8 @@ fn mix(checksum: &mut u32, value: f64) {
     *checksum = checksum.rotate_left(5) ^ (bits as u32) ^ ((bits >> 32) as u32);
 }
 
-/// Renders the checksum scene and recovers its floor; whether the floor came out right.
+/// Renders the checksum scene, then recovers its floor as glossy, checker and brushed;
+/// whether every floor came out right.
 fn run() -> bool {
     let floor = quad(
         Vec3::new(-1.0, -1.0, 0.0),
