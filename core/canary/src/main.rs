@@ -73,34 +73,28 @@ impl Line {
         if !(0.0..1e9).contains(&value) {
             return self.text("?");
         }
-        let scaled = (value * 1e4 + 0.5) as u64;
-        let mut digits = [0u8; 20];
-        let mut n = 0;
-        let mut rest = scaled;
-        while n < 5 || rest > 0 {
-            digits[n] = b'0' + (rest % 10) as u8;
-            rest /= 10;
-            n += 1;
-        }
-        for i in (0..n).rev() {
-            if i == 3 {
-                self.text(".");
-            }
-            self.raw(&[digits[i]]);
-        }
-        self
+        self.decimal((value * 1e4 + 0.5) as u64, 4)
     }
 
     /// `value` in decimal.
     fn integer(&mut self, value: u32) -> &mut Line {
-        let mut digits = [0u8; 10];
+        self.decimal(value as u64, 0)
+    }
+
+    /// The digits of `value`, the last `decimals` of them after a point (and one at least
+    /// before it).
+    fn decimal(&mut self, value: u64, decimals: usize) -> &mut Line {
+        let mut digits = [0u8; 20];
         let (mut n, mut rest) = (0, value);
-        while n == 0 || rest > 0 {
+        while n <= decimals || rest > 0 {
             digits[n] = b'0' + (rest % 10) as u8;
             rest /= 10;
             n += 1;
         }
         for i in (0..n).rev() {
+            if decimals > 0 && i + 1 == decimals {
+                self.text(".");
+            }
             self.raw(&[digits[i]]);
         }
         self
