@@ -353,6 +353,10 @@ enum BenchCommand {
         /// diffuse in the truth).
         #[arg(long)]
         group: Option<String>,
+        /// The families to run, comma-separated (default: all). The first seed, the
+        /// baseline, runs always; the other nine seeds with `seed`.
+        #[arg(long, value_enum, value_delimiter = ',')]
+        families: Vec<bench::stability::Family>,
     },
     /// Edited scenes (other lights, a new viewpoint, objects removed or added) rendered
     /// from recovered materials and from the true ones, each against the edit's reference
@@ -719,6 +723,7 @@ fn run(command: Command) -> Result<(), Error> {
             effort,
             quick,
             group,
+            families,
         }) => {
             let args = bench::stability::StabilityArgs {
                 scene,
@@ -729,6 +734,7 @@ fn run(command: Command) -> Result<(), Error> {
                 effort,
                 quick,
                 group,
+                families,
             };
             bench::stability::run(&args)?;
             println!(

@@ -41,9 +41,27 @@ pub struct StabilityArgs {
     /// The group seen in fewer and fewer pixels (default: the largest one not diffuse in
     /// the truth).
     pub group: Option<String>,
+    /// The families to run; empty: all. The baseline (the first seed) runs whatever they
+    /// are, since every other family is judged against it; the other nine seeds only with
+    /// [`Family::Seed`]. (At 256 px per side a whole study takes hours; one family, less.)
+    pub families: Vec<Family>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+impl StabilityArgs {
+    fn runs_family(&self, family: Family) -> bool {
+        self.families.is_empty() || self.families.contains(&family)
+    }
+
+    /// The families run, in the study's order.
+    fn families_run(&self) -> Vec<Family> {
+        Family::ALL
+            .into_iter()
+            .filter(|&f| self.runs_family(f))
+            .collect()
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
 pub enum Family {
     Seed,
     Noise,
@@ -270,15 +288,17 @@ pub fn run(args: &StabilityArgs) -> Result<Vec<StabilityRun>, Error> {
         desc.name, view_side, args.effort, args.seed
     )
     .to_lowercase();
+    let families = args.families_run();
     let context = ChartContext {
         view_side,
         group: &group,
         group_pixels,
+        families: &families,
     };
     chart(&runs, &baseline, &context, &title).add_to(&mut set, &args.out.join("stability.svg"))?;
     set.commit()?;
     print_runs(&runs, &baseline, &group);
-    print_verdict(&runs, &baseline, &spread);
+    print_verdict(&runs, &baseline, &spread, &families);
     Ok(runs)
 }
 
@@ -327,14 +347,22 @@ fn plan(args: &StabilityArgs, desc: &SceneDesc) -> Vec<Point> {
         seed,
         perturbation,
     };
-    let mut points: Vec<Point> = sizes(Family::Seed, args.quick)
+    let seeds = match args.runs_family(Family::Seed) {
+        true => sizes(Family::Seed, args.quick),
+        false => vec![0.0],
+    };
+    let mut points: Vec<Point> = seeds
         .into_iter()
         // Any seed starts a family, as any seed is a recovery's: past u64::MAX it wraps.
         .map(|k| args.seed.wrapping_add(k as u64))
         .map(|seed| point(Family::Seed, seed as f64, seed, None))
         .collect();
+    let chosen = |family: Family| match args.runs_family(family) {
+        true => sizes(family, args.quick),
+        false => Vec::new(),
+    };
     for family in [Family::Noise, Family::Exposure, Family::Light] {
-        for size in sizes(family, args.quick) {
+        for size in chosen(family) {
             let mut p = Perturbation::NONE;
             match family {
                 Family::Noise => {
@@ -348,7 +376,7 @@ fn plan(args: &StabilityArgs, desc: &SceneDesc) -> Vec<Point> {
         }
     }
     let view_side = desc.views.first().map_or(0, |v| v.size[0]);
-    for size in sizes(Family::Resolution, args.quick) {
+    for size in chosen(Family::Resolution) {
         let side = size as u32;
         if resolution_applies(desc, side) {
             let p = Perturbation {
@@ -358,7 +386,7 @@ fn plan(args: &StabilityArgs, desc: &SceneDesc) -> Vec<Point> {
             points.push(point(Family::Resolution, size, args.seed, Some(p)));
         }
     }
-    for size in sizes(Family::Pixels, args.quick) {
+    for size in chosen(Family::Pixels) {
         points.push(point(Family::Pixels, size, args.seed, None));
     }
     points
@@ -615,6 +643,8 @@ struct ChartContext<'a> {
     view_side: u32,
     group: &'a str,
     group_pixels: u32,
+    /// The families run, in the study's order: one column of panels each.
+    families: &'a [Family],
 }
 
 /// Per family, two panels: the fraction of classes right (against the truth) and
@@ -623,7 +653,7 @@ struct ChartContext<'a> {
 fn chart(runs: &[StabilityRun], baseline: &Judged, ctx: &ChartContext, title: &str) -> Chart {
     let mut class_panels = Vec::new();
     let mut error_panels = Vec::new();
-    for family in Family::ALL {
+    for &family in ctx.families {
         // The family's runs plus the baseline at its natural place, sorted along x.
         let mut points: Vec<(f64, &Judged)> = runs
             .iter()
@@ -699,16 +729,30 @@ fn chart(runs: &[StabilityRun], baseline: &Judged, ctx: &ChartContext, title: &s
         });
     }
     // Three families per row band: their class panels above their error panels.
+    let columns = band_width(ctx.families.len());
     let mut panels = Vec::new();
-    for band in 0..2 {
-        let take = |v: &Vec<Panel>| v[3 * band..3 * band + 3].to_vec();
-        panels.extend(take(&class_panels));
-        panels.extend(take(&error_panels));
+    for (classes, errors) in class_panels
+        .chunks(columns)
+        .zip(error_panels.chunks(columns))
+    {
+        panels.extend_from_slice(classes);
+        panels.extend_from_slice(errors);
     }
     Chart {
         title: title.into(),
-        columns: 3,
+        columns,
         panels,
+    }
+}
+
+/// How many families share a band of the chart (their class panels above their error
+/// panels): a width that divides their count, so that every band is full and a class
+/// panel never sits beside another family's error panel; three for the whole study.
+fn band_width(families: usize) -> usize {
+    match families {
+        n if n % 3 == 0 => 3,
+        n if n % 2 == 0 => 2,
+        n => n.max(1),
     }
 }
 
@@ -805,7 +849,15 @@ fn first_class_change(
 /// Where `family`'s perturbations first change a class; "not run" where none of its sizes
 /// applied (views of 16 px have no smaller resolution that divides them), which read "no
 /// class changes in the tested range" although nothing was tested.
-fn family_verdict(runs: &[StabilityRun], baseline: &Judged, family: Family) -> String {
+fn family_verdict(
+    runs: &[StabilityRun],
+    baseline: &Judged,
+    family: Family,
+    families: &[Family],
+) -> String {
+    if !families.contains(&family) {
+        return format!("{}: not run (not among --families)", family.name());
+    }
     if !runs.iter().any(|r| r.family == family) {
         return format!(
             "{}: not run (none of its perturbations applies to this scene)",
@@ -823,7 +875,7 @@ fn family_verdict(runs: &[StabilityRun], baseline: &Judged, family: Family) -> S
     }
 }
 
-fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread]) {
+fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread], families: &[Family]) {
     println!();
     let worst = spread
         .iter()
@@ -879,7 +931,7 @@ fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread]) {
         }
     }
     for family in Family::ALL {
-        println!("{}", family_verdict(runs, baseline, family));
+        println!("{}", family_verdict(runs, baseline, family, families));
     }
     // Whether a user would have been told: the runs whose report warned of its input (the
     // pixel family's input is whole; its warnings are the limited group's own).
@@ -1064,7 +1116,7 @@ mod tests {
         assert_eq!(first(Family::Exposure), Some((-5.0, 1)));
         assert_eq!(first(Family::Noise), None);
         // Noise was not run at all: not "no class changes".
-        let verdict = |f| family_verdict(&runs, &base.judged, f);
+        let verdict = |f| family_verdict(&runs, &base.judged, f, &Family::ALL);
         assert_eq!(
             verdict(Family::Noise),
             "noise: not run (none of its perturbations applies to this scene)"
@@ -1072,7 +1124,7 @@ mod tests {
         assert!(verdict(Family::Resolution).contains("first change at 32"));
         let unchanged = vec![base.clone(), run(Family::Noise, 1.0, Model::Diffuse)];
         assert_eq!(
-            family_verdict(&unchanged, &base.judged, Family::Noise),
+            family_verdict(&unchanged, &base.judged, Family::Noise, &Family::ALL),
             "noise: no class changes in the tested range"
         );
     }
@@ -1163,6 +1215,7 @@ mod tests {
             effort: Effort::Fast,
             quick: true,
             group: None,
+            families: Vec::new(),
         };
         let desc = scene_file::load_scene(&args.scene).unwrap();
         let files = outputs(&args, &desc);
@@ -1189,6 +1242,92 @@ mod tests {
         let last = points.last().unwrap();
         assert_eq!(last.family, Family::Pixels);
         assert_eq!(run_id(Family::Exposure, -5.0, 4), "exposure_-5");
+    }
+
+    /// `--families noise`: the baseline (the first seed) and the noise family, nothing else;
+    /// the chart draws that family alone, its class panel above its error panel.
+    #[test]
+    fn chosen_families_run_alone_beside_the_baseline() {
+        let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+        let args = StabilityArgs {
+            scene: cornell.join("scene.toml"),
+            truth: cornell.join("materials.toml"),
+            out: PathBuf::from("out"),
+            seed: 4,
+            threads: None,
+            effort: Effort::Fast,
+            quick: false,
+            group: None,
+            families: vec![Family::Noise],
+        };
+        let desc = scene_file::load_scene(&args.scene).unwrap();
+        let points = plan(&args, &desc);
+        let planned: Vec<(Family, f64)> = points.iter().map(|p| (p.family, p.size)).collect();
+        let mut expected = vec![(Family::Seed, 4.0)];
+        expected.extend(
+            sizes(Family::Noise, false)
+                .into_iter()
+                .map(|s| (Family::Noise, s)),
+        );
+        assert_eq!(planned, expected);
+        // The files checked before the study are the plan's: no other seed's run.
+        let files = outputs(&args, &desc);
+        assert!(files.contains(&PathBuf::from("out/runs/noise_0.5/materials.toml")));
+        assert!(!files.contains(&PathBuf::from("out/runs/seed_5/materials.toml")));
+        assert!(!files.contains(&PathBuf::from("out/scenes/exposure_-5/scene.toml")));
+
+        let judged = |seconds| Judged {
+            seconds,
+            cpu_seconds: None,
+            groups: vec![outcome(
+                "floor",
+                material("floor", Model::Diffuse, 0.5, 0.0),
+                100,
+            )],
+            warnings: Vec::new(),
+        };
+        let runs: Vec<StabilityRun> = points
+            .iter()
+            .map(|p| StabilityRun {
+                family: p.family,
+                size: p.size,
+                seed: p.seed,
+                run: String::new(),
+                judged: judged(1.0),
+            })
+            .collect();
+        let families = args.families_run();
+        assert_eq!(families, [Family::Noise]);
+        let ctx = ChartContext {
+            view_side: 32,
+            group: "floor",
+            group_pixels: 100,
+            families: &families,
+        };
+        let chart = chart(&runs, &runs[0].judged, &ctx, "t");
+        let titles: Vec<&str> = chart.panels.iter().map(|p| p.title.as_str()).collect();
+        assert_eq!(
+            titles,
+            ["noise: classes", "noise: parameter error"],
+            "one family, one column"
+        );
+        assert_eq!(chart.columns, 1);
+        assert_eq!(
+            family_verdict(&runs, &runs[0].judged, Family::Exposure, &families),
+            "exposure: not run (not among --families)"
+        );
+    }
+
+    /// Every band of the chart is full: a family's class panel is always above its own
+    /// error panel, whatever the number of families.
+    #[test]
+    fn the_chart_bands_divide_the_families() {
+        for n in 1..=Family::ALL.len() {
+            let width = band_width(n);
+            assert_eq!(n % width, 0, "{n} families in bands of {width}");
+            assert!(width <= 5);
+        }
+        assert_eq!(band_width(Family::ALL.len()), 3);
     }
 
     /// A resolution point is one box-averaging can make: the first view's width over
@@ -1229,6 +1368,7 @@ mod tests {
                 effort: Effort::Fast,
                 quick: true,
                 group: None,
+                families: Vec::new(),
             };
             let points: Vec<Point> = plan(&args, &desc)
                 .into_iter()
