@@ -762,6 +762,9 @@ struct RayData {
     /// `1 / d`, with zero components replaced by a tiny value of the same sign so that
     /// no `0 * inf` NaN can appear.
     inv: [f32; 3],
+    /// Per axis, whether `inv` is negative: the ray then enters a box by its `max` plane
+    /// and leaves by its `min`.
+    negative: [bool; 3],
 }
 
 impl RayData {
@@ -777,7 +780,13 @@ impl RayData {
             };
             1.0 / c
         });
-        RayData { o, d, inv }
+        let negative = inv.map(|c| c < 0.0);
+        RayData {
+            o,
+            d,
+            inv,
+            negative,
+        }
     }
 }
 
@@ -801,24 +810,29 @@ impl Pending {
 /// Entry distances of the ray into the node's four child boxes, clamped to `[0, t_max]`;
 /// `INFINITY` where a box is missed within that range (or the slot is empty). Lane by
 /// lane, so that the four slab tests compile to vector operations.
+///
+/// Each axis's entry and exit planes are chosen once by the sign of the ray's direction
+/// (`RayData::negative`) instead of ordered lane by lane with a min and a max: the same
+/// values, since `(min - o) * inv <= (max - o) * inv` for `inv > 0` under rounding too.
 #[inline(always)]
 fn child_entries(n: &BvhNode, r: &RayData, t_max: f32) -> [f32; WIDTH] {
+    let planes = |axis: usize| match r.negative[axis] {
+        false => (&n.min[axis], &n.max[axis]),
+        true => (&n.max[axis], &n.min[axis]),
+    };
+    let (x0, x1) = planes(0);
+    let (y0, y1) = planes(1);
+    let (z0, z1) = planes(2);
     let mut out = [0.0f32; WIDTH];
     for (i, out) in out.iter_mut().enumerate() {
-        let tx0 = (n.min[0][i] - r.o[0]) * r.inv[0];
-        let tx1 = (n.max[0][i] - r.o[0]) * r.inv[0];
-        let ty0 = (n.min[1][i] - r.o[1]) * r.inv[1];
-        let ty1 = (n.max[1][i] - r.o[1]) * r.inv[1];
-        let tz0 = (n.min[2][i] - r.o[2]) * r.inv[2];
-        let tz1 = (n.max[2][i] - r.o[2]) * r.inv[2];
-        let near = fmax(
-            fmax(fmin(tx0, tx1), fmin(ty0, ty1)),
-            fmax(fmin(tz0, tz1), 0.0),
-        );
-        let far = fmin(
-            fmin(fmax(tx0, tx1), fmax(ty0, ty1)),
-            fmin(fmax(tz0, tz1), t_max),
-        );
+        let tx0 = (x0[i] - r.o[0]) * r.inv[0];
+        let tx1 = (x1[i] - r.o[0]) * r.inv[0];
+        let ty0 = (y0[i] - r.o[1]) * r.inv[1];
+        let ty1 = (y1[i] - r.o[1]) * r.inv[1];
+        let tz0 = (z0[i] - r.o[2]) * r.inv[2];
+        let tz1 = (z1[i] - r.o[2]) * r.inv[2];
+        let near = fmax(fmax(tx0, ty0), fmax(tz0, 0.0));
+        let far = fmin(fmin(tx1, ty1), fmin(tz1, t_max));
         *out = if near <= far { near } else { f32::INFINITY };
     }
     out
