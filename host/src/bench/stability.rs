@@ -561,6 +561,46 @@ pub fn seed_spread(runs: &[StabilityRun], truth: &[MaterialDesc]) -> Vec<Spread>
     out
 }
 
+/// The seed spread of one kind of parameter: the diffuse groups' colours, the colours
+/// under a lobe (or a map), the lobes' own parameters. The target weighs them alike, but
+/// they part by orders of magnitude: a weak lobe's roughness is loose in its pixels.
+#[derive(Debug, PartialEq)]
+pub struct KindSpread {
+    pub kind: &'static str,
+    pub largest: f64,
+    pub above: usize,
+    pub parameters: usize,
+}
+
+/// [`Spread`]s gathered by kind, the kinds that have any, in the order above.
+pub fn spread_by_kind(spread: &[Spread]) -> Vec<KindSpread> {
+    let kind_of = |s: &Spread| match (s.parameter.starts_with("color_"), s.model.as_str()) {
+        (true, "diffuse") => "diffuse groups' colours",
+        (true, _) => "colours under a lobe",
+        (false, _) => "lobe parameters",
+    };
+    [
+        "diffuse groups' colours",
+        "colours under a lobe",
+        "lobe parameters",
+    ]
+    .into_iter()
+    .filter_map(|kind| {
+        let rel: Vec<f64> = spread
+            .iter()
+            .filter(|s| kind_of(s) == kind)
+            .filter_map(|s| s.rel_std)
+            .collect();
+        (!rel.is_empty()).then(|| KindSpread {
+            kind,
+            largest: rel.iter().copied().fold(0.0, f64::max),
+            above: rel.iter().filter(|&&r| r > SEED_SPREAD_TARGET).count(),
+            parameters: rel.len(),
+        })
+    })
+    .collect()
+}
+
 fn runs_csv(runs: &[StabilityRun], baseline: &Judged) -> Csv {
     let mut csv = Csv::new(&[
         "family",
@@ -912,6 +952,21 @@ fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread], fa
         ),
         None => println!("target seed spread: not measured (fewer than two seeds)"),
     }
+    let kinds: Vec<String> = spread_by_kind(spread)
+        .into_iter()
+        .map(|k| {
+            format!(
+                "{} largest {} ({} of {} above)",
+                k.kind,
+                pct(Some(k.largest)),
+                k.above,
+                k.parameters
+            )
+        })
+        .collect();
+    if !kinds.is_empty() {
+        println!("  seed spread by kind: {}", kinds.join("; "));
+    }
     for (family, limit, what) in [
         (
             Family::Noise,
@@ -1242,6 +1297,54 @@ mod tests {
         let last = points.last().unwrap();
         assert_eq!(last.family, Family::Pixels);
         assert_eq!(run_id(Family::Exposure, -5.0, 4), "exposure_-5");
+    }
+
+    /// The spread parts by kind: the diffuse groups' colours, the colours under a lobe,
+    /// the lobes' parameters.
+    #[test]
+    fn seed_spread_by_kind_parts_colours_from_lobes() {
+        let spread = |group: &str, model: &str, parameter, rel| Spread {
+            group: group.into(),
+            model: model.into(),
+            seeds_with_model: 10,
+            seeds: 10,
+            parameter,
+            truth: None,
+            mean: 1.0,
+            std: rel,
+            rel_std: Some(rel),
+        };
+        let all = [
+            spread("wall", "diffuse", "color_r", 0.001),
+            spread("wall", "diffuse", "color_g", 0.002),
+            spread("ball", "isotropic", "color_r", 0.01),
+            spread("ball", "isotropic", "specularity", 0.2),
+            spread("ball", "isotropic", "roughness", 0.004),
+        ];
+        assert_eq!(
+            spread_by_kind(&all),
+            [
+                KindSpread {
+                    kind: "diffuse groups' colours",
+                    largest: 0.002,
+                    above: 0,
+                    parameters: 2
+                },
+                KindSpread {
+                    kind: "colours under a lobe",
+                    largest: 0.01,
+                    above: 1,
+                    parameters: 1
+                },
+                KindSpread {
+                    kind: "lobe parameters",
+                    largest: 0.2,
+                    above: 1,
+                    parameters: 2
+                },
+            ]
+        );
+        assert_eq!(spread_by_kind(&all[..2]).len(), 1);
     }
 
     /// `--families noise`: the baseline (the first seed) and the noise family, nothing else;
