@@ -155,6 +155,21 @@ fn a_missing_truth_is_an_error_naming_the_file() {
         "{stderr}"
     );
     assert!(!tmp.path().join("out").exists());
+    // A family that is none is a usage error that lists the families.
+    let args = bench_on_cornell_truth(
+        "stability",
+        &tmp.path().join("out"),
+        &["--families", "seed,exposures"],
+    );
+    let output = relume(tmp.path(), &strs(&args));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("exposures")
+            && stderr.contains("seed, noise, exposure, light, resolution, pixels"),
+        "{stderr}"
+    );
+    assert!(!tmp.path().join("out").exists());
 }
 
 #[test]
