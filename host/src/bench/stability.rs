@@ -572,33 +572,36 @@ pub struct KindSpread {
     pub parameters: usize,
 }
 
-/// [`Spread`]s gathered by kind, the kinds that have any, in the order above.
+/// The kinds of [`spread_by_kind`], in its order.
+const SPREAD_KINDS: [&str; 3] = [
+    "diffuse groups' colours",
+    "colours under a lobe",
+    "lobe parameters",
+];
+
+/// [`Spread`]s gathered by kind, the kinds that have any, in [`SPREAD_KINDS`]' order.
 pub fn spread_by_kind(spread: &[Spread]) -> Vec<KindSpread> {
     let kind_of = |s: &Spread| match (s.parameter.starts_with("color_"), s.model.as_str()) {
-        (true, "diffuse") => "diffuse groups' colours",
-        (true, _) => "colours under a lobe",
-        (false, _) => "lobe parameters",
+        (true, "diffuse") => SPREAD_KINDS[0],
+        (true, _) => SPREAD_KINDS[1],
+        (false, _) => SPREAD_KINDS[2],
     };
-    [
-        "diffuse groups' colours",
-        "colours under a lobe",
-        "lobe parameters",
-    ]
-    .into_iter()
-    .filter_map(|kind| {
-        let rel: Vec<f64> = spread
-            .iter()
-            .filter(|s| kind_of(s) == kind)
-            .filter_map(|s| s.rel_std)
-            .collect();
-        (!rel.is_empty()).then(|| KindSpread {
-            kind,
-            largest: rel.iter().copied().fold(0.0, f64::max),
-            above: rel.iter().filter(|&&r| r > SEED_SPREAD_TARGET).count(),
-            parameters: rel.len(),
+    SPREAD_KINDS
+        .into_iter()
+        .filter_map(|kind| {
+            let rel: Vec<f64> = spread
+                .iter()
+                .filter(|s| kind_of(s) == kind)
+                .filter_map(|s| s.rel_std)
+                .collect();
+            (!rel.is_empty()).then(|| KindSpread {
+                kind,
+                largest: rel.iter().copied().fold(0.0, f64::max),
+                above: rel.iter().filter(|&&r| r > SEED_SPREAD_TARGET).count(),
+                parameters: rel.len(),
+            })
         })
-    })
-    .collect()
+        .collect()
 }
 
 fn runs_csv(runs: &[StabilityRun], baseline: &Judged) -> Csv {
