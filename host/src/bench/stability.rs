@@ -573,7 +573,7 @@ pub struct KindSpread {
 }
 
 /// The kinds of [`spread_by_kind`], in its order.
-const SPREAD_KINDS: [&str; 3] = [
+pub const SPREAD_KINDS: [&str; 3] = [
     "diffuse groups' colours",
     "colours under a lobe",
     "lobe parameters",
