@@ -151,8 +151,19 @@ fn read_image_and_header(
         }
         _ => None,
     };
+    let mut size_fits = Some(size_fits);
     let png_transfer = match format {
-        ImageFormat::Png => png_transfer(&mut reader, unreadable)?,
+        ImageFormat::Png => {
+            // The size first, from the header alone: the png crate sizes its buffer as it
+            // reads the rest, and on a 32-bit target refused a header of 200000 x 100000
+            // pixels as "limits are exceeded" before relume's capacity could name it.
+            let (width, height) = png_header_size(&mut reader, &unreadable)?;
+            check_size(path, width, height, size_fits.take())?;
+            reader
+                .seek(SeekFrom::Start(0))
+                .map_err(|e| Error::io(path, e))?;
+            png_transfer(&mut reader, unreadable)?
+        }
         _ => PngTransfer::Srgb,
     };
     reader
@@ -164,24 +175,7 @@ fn read_image_and_header(
     reader.no_limits();
     let decoder = reader.into_decoder().map_err(unreadable)?;
     let (width, height) = decoder.dimensions();
-    if width == 0 || height == 0 {
-        return Err(Error::input(
-            path,
-            format!("image is empty ({width}x{height})"),
-        ));
-    }
-    size_fits(width, height)?;
-    let pixels = width as u64 * height as u64;
-    if pixels > MAX_IMAGE_PIXELS {
-        return Err(Error::core(
-            format!("{}: image is {width}x{height}", path.display()),
-            relume_core::Error::Capacity {
-                what: "images::MAX_IMAGE_PIXELS (the pixels of one image)",
-                max: MAX_IMAGE_PIXELS as usize,
-                needed: pixels.min(usize::MAX as u64) as usize,
-            },
-        ));
-    }
+    check_size(path, width, height, size_fits)?;
     // Within the capacity, what the decoder would read wrong without a word (or panic on).
     check_blocks_and_palette(path, format, &unreadable)?;
     let decoded = DynamicImage::from_decoder(decoder).map_err(unreadable)?;
@@ -616,6 +610,50 @@ fn png_transfer(
         Some(g) if PNG_SRGB_GAMMA.contains(&g) => Ok(PngTransfer::Srgb),
         Some(g) => Ok(PngTransfer::Power(100_000.0 / g as f32)),
     }
+}
+
+/// Refuses an image of `width` x `height` that is empty, past the caller's bound
+/// (`size_fits`, asked once: `None` when it was) or past [`MAX_IMAGE_PIXELS`], before its
+/// pixels are allocated.
+fn check_size(
+    path: &Path,
+    width: u32,
+    height: u32,
+    size_fits: Option<impl FnOnce(u32, u32) -> Result<(), Error>>,
+) -> Result<(), Error> {
+    if width == 0 || height == 0 {
+        return Err(Error::input(
+            path,
+            format!("image is empty ({width}x{height})"),
+        ));
+    }
+    if let Some(size_fits) = size_fits {
+        size_fits(width, height)?;
+    }
+    let pixels = width as u64 * height as u64;
+    if pixels > MAX_IMAGE_PIXELS {
+        return Err(Error::core(
+            format!("{}: image is {width}x{height}", path.display()),
+            relume_core::Error::Capacity {
+                what: "images::MAX_IMAGE_PIXELS (the pixels of one image)",
+                max: MAX_IMAGE_PIXELS as usize,
+                needed: pixels.min(usize::MAX as u64) as usize,
+            },
+        ));
+    }
+    Ok(())
+}
+
+/// A PNG's width and height from its header alone (the IHDR chunk).
+fn png_header_size(
+    reader: &mut (impl BufRead + Seek),
+    unreadable: &impl Fn(ImageError) -> Error,
+) -> Result<(u32, u32), Error> {
+    let mut decoder = png::Decoder::new(reader);
+    let info = decoder
+        .read_header_info()
+        .map_err(|e| png_error(e, unreadable))?;
+    Ok((info.width, info.height))
 }
 
 /// A png crate's decoding error as `unreadable` reports an image crate's.
