@@ -1063,6 +1063,22 @@ mod tests {
         }
     }
 
+    /// A study of the bundled cornell scene (for its plan; nothing is run).
+    fn cornell_study(seed: u64, quick: bool, families: Vec<Family>) -> StabilityArgs {
+        let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+        StabilityArgs {
+            scene: cornell.join("scene.toml"),
+            truth: cornell.join("materials.toml"),
+            out: PathBuf::from("out"),
+            seed,
+            threads: None,
+            effort: Effort::Fast,
+            quick,
+            group: None,
+            families,
+        }
+    }
+
     #[test]
     fn spread_is_the_sample_deviation_relative_to_the_mean() {
         let (mean, std, rel) = spread_of(&[1.0, 2.0, 3.0]).unwrap();
@@ -1263,18 +1279,7 @@ mod tests {
 
     #[test]
     fn the_outputs_checked_before_the_study_cover_every_run_and_perturbed_scene() {
-        let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
-        let args = StabilityArgs {
-            scene: cornell.join("scene.toml"),
-            truth: cornell.join("materials.toml"),
-            out: PathBuf::from("out"),
-            seed: 4,
-            threads: None,
-            effort: Effort::Fast,
-            quick: true,
-            group: None,
-            families: Vec::new(),
-        };
+        let args = cornell_study(4, true, Vec::new());
         let desc = scene_file::load_scene(&args.scene).unwrap();
         let files = outputs(&args, &desc);
         for file in [
@@ -1354,18 +1359,7 @@ mod tests {
     /// the chart draws that family alone, its class panel above its error panel.
     #[test]
     fn chosen_families_run_alone_beside_the_baseline() {
-        let cornell = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
-        let args = StabilityArgs {
-            scene: cornell.join("scene.toml"),
-            truth: cornell.join("materials.toml"),
-            out: PathBuf::from("out"),
-            seed: 4,
-            threads: None,
-            effort: Effort::Fast,
-            quick: false,
-            group: None,
-            families: vec![Family::Noise],
-        };
+        let args = cornell_study(4, false, vec![Family::Noise]);
         let desc = scene_file::load_scene(&args.scene).unwrap();
         let points = plan(&args, &desc);
         let planned: Vec<(Family, f64)> = points.iter().map(|p| (p.family, p.size)).collect();
@@ -1465,17 +1459,7 @@ mod tests {
             (1u64 << 60, vec![1u64 << 60, (1 << 60) + 1, (1 << 60) + 2]),
             (u64::MAX, vec![u64::MAX, 0, 1]),
         ] {
-            let args = StabilityArgs {
-                scene: cornell.join("scene.toml"),
-                truth: cornell.join("materials.toml"),
-                out: PathBuf::from("out"),
-                seed: first,
-                threads: None,
-                effort: Effort::Fast,
-                quick: true,
-                group: None,
-                families: Vec::new(),
-            };
+            let args = cornell_study(first, true, Vec::new());
             let points: Vec<Point> = plan(&args, &desc)
                 .into_iter()
                 .filter(|p| p.family == Family::Seed)
