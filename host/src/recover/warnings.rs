@@ -460,6 +460,16 @@ mod tests {
         );
     }
 
+    /// An isotropic plastic of colour 0.3 and roughness 0.1.
+    fn plastic_lobe(specularity: f64) -> GroupModel {
+        GroupModel::Isotropic {
+            kind: Kind::Plastic,
+            color: [0.3; 3],
+            specularity,
+            roughness: 0.1,
+        }
+    }
+
     fn group(name: &str, pixels: u32, comparisons: Vec<ComparisonReport>) -> GroupReport {
         GroupReport {
             pure_pixels: pixels,
@@ -534,15 +544,7 @@ mod tests {
             group("wall", 5000, vec![comparison(-0.01, 0.01)]),
             group("ball", 900, vec![comparison(0.2, 0.01)]),
         ];
-        let models = [
-            GroupModel::Diffuse { color: [0.5; 3] },
-            GroupModel::Isotropic {
-                kind: Kind::Plastic,
-                color: [0.3; 3],
-                specularity: 0.3,
-                roughness: 0.1,
-            },
-        ];
+        let models = [GroupModel::Diffuse { color: [0.5; 3] }, plastic_lobe(0.3)];
         // The noise bound a clean reference reads (glossy, 2.5%).
         let w = warnings_for(&groups, &models, 0.025, 64, Effort::Default);
         assert!(w.is_empty(), "{w:?}");
@@ -602,12 +604,7 @@ mod tests {
             complex: "isotropic metal".into(),
             ..comparison(effect, sigma)
         };
-        let lobe = GroupModel::Isotropic {
-            kind: Kind::Plastic,
-            color: [0.3; 3],
-            specularity: 0.3,
-            roughness: 0.1,
-        };
+        let lobe = plastic_lobe(0.3);
         let diffuse = GroupModel::Diffuse { color: [0.5; 3] };
         let cases = [
             // glossy's steel box: 0.0001 +- 0.0005 in a render.
@@ -666,12 +663,7 @@ mod tests {
             }],
             ..group(name, 900, vec![comparison(0.2, 0.01)])
         };
-        let lobe = GroupModel::Isotropic {
-            kind: Kind::Plastic,
-            color: [0.3; 3],
-            specularity: 0.3,
-            roughness: 0.1,
-        };
+        let lobe = plastic_lobe(0.3);
         let groups = [
             with_specularity("picture", 0.3, 0.2),
             with_specularity("ball", 0.3, 0.149),
@@ -692,12 +684,7 @@ mod tests {
     #[test]
     fn a_group_kept_diffuse_on_few_pixels_is_told() {
         let diffuse = GroupModel::Diffuse { color: [0.5; 3] };
-        let lobe = GroupModel::Isotropic {
-            kind: Kind::Plastic,
-            color: [0.3; 3],
-            specularity: 0.3,
-            roughness: 0.1,
-        };
+        let lobe = plastic_lobe(0.3);
         let groups = [
             group("desk", 22, vec![]),
             group("speck", 3, vec![]),
@@ -723,20 +710,7 @@ mod tests {
                 ..group("box", 900, vec![comparison(0.015, 0.005)])
             },
         ];
-        let models = [
-            GroupModel::Isotropic {
-                kind: Kind::Plastic,
-                color: [0.3; 3],
-                specularity: 0.3,
-                roughness: 0.1,
-            },
-            GroupModel::Isotropic {
-                kind: Kind::Plastic,
-                color: [0.3; 3],
-                specularity: 0.04,
-                roughness: 0.1,
-            },
-        ];
+        let models = [plastic_lobe(0.3), plastic_lobe(0.04)];
         let w = warnings_for(&groups, &models, 0.05, 16, Effort::Fast);
         let has = |needle: &str| w.iter().any(|s| s.contains(needle));
         assert!(has("relative noise may be up to 5.0%"), "{w:?}");
@@ -846,12 +820,7 @@ mod tests {
                 map: 0,
                 lobe: crate::recover::model::MapLobe::None,
             },
-            GroupModel::Isotropic {
-                kind: Kind::Plastic,
-                color: [0.3; 3],
-                specularity: 0.1,
-                roughness: 0.1,
-            },
+            plastic_lobe(0.1),
         ];
         let w = warnings_for(&groups, &models, 0.025, 64, Effort::Default);
         let borderline: Vec<&String> = w.iter().filter(|s| s.contains("borderline")).collect();
@@ -903,12 +872,7 @@ mod tests {
         assert_eq!(level(&w, "certain"), None, "{w:?}");
         assert_eq!(level(&w, "unrecorded"), None, "{w:?}");
         // The same figures on an untextured lobe: no map to be off.
-        let lobe = GroupModel::Isotropic {
-            kind: Kind::Plastic,
-            color: [0.3; 3],
-            specularity: 0.05,
-            roughness: 0.1,
-        };
+        let lobe = plastic_lobe(0.05);
         let w = warnings_for(&groups[..1], &[lobe], 0.025, 64, Effort::Default);
         assert_eq!(level(&w, "uncertain"), None, "{w:?}");
     }
