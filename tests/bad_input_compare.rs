@@ -797,9 +797,10 @@ fn compare_views_says_where_the_reference_is_zero_instead_of_printing_nan() {
 }
 
 /// `--independent B2` adds each row's misfit, the relative RMS with two renders' noise
-/// taken out: flat renders 10% bright read +10% (their errors agree), a B2 10% dark against
-/// them -10% (under the noise); a group whose reference is 0 has none, as it has no RMS;
-/// the JSON has it beside the RMS, and leaves it out without B2. B's own folder given as
+/// taken out, and its mean bias, the same for the mean: flat renders 10% bright read +10%
+/// and +10% (their errors agree), a B2 10% dark against them -10% and 0 (under the noise);
+/// a group whose reference is 0 has neither, as it has no RMS; the JSON has them beside the
+/// RMS, and leaves them out without B2. B's own folder given as
 /// B2 (which would read the RMS as the misfit), A's (a misfit of 0), A's folder as B, and
 /// a B2 missing a view's image are refused, naming them. A B2 image of the same bytes as
 /// B's (two renders on one seed) is warned of.
@@ -834,13 +835,13 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
         .unwrap();
         (stdout, json, stderr)
     };
-    // The last two figures of a group's line: its relative RMS and misfit.
-    let last_two = |stdout: &str, group: &str| -> Vec<String> {
+    // The last three figures of a group's line: its relative RMS, misfit and mean bias.
+    let last_three = |stdout: &str, group: &str| -> Vec<String> {
         let line = stdout.lines().find(|l| l.starts_with(group)).unwrap();
         let mut words: Vec<String> = line
             .split_whitespace()
             .rev()
-            .take(2)
+            .take(3)
             .map(String::from)
             .collect();
         words.reverse();
@@ -860,36 +861,45 @@ fn compare_views_with_an_independent_render_gives_the_misfit() {
         );
     }
     assert!(
-        stdout.lines().next().unwrap().ends_with("misfit"),
+        stdout
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with("misfit  mean bias"),
         "{stdout}"
     );
     assert_eq!(
-        last_two(&stdout, "shelf "),
-        ["10.00%", "+10.00%"],
+        last_three(&stdout, "shelf "),
+        ["10.00%", "+10.00%", "+10.00%"],
         "{stdout}"
     );
-    assert_eq!(last_two(&stdout, "floor "), ["-", "-"], "{stdout}");
+    assert_eq!(last_three(&stdout, "floor "), ["-", "-", "-"], "{stdout}");
     let shelf = &json["groups"][1];
-    assert!(
-        (shelf["rel_misfit"].as_f64().unwrap() - 0.1).abs() < 1e-6,
-        "{shelf}"
-    );
-    assert!(json["groups"][0]["rel_misfit"].is_null());
+    for figure in ["rel_misfit", "rel_mean_bias"] {
+        assert!(
+            (shelf[figure].as_f64().unwrap() - 0.1).abs() < 1e-6,
+            "{figure}: {shelf}"
+        );
+        assert!(json["groups"][0][figure].is_null());
+    }
 
     let (stdout, _, stderr) = compare("dark");
     // Its view b differs from B's; its view a is B's flat 0.5 again.
     assert!(!stderr.contains("view 'b'"), "{stderr}");
     assert!(stderr.contains("warning: view 'a'"), "{stderr}");
     assert_eq!(
-        last_two(&stdout, "shelf "),
-        ["10.00%", "-10.00%"],
+        last_three(&stdout, "shelf "),
+        ["10.00%", "-10.00%", "+0.00%"],
         "{stdout}"
     );
 
     let run = views(&["--json", "plain.json"]);
     assert!(run.status.success());
     let text = std::fs::read_to_string(dir.path().join("plain.json")).unwrap();
-    assert!(!text.contains("rel_misfit"), "{text}");
+    assert!(
+        !text.contains("rel_misfit") && !text.contains("rel_mean_bias"),
+        "{text}"
+    );
     assert!(!String::from_utf8_lossy(&run.stdout).contains("misfit"));
 
     let run = views(&["--independent", "./B/"]);

@@ -238,7 +238,8 @@ enum CompareCommand {
         dir_b: PathBuf,
         /// Folder of an independent render of B's materials (another seed): adds each
         /// row's misfit, its relative RMS with the render noise taken out
-        /// (sqrt(mean (B - A).(B2 - A)) / mean A; negative where it is under the noise).
+        /// (sqrt(mean (B - A).(B2 - A)) / mean A; negative where it is under the noise), and
+        /// its mean bias, the difference of the means with the noise taken out.
         #[arg(long, value_name = "DIR_B2")]
         independent: Option<PathBuf>,
         /// Compare only these views (by name), as `render --view` renders them: the
