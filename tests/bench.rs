@@ -302,28 +302,40 @@ fn edits_judge_a_model_by_the_error_it_adds_to_the_true_materials() {
         )
     };
 
-    // The true materials as the "recovered" model: the same renders, a ratio of 1.
+    // The true materials as the "recovered" model: the same renders, a ratio of 1, as
+    // the errors are and with the render noise taken out (a second render on seed + 1),
+    // which is less than the noise left in.
     let (rows, _) = run(&truth, "out-truth");
     assert_eq!(rows.len(), 2);
     for row in &rows {
         assert_eq!(row["rms_ratio"], "1.000000", "{row:?}");
         assert_eq!(row["within_goal"], "true", "{row:?}");
-        assert!(
-            row["rel_rms_truth"].parse::<f64>().unwrap() > 0.0,
-            "{row:?}"
-        );
+        assert_eq!(row["misfit_ratio"], "1.000000", "{row:?}");
+        assert_eq!(row["group_mean_bias_ratio"], "1.000000", "{row:?}");
+        assert_eq!(row["within_goal_noise_out"], "true", "{row:?}");
+        let figure = |column: &str| row[column].parse::<f64>().unwrap();
+        assert!(figure("rel_rms_truth") > 0.0, "{row:?}");
+        // At 16 spp the renders' noise is most of the RMS.
+        assert!(figure("misfit_truth") < figure("rel_rms_truth"), "{row:?}");
     }
-    assert!(tmp
-        .path()
-        .join("out-truth/insert/recovered/px.exr")
-        .is_file());
+    for arm in ["recovered", "recovered-independent"] {
+        let image = tmp.path().join("out-truth/insert").join(arm).join("px.exr");
+        assert!(image.is_file(), "{}", image.display());
+    }
 
-    // The bright wall adds error in both edits, and the table names the wall.
+    // The bright wall adds error in both edits, with the noise in and out, and the table
+    // names the wall.
     let (rows, table) = run(&wrong, "out-wrong");
     for row in &rows {
-        let ratio: f64 = row["group_mean_ratio"].parse().unwrap();
-        assert!(ratio > 1.2, "{row:?}");
+        for ratio in ["group_mean_ratio", "group_mean_bias_ratio", "misfit_ratio"] {
+            let value: f64 = row[ratio].parse().unwrap();
+            assert!(value > 1.2, "{ratio}: {row:?}");
+        }
         assert_eq!(row["within_goal"], "false", "{row:?}");
+        assert_eq!(row["within_goal_noise_out"], "false", "{row:?}");
     }
-    assert!(table.contains("most added error in wall_red"), "{table}");
+    assert!(
+        table.contains("most added bias (noise out) in wall_red"),
+        "{table}"
+    );
 }

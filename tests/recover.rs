@@ -1019,7 +1019,9 @@ fn glossy_256_default_seed_1_finds_every_class_but_the_white_spheres_1_percent_l
 /// A full render of the recovered model agrees with the panorama as well as the truth
 /// materials do, within the issue's 1.2x on both errors (glossy at 64 px, rendered by
 /// relume at 256 spp, both models on one seed; measured 1.02 and 0.96, and 1.03 on
-/// group means before the diffuse polish became a Newton step).
+/// group means before the diffuse polish became a Newton step). With the render noise
+/// taken out (a second render on seed 2), 4.8 of the truth's 4.9 points of rel RMS in
+/// quadrature, the misfits are 1.06% and 1.06% and the group biases 0.09% and 0.27%.
 #[test]
 fn glossy_small_renders_its_panorama_as_well_as_the_truth_does() {
     let (out, _) = glossy_small();
@@ -1045,8 +1047,15 @@ fn renders_of_its_panorama(name: &str, out: &std::path::Path) -> relume::bench::
     let o = outcomes.remove(0);
     let (rec, truth) = (&o.recovered, &o.truth);
     println!(
-        "{name}: rel RMS {:.4} / {:.4}, group mean {:.4} / {:.4}",
-        rec.rel_rms, truth.rel_rms, rec.group_mean_err, truth.group_mean_err
+        "{name}: rel RMS {:.4} / {:.4}, group mean {:.4} / {:.4}; noise out: misfit {:.4} / {:.4}, group bias {:.4} / {:.4}",
+        rec.rel_rms,
+        truth.rel_rms,
+        rec.group_mean_err,
+        truth.group_mean_err,
+        rec.misfit,
+        truth.misfit,
+        rec.group_mean_bias,
+        truth.group_mean_bias
     );
     o
 }
@@ -1058,19 +1067,28 @@ fn assert_renders_its_panorama_as_well_as_the_truth(name: &str, out: &std::path:
     assert_group_means_within_goal(&o);
 }
 
-/// The recovered model's rel RMS within `RATIO_GOAL` of the truth's.
+/// The recovered model's rel RMS within `RATIO_GOAL` of the truth's, as it is and with
+/// the render noise taken out (the misfit): the noise, the same in both, pulls the first
+/// ratio towards 1.
 fn assert_rms_within_goal(o: &relume::bench::edits::EditOutcome) {
     let goal = relume::bench::edits::RATIO_GOAL;
     assert!(o.rms_ratio <= goal, "rel RMS ratio {}", o.rms_ratio);
+    assert!(o.misfit_ratio <= goal, "misfit ratio {}", o.misfit_ratio);
 }
 
-/// The recovered model's group-mean error within `RATIO_GOAL` of the truth's.
+/// The recovered model's group-mean error within `RATIO_GOAL` of the truth's, as it is
+/// and with the render noise taken out.
 fn assert_group_means_within_goal(o: &relume::bench::edits::EditOutcome) {
     let goal = relume::bench::edits::RATIO_GOAL;
     assert!(
         o.group_mean_ratio <= goal,
         "group-mean ratio {}",
         o.group_mean_ratio
+    );
+    assert!(
+        o.group_mean_bias_ratio <= goal,
+        "group-bias ratio {}",
+        o.group_mean_bias_ratio
     );
 }
 
@@ -1293,7 +1311,8 @@ fn living_room_small_polishes_its_mirror_again_under_the_final_scene() {
 
 /// The living room's 64-px model renders its panorama pixel by pixel as well as the truth
 /// materials do, within the issue's 1.2x (relume at 256 spp, both models on one seed):
-/// rel RMS 4.79% against 4.80%.
+/// rel RMS 4.80% against 4.80%; with the render noise taken out (a second render on
+/// seed 2), 2.48% against 2.23%.
 #[test]
 fn living_room_small_renders_its_panorama_as_well_as_the_truth_does() {
     let (out, _) = living_room_small();
@@ -1310,7 +1329,10 @@ fn living_room_small_renders_its_panorama_as_well_as_the_truth_does() {
 /// against the truth's +1.8%: its miss at 256 spp is its heavy-tailed render noise (35%
 /// rel RMS per pixel), which moves its mean by 2-6 points from seed to seed. A finding of
 /// docs/recovery.md ("The recovered model against the panorama, beside the truth
-/// materials"), kept here as the check it was, to run by name.
+/// materials"), kept here as the check it was, to run by name. With the render noise taken
+/// out (a second render on seed 2) it misses too, 0.71% against 0.50%: the statue reads
+/// -7.0% against the truth's -4.6% on both seeds, a heavy tail's shortfall that each
+/// 256-spp render of it shares, which a product of two renders does not remove.
 #[test]
 #[ignore = "missed at 256 spp since ebb2007 by the statue's render noise (met at 16384 spp), see the comment and docs/recovery.md"]
 fn living_room_small_renders_its_group_means_as_well_as_the_truth_does() {

@@ -361,8 +361,9 @@ enum BenchCommand {
     },
     /// Edited scenes (other lights, a new viewpoint, objects removed or added) rendered
     /// from recovered materials and from the true ones, each against the edit's reference
-    /// images: edits.csv, edits.json and a table. Materials for added objects come from a
-    /// materials.toml beside the edit's scene.toml.
+    /// images: edits.csv, edits.json and a table. Each is rendered again on the next seed,
+    /// so that the errors are also given with the render noise taken out. Materials for
+    /// added objects come from a materials.toml beside the edit's scene.toml.
     Edits {
         /// The edits' scene.toml files; their view images are the references.
         #[arg(required = true, num_args = 1..)]
@@ -377,8 +378,8 @@ enum BenchCommand {
         /// Output folder: the renders, the CSV and the JSON.
         #[arg(long)]
         out: PathBuf,
-        /// Samples per pixel of both renders (relume's noise is in both errors: enough
-        /// that it does not hide the recovered model's own).
+        /// Samples per pixel of every render (relume's noise is in both errors as they are:
+        /// enough that it does not hide the recovered model's own).
         #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
         spp: u32,
         #[arg(long, default_value_t = 1)]

@@ -2,11 +2,17 @@
 //!
 //! An edit is a scene.toml (other lights, another viewpoint, objects hidden or added) whose
 //! view images are a reference render of that edit with the true materials. relume renders
-//! each edit twice with the same seed, once with the recovered materials and once with the
-//! true ones, and compares both with the reference over pure pixels. The true materials'
-//! error is what relume's renderer itself leaves (its noise and its differences from the
+//! each edit with the same seed, once with the recovered materials and once with the true
+//! ones, and compares both with the reference over pure pixels. The true materials' error
+//! is what relume's renderer itself leaves (its noise and its differences from the
 //! reference renderer); the recovered model is judged by how much it adds to that, as the
 //! ratio of the two errors against [`RATIO_GOAL`].
+//!
+//! Each is rendered once more on the next seed, so that both errors are also given with
+//! the render noise taken out (`compare views --independent`). Render noise adds to both
+//! errors alike and pulls their ratio towards 1 where it dominates, or away from it where
+//! one model renders noisier than the other (a sharper lobe that catches a light); without
+//! it, the ratio weighs the models' misfits alone.
 //!
 //! Objects an edit puts in need materials no recovery gave: they come from the file
 //! [`ADDED_MATERIALS`] beside the edit's scene.toml, given to both renders.
@@ -53,21 +59,31 @@ pub struct ArmError {
     pub rel_rms: f64,
     /// Mean over the groups seen of |mean rendered - mean reference| / mean reference.
     pub group_mean_err: f64,
+    /// `rel_rms` with the render noise taken out: the misfit over all pure pixels
+    /// ([`compare::ViewsRow::rel_misfit`], from the render on the next seed).
+    pub misfit: f64,
+    /// `group_mean_err` with the render noise taken out: the mean over the groups seen of
+    /// |[`compare::ViewsRow::rel_mean_bias`]|.
+    pub group_mean_bias: f64,
     /// The full comparison, group by group and view by view.
     pub views: ViewsReport,
 }
 
 impl ArmError {
     fn of(views: ViewsReport) -> ArmError {
-        let seen: Vec<f64> = views
+        let seen: Vec<&compare::ViewsRow> = views
             .groups
             .iter()
             .filter(|g| g.pixels > 0 && g.rel_mean_diff.is_finite())
-            .map(|g| g.rel_mean_diff.abs())
             .collect();
+        let mean_over_seen = |f: fn(&compare::ViewsRow) -> f64| {
+            seen.iter().map(|g| f(g).abs()).sum::<f64>() / seen.len().max(1) as f64
+        };
         ArmError {
             rel_rms: views.all.rel_rms,
-            group_mean_err: seen.iter().sum::<f64>() / seen.len().max(1) as f64,
+            group_mean_err: mean_over_seen(|g| g.rel_mean_diff),
+            misfit: views.all.rel_misfit.unwrap_or(f64::NAN),
+            group_mean_bias: mean_over_seen(|g| g.rel_mean_bias.unwrap_or(f64::NAN)),
             views,
         }
     }
@@ -87,6 +103,12 @@ pub struct EditOutcome {
     pub group_mean_ratio: f64,
     /// Both ratios within [`RATIO_GOAL`].
     pub within_goal: bool,
+    /// `recovered.misfit / truth.misfit`.
+    pub misfit_ratio: f64,
+    /// `recovered.group_mean_bias / truth.group_mean_bias`.
+    pub group_mean_bias_ratio: f64,
+    /// Both ratios with the render noise taken out within [`RATIO_GOAL`].
+    pub within_goal_noise_out: bool,
 }
 
 /// The edit's name: its folder when the file is `scene.toml`, else the file's stem.
@@ -140,22 +162,27 @@ pub fn run(args: &EditsArgs) -> Result<Vec<EditOutcome>, Error> {
         let name = edit_name(scene);
         let added = added_materials(scene);
         let arm = |materials: &[PathBuf], label: &str| -> Result<ArmError, Error> {
-            let out = args.out.join(&name).join(label);
-            eprintln!("{name}: rendering with the {label} materials");
-            render_cmd::run(&RenderArgs {
-                scene: scene.clone(),
-                materials: materials.iter().cloned().chain(added.clone()).collect(),
-                out: out.clone(),
-                spp: args.spp,
-                seed: args.seed,
-                threads: args.threads,
-                views: Vec::new(),
-            })?;
+            let [out, independent] = arm_folders(&args.out.join(&name), label);
+            eprintln!("{name}: rendering with the {label} materials, twice");
+            for (out, seed) in [
+                (&out, args.seed),
+                (&independent, independent_seed(args.seed)),
+            ] {
+                render_cmd::run(&RenderArgs {
+                    scene: scene.clone(),
+                    materials: materials.iter().cloned().chain(added.clone()).collect(),
+                    out: out.clone(),
+                    spp: args.spp,
+                    seed,
+                    threads: args.threads,
+                    views: Vec::new(),
+                })?;
+            }
             let views = compare::views_report_of(
                 scene,
                 ViewImages::Scene,
                 ViewImages::Folder(&out),
-                None,
+                Some(ViewImages::Folder(&independent)),
                 &[],
                 args.threads,
             )?;
@@ -165,19 +192,36 @@ pub fn run(args: &EditsArgs) -> Result<Vec<EditOutcome>, Error> {
         let truth = arm(std::slice::from_ref(&args.truth), "truth")?;
         let rms_ratio = ratio(recovered.rel_rms, truth.rel_rms);
         let group_mean_ratio = ratio(recovered.group_mean_err, truth.group_mean_err);
+        let misfit_ratio = ratio(recovered.misfit, truth.misfit);
+        let group_mean_bias_ratio = ratio(recovered.group_mean_bias, truth.group_mean_bias);
         outcomes.push(EditOutcome {
             edit: name,
             scene: scene.display().to_string(),
             pixels: truth.views.all.pixels,
             within_goal: meets_goal(rms_ratio, group_mean_ratio),
+            within_goal_noise_out: meets_goal(misfit_ratio, group_mean_bias_ratio),
             recovered,
             truth,
             rms_ratio,
             group_mean_ratio,
+            misfit_ratio,
+            group_mean_bias_ratio,
         });
     }
     write_outputs(set, &args.out, &outcomes)?;
     Ok(outcomes)
+}
+
+/// An arm's two render folders under an edit's: `<label>` on the seed given and
+/// `<label>-independent` on [`independent_seed`].
+fn arm_folders(edit_out: &Path, label: &str) -> [PathBuf; 2] {
+    [label.to_string(), format!("{label}-independent")].map(|l| edit_out.join(l))
+}
+
+/// The seed of an arm's second render: the next one, so that `relume render --seed S+1`
+/// gives the same image.
+fn independent_seed(seed: u64) -> u64 {
+    seed.wrapping_add(1)
 }
 
 /// The files' paths as one, for a message about their groups together: `a.toml` or
@@ -295,10 +339,12 @@ fn prepare(args: &EditsArgs) -> Result<OutputSet, Error> {
         }
         let name = edit_name(scene);
         for arm in ["recovered", "truth"] {
-            outputs.extend(render_cmd::output_files(
-                &args.out.join(&name).join(arm),
-                desc.views.iter().map(|v| v.name.as_str()),
-            ));
+            for folder in arm_folders(&args.out.join(&name), arm) {
+                outputs.extend(render_cmd::output_files(
+                    &folder,
+                    desc.views.iter().map(|v| v.name.as_str()),
+                ));
+            }
         }
         inputs.extend(desc.input_files());
         inputs.extend(added.iter().flat_map(|a| a.input_files()));
@@ -320,6 +366,13 @@ fn write_outputs(mut set: OutputSet, out: &Path, outcomes: &[EditOutcome]) -> Re
         "group_mean_err_truth",
         "group_mean_ratio",
         "within_goal",
+        "misfit_recovered",
+        "misfit_truth",
+        "misfit_ratio",
+        "group_mean_bias_recovered",
+        "group_mean_bias_truth",
+        "group_mean_bias_ratio",
+        "within_goal_noise_out",
     ]);
     for o in outcomes {
         csv.push(vec![
@@ -332,6 +385,13 @@ fn write_outputs(mut set: OutputSet, out: &Path, outcomes: &[EditOutcome]) -> Re
             field(Some(o.truth.group_mean_err)),
             field(Some(o.group_mean_ratio)),
             o.within_goal.to_string(),
+            field(Some(o.recovered.misfit)),
+            field(Some(o.truth.misfit)),
+            field(Some(o.misfit_ratio)),
+            field(Some(o.recovered.group_mean_bias)),
+            field(Some(o.truth.group_mean_bias)),
+            field(Some(o.group_mean_bias_ratio)),
+            o.within_goal_noise_out.to_string(),
         ]);
     }
     set.add(&out.join("edits.csv"), csv.to_text().as_bytes())?;
@@ -340,12 +400,62 @@ fn write_outputs(mut set: OutputSet, out: &Path, outcomes: &[EditOutcome]) -> Re
     set.commit()
 }
 
-/// The table a person reads: one line per edit, then the groups where the recovered model
-/// adds the most error.
+/// The table a person reads: one line per edit, as the errors are and with the render
+/// noise taken out, then the groups where the recovered model adds the most error.
 pub fn print_table(outcomes: &[EditOutcome]) {
+    print_errors(
+        outcomes,
+        ["rel RMS rec / truth", "group mean rec / truth"],
+        |a| [a.rel_rms, a.group_mean_err],
+        |o| ([o.rms_ratio, o.group_mean_ratio], o.within_goal),
+    );
+    println!("with the render noise taken out (a second render of each on seed + 1):");
+    print_errors(
+        outcomes,
+        ["misfit rec / truth", "group bias rec / truth"],
+        |a| [a.misfit, a.group_mean_bias],
+        |o| {
+            (
+                [o.misfit_ratio, o.group_mean_bias_ratio],
+                o.within_goal_noise_out,
+            )
+        },
+    );
+    for o in outcomes {
+        let mut added: Vec<(String, f64, f64)> = o
+            .recovered
+            .views
+            .groups
+            .iter()
+            .zip(&o.truth.views.groups)
+            .filter_map(|(r, t)| Some((r.name.clone(), r.rel_mean_bias?, t.rel_mean_bias?)))
+            .filter(|(_, r, t)| r.is_finite() && t.is_finite())
+            .collect();
+        added.sort_by(|a, b| (b.1.abs() - b.2.abs()).total_cmp(&(a.1.abs() - a.2.abs())));
+        let worst: Vec<String> = added
+            .iter()
+            .take(3)
+            .map(|(g, r, t)| format!("{g} {:+.1}% (truth {:+.1}%)", 100.0 * r, 100.0 * t))
+            .collect();
+        println!(
+            "  {}: most added bias (noise out) in {}",
+            o.edit,
+            worst.join(", ")
+        );
+    }
+}
+
+/// One block of [`print_table`]: per edit, two errors of each arm (`errors`) and their
+/// ratios with the verdict (`ratios`).
+fn print_errors(
+    outcomes: &[EditOutcome],
+    headers: [&str; 2],
+    errors: impl Fn(&ArmError) -> [f64; 2],
+    ratios: impl Fn(&EditOutcome) -> ([f64; 2], bool),
+) {
     println!(
         "{:<12} {:>7} {:>22} {:>7} {:>24} {:>7}  goal {RATIO_GOAL}x",
-        "edit", "pixels", "rel RMS rec / truth", "ratio", "group mean rec / truth", "ratio"
+        "edit", "pixels", headers[0], "ratio", headers[1], "ratio"
     );
     // A ratio against an error of 0 is undefined (and not a pass): `-`, not `NaN`.
     let ratio = |r: f64| {
@@ -356,36 +466,20 @@ pub fn print_table(outcomes: &[EditOutcome]) {
         }
     };
     for o in outcomes {
+        let ([rec_a, rec_b], [truth_a, truth_b]) = (errors(&o.recovered), errors(&o.truth));
+        let ([ratio_a, ratio_b], met) = ratios(o);
         println!(
             "{:<12} {:>7} {:>10.2}% / {:>6.2}% {:>7} {:>11.2}% / {:>7.2}% {:>7}  {}",
             o.edit,
             o.pixels,
-            100.0 * o.recovered.rel_rms,
-            100.0 * o.truth.rel_rms,
-            ratio(o.rms_ratio),
-            100.0 * o.recovered.group_mean_err,
-            100.0 * o.truth.group_mean_err,
-            ratio(o.group_mean_ratio),
-            if o.within_goal { "met" } else { "missed" }
+            100.0 * rec_a,
+            100.0 * truth_a,
+            ratio(ratio_a),
+            100.0 * rec_b,
+            100.0 * truth_b,
+            ratio(ratio_b),
+            if met { "met" } else { "missed" }
         );
-    }
-    for o in outcomes {
-        let mut added: Vec<(String, f64, f64)> = o
-            .recovered
-            .views
-            .groups
-            .iter()
-            .zip(&o.truth.views.groups)
-            .filter(|(r, t)| r.rel_mean_diff.is_finite() && t.rel_mean_diff.is_finite())
-            .map(|(r, t)| (r.name.clone(), r.rel_mean_diff, t.rel_mean_diff))
-            .collect();
-        added.sort_by(|a, b| (b.1.abs() - b.2.abs()).total_cmp(&(a.1.abs() - a.2.abs())));
-        let worst: Vec<String> = added
-            .iter()
-            .take(3)
-            .map(|(g, r, t)| format!("{g} {:+.1}% (truth {:+.1}%)", 100.0 * r, 100.0 * t))
-            .collect();
-        println!("  {}: most added error in {}", o.edit, worst.join(", "));
     }
 }
 
