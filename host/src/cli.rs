@@ -249,6 +249,7 @@ enum CompareCommand {
         /// Also write the table as JSON.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Worker threads (default: all cores); the figures do not depend on it.
         #[arg(long)]
         threads: Option<usize>,
     },
@@ -281,6 +282,7 @@ enum BenchCommand {
     /// Trace a ray file (shared/bench/rays format): Mrays/s on 1 thread and on all threads.
     Rays {
         scene: PathBuf,
+        /// The ray file: a count, then origins and unit directions (shared/bench/rays/README.md).
         #[arg(long)]
         rays: PathBuf,
         /// Write the closest hits in the reference format.
@@ -292,6 +294,7 @@ enum BenchCommand {
         /// Reference hits to check against (default: the .hits beside the .rays).
         #[arg(long)]
         reference: Option<PathBuf>,
+        /// Threads of the second timing (default: all cores); the first is on one.
         #[arg(long)]
         threads: Option<usize>,
         /// Timed runs (best is kept) after one warm-up.
@@ -318,8 +321,11 @@ enum BenchCommand {
         /// Output folder: the runs, the CSV and the chart.
         #[arg(long)]
         out: PathBuf,
+        /// The seed of every recovery.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Worker threads (default: all cores); the materials do not depend on it, the
+        /// wall times do.
         #[arg(long)]
         threads: Option<usize>,
         /// The base effort level the knobs are swept from.
@@ -343,8 +349,11 @@ enum BenchCommand {
         /// The first seed; the seed family runs ten from here.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Worker threads (default: all cores); the materials do not depend on it, the
+        /// wall times do.
         #[arg(long)]
         threads: Option<usize>,
+        /// The effort level of every recovery.
         #[arg(long, value_enum, default_value_t = Effort::Fast)]
         effort: Effort,
         /// Fewer points per family.
@@ -382,8 +391,11 @@ enum BenchCommand {
         /// enough that it does not hide the recovered model's own).
         #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
         spp: u32,
+        /// Seed of each model's first render; its second, for the errors with the render
+        /// noise taken out, is on the next seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Worker threads (default: all cores); the figures do not depend on it.
         #[arg(long)]
         threads: Option<usize>,
     },
