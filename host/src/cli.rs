@@ -231,6 +231,7 @@ enum CompareCommand {
     /// Per group and per view: relative difference of mean radiance and relative RMS, over
     /// the pixels whose whole footprint sees one group.
     Views {
+        /// The scene.toml whose views the images are (it decides each pixel's group).
         scene: PathBuf,
         /// Folder of `<view>.exr` files: the reference (A).
         dir_a: PathBuf,
@@ -255,12 +256,15 @@ enum CompareCommand {
     },
     /// Class per group and parameter errors of a materials file against the truth.
     Materials {
+        /// The true materials (truth.toml, or any materials file taken as the reference).
         truth: PathBuf,
+        /// The materials compared with it (a recovery's materials.toml).
         materials: PathBuf,
         /// The truth's scene.toml: its kinds judge the kinds of the recovered lobes (a
         /// recovery of kind "auto" groups writes the kind it chose).
         #[arg(long)]
         scene: Option<PathBuf>,
+        /// Also write the table as JSON.
         #[arg(long)]
         json: Option<PathBuf>,
     },
@@ -268,10 +272,12 @@ enum CompareCommand {
     /// often as they claim, over the groups recovered in their true class (several
     /// reports, e.g. of several seeds, are pooled).
     Uncertainty {
+        /// The true materials (truth.toml).
         truth: PathBuf,
         /// One or more report.json (several seeds of the scene are pooled).
         #[arg(required = true, num_args = 1..)]
         report: Vec<PathBuf>,
+        /// Also write the coverage as JSON.
         #[arg(long)]
         json: Option<PathBuf>,
     },
@@ -281,6 +287,7 @@ enum CompareCommand {
 enum BenchCommand {
     /// Trace a ray file (shared/bench/rays format): Mrays/s on 1 thread and on all threads.
     Rays {
+        /// The scene.toml whose geometry the rays are traced against.
         scene: PathBuf,
         /// The ray file: a count, then origins and unit directions (shared/bench/rays/README.md).
         #[arg(long)]
@@ -304,6 +311,7 @@ enum BenchCommand {
     /// Box-average a scene's panorama by an integer factor into a new scene (for timing
     /// and judging recovery at several resolutions).
     Downsample {
+        /// The scene.toml whose views are box-averaged.
         scene: PathBuf,
         #[arg(long)]
         factor: u32,
@@ -314,6 +322,7 @@ enum BenchCommand {
     /// length, samples per evaluation, view resolution, Nelder-Mead against annealing):
     /// tradeoff.csv, tradeoff.svg (and the same chart as tradeoff.png) and a table.
     Tradeoff {
+        /// The scene.toml to recover, whose views carry the panorama's images.
         scene: PathBuf,
         /// The true materials (truth.toml) the recoveries are judged against.
         #[arg(long)]
@@ -339,6 +348,7 @@ enum BenchCommand {
     /// size, pixels of one group): stability.csv, seed-spread.csv, stability.svg (and .png)
     /// and a verdict on the targets.
     Stability {
+        /// The scene.toml to recover, whose views carry the panorama's images.
         scene: PathBuf,
         /// The true materials (truth.toml) the recoveries are judged against.
         #[arg(long)]
