@@ -127,7 +127,9 @@ pub struct ViewsRow {
     /// `sqrt((mean B - mean A) (mean B2 - mean A)) / mean A` with their common sign, or 0
     /// where the two renders' means fall on opposite sides of A's (the difference is under
     /// their noise). A 20-pixel group's mean carries a few percent of render noise at
-    /// 1024 spp, which `rel_mean_diff` adds to its bias. Absent without B2.
+    /// 1024 spp, which `rel_mean_diff` adds to its bias. Not where the noise has a heavy
+    /// tail (a sharp metal's rare bright paths): both renders of a pair then read low, and
+    /// so does this. Absent without B2.
     #[serde(
         skip_serializing_if = "Option::is_none",
         serialize_with = "finite_or_null_option"
