@@ -139,37 +139,27 @@ fn a_missing_truth_is_an_error_naming_the_file() {
         assert_eq!(output.status.code(), Some(4), "{stderr}");
         assert!(stderr.contains("no-such-truth.toml"), "{stderr}");
     }
-    let args = bench_on_cornell_truth(
-        "stability",
-        &tmp.path().join("out"),
+    // A flag's value that names nothing is a usage error (2), as `render --view` is, and
+    // makes no folder; a family that is none lists the families.
+    let refused = |flags: &[&str], told: &[&str]| {
+        let args = bench_on_cornell_truth("stability", &tmp.path().join("out"), flags);
+        let output = relume(tmp.path(), &strs(&args));
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{stderr}");
+        assert!(told.iter().all(|t| stderr.contains(t)), "{stderr}");
+        assert!(!tmp.path().join("out").exists());
+    };
+    refused(
         &["--group", "no_such_group"],
+        &["scene.toml", "no_such_group", "its groups: floor"],
     );
-    let output = relume(tmp.path(), &strs(&args));
-    // A flag's value that names nothing is a usage error (2), as `render --view` is.
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(2), "{stderr}");
-    assert!(
-        stderr.contains("scene.toml")
-            && stderr.contains("no_such_group")
-            && stderr.contains("its groups: floor"),
-        "{stderr}"
-    );
-    assert!(!tmp.path().join("out").exists());
-    // A family that is none is a usage error that lists the families.
-    let args = bench_on_cornell_truth(
-        "stability",
-        &tmp.path().join("out"),
+    refused(
         &["--families", "seed,exposures"],
+        &[
+            "exposures",
+            "seed, noise, exposure, light, resolution, pixels",
+        ],
     );
-    let output = relume(tmp.path(), &strs(&args));
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(2), "{stderr}");
-    assert!(
-        stderr.contains("exposures")
-            && stderr.contains("seed, noise, exposure, light, resolution, pixels"),
-        "{stderr}"
-    );
-    assert!(!tmp.path().join("out").exists());
 }
 
 #[test]
