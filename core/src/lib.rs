@@ -10,6 +10,7 @@
 //!   textures) with `eval` / `sample` / `pdf` in a local shading frame.
 //! - [`scene`]: the assembled scene (triangles, BVH, materials, lights, textures), all lent
 //!   by the caller and checked against the capacities.
+//! - [`strata`]: where in a pixel its samples fall (scrambled Sobol', two halves).
 //! - [`render`]: the path tracer (next-event estimation with multiple importance sampling).
 //! - [`transport`]: the light at each pixel sample's first vertex, cached for re-weighting.
 //! - [`fit`]: the fit error of a group and every threshold of the staged recovery.
@@ -46,6 +47,7 @@ pub mod render;
 pub mod rng;
 pub mod scene;
 pub mod stages;
+pub mod strata;
 pub mod student_t;
 pub mod transport;
 

@@ -1,5 +1,7 @@
 //! Seeded random streams. Every random number of a render comes from a stream derived
-//! from `(seed, view, pixel, sample)`, so an image never depends on thread count or order.
+//! from `(seed, view, pixel, sample)`, or for a sample's point in its pixel from a
+//! scrambling keyed by `(seed, view, pixel, half)` ([`crate::strata`]), so an image never
+//! depends on thread count or order.
 //! The integer-to-float conversion is our own (documented below), so golden images do not
 //! depend on a library's distribution code.
 

@@ -16,7 +16,6 @@ use crate::geometry::{Surface, View};
 use crate::material::{self, Bsdf, Material};
 use crate::math::{self, Vec3, INV_PI};
 use crate::render::{self, RenderSettings};
-use crate::rng::Sampler;
 use crate::scene::Scene;
 
 /// Roughnesses of the Ward lobes in the sampling mixture (beside a cosine lobe): they span
@@ -115,10 +114,7 @@ pub fn trace_pixel_sample(
     settings: &RenderSettings,
     out: &mut [IncidentSample; MAX_INCIDENT_PER_SAMPLE],
 ) -> usize {
-    let pixel = view.pixel_index(x, y);
-    let mut sampler = Sampler::for_pixel_sample(settings.seed, view_index, pixel, sample);
-    let [jx, jy] = sampler.next_2d();
-    let ray = view.ray(x as f32 + jx, y as f32 + jy);
+    let (ray, mut sampler) = render::camera_sample(view, view_index, x, y, settings, sample);
     let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
         return 0;
     };
