@@ -7,6 +7,7 @@ use std::time::Instant;
 use relume_core::fit;
 use relume_core::stages::diffuse::{self, DiffuseVerdict};
 
+use super::ladder;
 use super::model::{GroupModel, NEUTRAL_STAND_IN};
 use super::warnings::brighter_at_bound;
 use super::{
@@ -20,7 +21,7 @@ use crate::text::counted;
 pub(super) struct Stage1 {
     pub report: StageReport,
     /// The groups that go on to stage 2, each with its error.
-    pub candidates: Vec<(usize, f64)>,
+    pub candidates: Vec<(usize, fit::ErrorEstimate)>,
     /// The iteration's steps, for the recovery's report.
     pub steps: Vec<DiffuseStep>,
 }
@@ -145,19 +146,22 @@ pub(super) fn run(
                 ));
             }
             DiffuseVerdict::NeedsSpecular => {
-                let how = if e > fit::DIFFUSE_THRESHOLD {
-                    "on to isotropic"
+                // The verdict is only given on a measured error.
+                let Some(estimate) = decided[g] else {
+                    continue;
+                };
+                let route = if ladder::applies(&estimate) {
+                    "not above DIFFUSE_THRESHOLD {} by EXCEEDS_SIGMAS: tested for a weak specular"
                 } else {
-                    "tested for a weak specular"
+                    "above DIFFUSE_THRESHOLD {} by more than EXCEEDS_SIGMAS: on to isotropic"
                 };
                 r.decisions.push(format!(
-                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than EXCEEDS_SIGMAS {} standard errors ({} DIFFUSE_THRESHOLD {}): {how}",
+                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than EXCEEDS_SIGMAS {} standard errors ({})",
                     fit::SPECULAR_GAIN_THRESHOLD,
                     fit::EXCEEDS_SIGMAS,
-                    if e > fit::DIFFUSE_THRESHOLD { ">" } else { "<=" },
-                    fit::DIFFUSE_THRESHOLD
+                    route.replace("{}", &fit::DIFFUSE_THRESHOLD.to_string())
                 ));
-                candidates.push((g, e));
+                candidates.push((g, estimate));
             }
         }
     }

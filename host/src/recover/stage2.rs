@@ -113,7 +113,7 @@ struct MirrorsFirst {
 fn proposed_mirrors(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
-    candidates: &[(usize, f64)],
+    candidates: &[(usize, fit::ErrorEstimate)],
     kinds: &[GroupKind],
     cache_settings: &RenderSettings,
 ) -> Result<MirrorsFirst, Error> {
@@ -150,12 +150,12 @@ fn proposed_mirrors(
 
 /// Stage 2's order of `candidates` (group, stage-1 error): the groups in `first` (the
 /// proposed mirrors), then the worst-explained; ties by group index.
-fn order(candidates: &mut [(usize, f64)], first: &[usize]) {
+fn order(candidates: &mut [(usize, fit::ErrorEstimate)], first: &[usize]) {
     candidates.sort_by(|a, b| {
         let early = |g: usize| first.contains(&g);
         early(b.0)
             .cmp(&early(a.0))
-            .then(b.1.total_cmp(&a.1))
+            .then(b.1.error.total_cmp(&a.1.error))
             .then(a.0.cmp(&b.0))
     });
 }
@@ -166,7 +166,7 @@ fn order(candidates: &mut [(usize, f64)], first: &[usize]) {
 pub(super) fn run(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
-    candidates: &mut [(usize, f64)],
+    candidates: &mut [(usize, fit::ErrorEstimate)],
     kinds: &[GroupKind],
     budget: &Budget,
     cache_settings: &RenderSettings,
@@ -344,10 +344,13 @@ pub(super) fn run(
         let (mut specularity, mut alpha) = (specularity, alpha);
         let mut ladder_sigmas = None;
         let proposal_failed = matches!(comparison, Some((c, _)) if !c.favours_complex());
-        if proposal_failed
-            && ladder::applies(diffuse_error)
-            && matches!(candidate.0, GroupModel::Isotropic { .. })
-        {
+        // Room for a weak lobe only, by stage 1's measurement or by the test's, of the
+        // diffuse model under the scene as now known: the living room's lamp_body read
+        // 0.0556 +- 0.0012 in stage 1 (beside a grey stand-in of the mirror) and 0.02 once
+        // the mirror was one, and went without a second look.
+        let weak_only = ladder::applies(&diffuse_error)
+            || matches!(comparison, Some((c, _)) if ladder::applies(&c.simple_estimate()));
+        if proposal_failed && weak_only && matches!(candidate.0, GroupModel::Isotropic { .. }) {
             let proposal = comparison.map(|(c, _)| c);
             let look = ladder::second_look(rec, g, &cache, kind, stage1, verify_spp, proposal)?;
             evaluations += look.evaluations;
@@ -463,7 +466,7 @@ pub(super) fn run(
                         ward.specularity,
                         proposal_roughness,
                     ));
-                    if ladder::applies(diffuse_error) {
+                    if weak_only {
                         let (spread, spent) = ladder::spread_around(
                             rec,
                             g,
@@ -513,7 +516,7 @@ pub(super) fn run(
         notes: vec![
             "each candidate group fitted on its transport cache: reflectances in closed form, roughness by a log grid and golden section".into(),
             format!(
-                "a group whose diffuse error is at most DIFFUSE_THRESHOLD {} (room for a weak lobe only) and whose proposal fails the test gets a second look: LADDER_RUNGS {} roughnesses rendered with at least LADDER_SAMPLES {} pixel samples, the best by its gain's lower bound tested in its place",
+                "a group whose diffuse error is not above DIFFUSE_THRESHOLD {} by EXCEEDS_SIGMAS standard errors (room for a weak lobe only) and whose proposal fails the test gets a second look: LADDER_RUNGS {} roughnesses rendered with at least LADDER_SAMPLES {} pixel samples, the best by its gain's lower bound tested in its place",
                 fit::DIFFUSE_THRESHOLD,
                 ladder::LADDER_RUNGS,
                 ladder::LADDER_SAMPLES
@@ -530,7 +533,8 @@ mod tests {
     /// px, 0.35, after the statue's 0.79); the rest by error, worst first, ties by index.
     #[test]
     fn the_proposed_mirrors_go_first_then_the_worst_explained() {
-        let mut candidates = [(7, 0.79), (9, 0.35), (4, 0.04), (10, 0.46), (2, 0.46)];
+        let mut candidates = [(7, 0.79), (9, 0.35), (4, 0.04), (10, 0.46), (2, 0.46)]
+            .map(|(g, e)| (g, fit::ErrorEstimate::from_squared(e * e, 0.001)));
         order(&mut candidates, &[9]);
         let groups: Vec<usize> = candidates.iter().map(|c| c.0).collect();
         assert_eq!(groups, [9, 7, 2, 10, 4]);
