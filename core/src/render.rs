@@ -1009,8 +1009,9 @@ pub(crate) mod tests {
                         ..RenderSettings::default()
                     };
                     let (mean, var) = render_pixel_with_variance(&scene, &view, 0, x, y, &settings);
-                    sum += mean.y as f64;
-                    sum_sq += (mean.y as f64).powi(2);
+                    let value = mean.y as f64;
+                    sum += value;
+                    sum_sq += value * value;
                     variance += var.y as f64;
                 }
                 let n = seeds as f64;

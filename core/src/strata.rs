@@ -33,7 +33,7 @@ pub fn half_of(sample: u32, spp: u32) -> (u32, u32) {
 #[inline]
 pub fn pixel_point(seed: u64, view: u32, pixel: u32, sample: u32, spp: u32) -> [f32; 2] {
     let (half, index) = half_of(sample, spp);
-    let key = stream_key(&[seed, view as u64, pixel as u64, half as u64, 0x5717_A7A]);
+    let key = stream_key(&[seed, view as u64, pixel as u64, half as u64, 0x0571_7A7A]);
     let (seed_x, seed_y) = (key as u32, (key >> 32) as u32);
     [
         unit_f32(owen_scramble(index.reverse_bits(), seed_x)),
