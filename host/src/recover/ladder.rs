@@ -1,9 +1,9 @@
 //! Stage 2's second look at a weak lobe: a ladder of roughnesses, chosen by render.
 //!
 //! A group whose whole diffuse error is not established above `DIFFUSE_THRESHOLD` may
-//! hold only a weak lobe, and its cache's proposal is least reliable there: the closed-form fit over a
-//! finite set of incident samples rewards a sharp, weak lobe that lines up with a few
-//! bright samples (docs/recovery.md, "The cache's proposal depends on the cache's size").
+//! hold only a weak lobe, and its cache's proposal is least reliable there: the
+//! closed-form fit over a finite set of incident samples rewards a sharp, weak lobe that
+//! lines up with a few bright samples (docs/recovery.md, "The cache's proposal depends on the cache's size").
 //! Glossy's yellow box (specularity 0.1, roughness 0.2 in the truth) is proposed at
 //! roughness 0.05, which removes 0.002 of its 0.029 error in a render, and stays diffuse,
 //! while a lobe of roughness 0.3 on the same cache removes 0.019 at z 6.
@@ -547,9 +547,9 @@ fn ladder_spp(rec: &Recovery, g: usize, spp: u32) -> u32 {
     min_samples_spp(spp, pixels, LADDER_SAMPLES)
 }
 
-/// Whether stage 2 gives a group a second look: its diffuse error (stage 1's) may leave
-/// room only for a weak lobe, i.e. it is not established above `DIFFUSE_THRESHOLD` (by
-/// `EXCEEDS_SIGMAS` standard errors). On the point estimate alone, the living room's
+/// Whether stage 2 gives a group a second look: its diffuse error (stage 1's, or a
+/// test's of the diffuse model) may leave room only for a weak lobe, i.e. it is not
+/// established above `DIFFUSE_THRESHOLD` (by `EXCEEDS_SIGMAS` standard errors). On the point estimate alone, the living room's
 /// lamp_body (22 pixels, s 0.05) read 0.055 +- 0.016 and 0.087 +- 0.034 on two seeds,
 /// took the strong route, and its proposal's failed test left it diffuse without a look.
 pub fn applies(diffuse_error: &fit::ErrorEstimate) -> bool {

@@ -150,16 +150,16 @@ pub(super) fn run(
                 let Some(estimate) = decided[g] else {
                     continue;
                 };
-                let route = if ladder::applies(&estimate) {
-                    "not above DIFFUSE_THRESHOLD {} by EXCEEDS_SIGMAS: tested for a weak specular"
+                let (side, route) = if ladder::applies(&estimate) {
+                    ("not above", "tested for a weak specular")
                 } else {
-                    "above DIFFUSE_THRESHOLD {} by more than EXCEEDS_SIGMAS: on to isotropic"
+                    ("above", "on to isotropic")
                 };
                 r.decisions.push(format!(
-                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than EXCEEDS_SIGMAS {} standard errors ({})",
+                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than EXCEEDS_SIGMAS {} standard errors ({side} DIFFUSE_THRESHOLD {} by them): {route}",
                     fit::SPECULAR_GAIN_THRESHOLD,
                     fit::EXCEEDS_SIGMAS,
-                    route.replace("{}", &fit::DIFFUSE_THRESHOLD.to_string())
+                    fit::DIFFUSE_THRESHOLD
                 ));
                 candidates.push((g, estimate));
             }
