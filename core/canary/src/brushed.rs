@@ -23,12 +23,15 @@ const TRUE_ROUGHNESS_V: f64 = 0.2;
 const TRUE_ANGLE_DEG: f64 = 30.0;
 
 /// Samples per pixel of the cache stage 4 searches on: each of its some 250 shapes traces
-/// the view again.
-const STAGE4_SPP: u32 = 32;
+/// the view again. At 32 the proposal's roughness along the brushing spread from 5% to
+/// 36% off over the cache's seeds 3-8, with plain samples and with stratified ones alike,
+/// wider than the check below allows.
+const STAGE4_SPP: u32 = 64;
 
 /// How far the recovered lobe may be from the truth: its roughnesses (relative) and its
-/// direction (degrees). At these samples it misses the roughnesses by 16% and 4%, the
-/// direction by 1.1 degrees.
+/// direction (degrees). At these samples, over the cache's seeds 3-8, it misses the
+/// roughnesses by 7-19% and 1-8%, the direction by at most 3.9 degrees (seed 3: 17%, 1%
+/// and 1.3 degrees).
 const ROUGHNESS_TOLERANCE: f64 = 0.3;
 const ANGLE_TOLERANCE_DEG: f64 = 10.0;
 
