@@ -10,6 +10,7 @@ use relume_core::fit;
 use relume_core::material::Kind;
 use relume_core::render::RenderSettings;
 
+use super::cache::GroupCache;
 use super::kind::{self, KindFit};
 use super::model::GroupModel;
 use super::pixels::PurePixel;
@@ -56,6 +57,27 @@ fn isotropic_alternative(
         _ if c.gain > 0.0 => Alternative::Rival,
         _ => Alternative::Worse,
     }
+}
+
+/// Records that group `g`'s isotropic lobe (`kind`, `specularity`, `roughness`) is one
+/// of stage 4's cache's fits: its spread is that cache's proposal's, not stage 2's
+/// ladder's.
+fn lobe_of_this_cache(
+    report: &mut GroupReport,
+    rec: &Recovery,
+    cache: &GroupCache,
+    kind: Kind,
+    specularity: f64,
+    roughness: f64,
+) {
+    report.lobe_from_ladder = false;
+    report.lobe_sigmas = Vec::from(uncertainty::proposal_size_dependence(
+        &rec.pool,
+        cache,
+        kind,
+        specularity,
+        roughness,
+    ));
 }
 
 /// The seed key of the render that levels a diffuse rival's colour.
@@ -500,16 +522,8 @@ pub(super) fn run(
         ) = (replaced, kept)
         {
             // The lobe kept is one of this cache's fits (or the anisotropic fit's, on the
-            // same cache): its spread is this cache's proposal's, not stage 2's.
-            let r = &mut reports[g];
-            r.lobe_from_ladder = false;
-            r.lobe_sigmas = Vec::from(uncertainty::proposal_size_dependence(
-                &rec.pool,
-                &cache,
-                kind,
-                specularity,
-                roughness,
-            ));
+            // same cache).
+            lobe_of_this_cache(&mut reports[g], rec, &cache, kind, specularity, roughness);
         }
         bar.inc(1);
         let comparison = rec.compare_models(g, rival, refined.model, 4 * verify_spp)?;
@@ -590,14 +604,7 @@ pub(super) fn run(
             ));
             rec.models[g] = shadow;
             r.set_decided(s.simple_estimate());
-            r.lobe_from_ladder = false;
-            r.lobe_sigmas = Vec::from(uncertainty::proposal_size_dependence(
-                &rec.pool,
-                &cache,
-                kind,
-                specularity,
-                roughness,
-            ));
+            lobe_of_this_cache(r, rec, &cache, kind, specularity, roughness);
         } else if let (
             true,
             GroupModel::Anisotropic {
