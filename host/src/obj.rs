@@ -14,7 +14,9 @@
 //! - A face before any `o`/`g` is an error ("face outside any object"): the scene must be able
 //!   to name every face. An object name used twice in one file is an error (names must be
 //!   unique; see `scene_file::check_objects` across files). An object without faces is left out.
-//! - `v`: 3 finite numbers (6 with a vertex colour, ignored); `vt`: 2 or 3 finite numbers;
+//! - `v`: 3 finite numbers (6 with a vertex colour, ignored; 4 with the spec's weight, only
+//!   its default 1: readers differ on dividing by any other); `vt`: 1 to 3 finite numbers
+//!   (v 0 when left out, as the spec says; w ignored);
 //!   `f`: at least 3 vertices `v`, `v/vt`, `v//vn` or `v/vt/vn`, indices 1-based or negative
 //!   (relative), referring to vertices, texture coordinates and normals already read; a face
 //!   uses texture coordinates on all of its vertices or on none.
@@ -22,7 +24,8 @@
 //! - A line ending in `\` goes on in the next (errors name the line a statement starts
 //!   on); a comment line does not.
 //! - Ignored: comments, `vn` (flat shading), `s`, `mtllib`, `usemtl` (materials come from
-//!   materials.toml), `l` and `p` (lines and points have no area). Any other statement
+//!   materials.toml), `l` and `p` (lines and points have no area), `vp` (free-form
+//!   geometry's parameter points, checked to be numbers). Any other statement
 //!   (free-form curves, typos) is an error.
 //! - An object's `uvs` are present only when all of its faces have texture coordinates.
 
@@ -336,11 +339,22 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
             k if k.starts_with('#') => {}
             "v" => {
                 let xs = numbers(&args, "v", &err)?;
-                if xs.len() != 3 && xs.len() != 6 {
-                    return Err(err(format!(
-                        "`v` needs 3 numbers (x y z, or 6 with a vertex colour), found {}",
-                        xs.len()
-                    )));
+                match xs.len() {
+                    3 | 6 => {}
+                    // The spec's weight, for rational curves: a polygon's corner takes none,
+                    // and some readers divide by it, so only its default is unambiguous.
+                    4 if xs[3] == 1.0 => {}
+                    4 => {
+                        return Err(err(format!(
+                            "`v` has a weight w = {} (the 4th number): relume reads polygons, whose corners take no weight, and readers differ on whether to divide by it; write the position itself (x/w y/w z/w if that is what it means), or w = 1",
+                            args[3]
+                        )))
+                    }
+                    n => {
+                        return Err(err(format!(
+                            "`v` needs 3 numbers (x y z, 4 with a weight of 1, or 6 with a vertex colour), found {n}"
+                        )))
+                    }
                 }
                 out.push_str(&format!("v {} {} {}\n", args[0], args[1], args[2]));
                 positions.push([0, 1, 2].map(|k| args[k].parse::<f64>().unwrap_or(0.0)));
@@ -348,13 +362,15 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
             }
             "vt" => {
                 let xs = numbers(&args, "vt", &err)?;
-                if xs.len() != 2 && xs.len() != 3 {
+                if !(1..=3).contains(&xs.len()) {
                     return Err(err(format!(
-                        "`vt` needs 2 numbers (u v), found {}",
+                        "`vt` needs 1 to 3 numbers (u, v and w, v and w 0 if left out), found {}",
                         xs.len()
                     )));
                 }
-                out.push_str(&format!("vt {} {}\n", args[0], args[1]));
+                // The spec's default v is 0 (a 1D texture); w has no place in a 2D map.
+                let v = args.get(1).copied().unwrap_or("0");
+                out.push_str(&format!("vt {} {v}\n", args[0]));
                 n_vt += 1;
             }
             "f" => {
@@ -438,6 +454,17 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                 out.push_str(&format!("o {name}\n"));
             }
             "vn" => n_vn += 1,
+            // Free-form geometry's parameter-space points: harmless alone, and whatever
+            // would use them (`curv`, `surf`, ...) is refused below.
+            "vp" => {
+                let xs = numbers(&args, "vp", &err)?;
+                if !(1..=3).contains(&xs.len()) {
+                    return Err(err(format!(
+                        "`vp` needs 1 to 3 numbers (u v w), found {}",
+                        xs.len()
+                    )));
+                }
+            }
             "g" | "s" | "mtllib" | "usemtl" | "l" | "p" => {}
             other => return Err(err(format!("unknown OBJ statement '{other}'"))),
         }
@@ -758,7 +785,8 @@ mod tests {
     #[test]
     fn bad_vertices() {
         bad("o a\nv 1 2\n", 2, &["`v` needs 3 numbers", "found 2"]);
-        bad("o a\nv 1 2 3 4\n", 2, &["`v` needs 3 numbers"]);
+        bad("o a\nv 1 2 3 0.5\n", 2, &["weight w = 0.5", "x/w y/w z/w"]);
+        bad("o a\nv 1 2 3 4 5\n", 2, &["`v` needs 3 numbers", "found 5"]);
         bad("o a\nv 1 x 3\n", 2, &["'x' is not a number"]);
         bad("o a\nv 1 nan 3\n", 2, &["non-finite number 'nan'"]);
         bad("o a\nv 1 inf 3\n", 2, &["non-finite"]);
@@ -767,7 +795,12 @@ mod tests {
 
     #[test]
     fn bad_texture_coordinates() {
-        bad("o a\nvt 0.5\n", 2, &["`vt` needs 2 numbers", "found 1"]);
+        bad("o a\nvt\n", 2, &["`vt` needs 1 to 3 numbers", "found 0"]);
+        bad(
+            "o a\nvt 0 0 0 0\n",
+            2,
+            &["`vt` needs 1 to 3 numbers", "found 4"],
+        );
         bad("o a\nvt 0.5 y\n", 2, &["'y' is not a number"]);
         bad("o a\nvt 0.5 nan\n", 2, &["non-finite"]);
     }
@@ -860,7 +893,22 @@ mod tests {
     #[test]
     fn unknown_statements_are_errors() {
         bad("o a\ncurv 0 1 1 2\n", 2, &["unknown OBJ statement 'curv'"]);
-        bad("o a\nvp 0.5\n", 2, &["unknown OBJ statement 'vp'"]);
+        bad("o a\nvp 0.5 x\n", 2, &["`vp`: 'x' is not a number"]);
+    }
+
+    /// The spec's optional numbers: a `v` weight of 1, a `vt` without v (0) or with w, and
+    /// `vp` lines read as the plain file does.
+    #[test]
+    fn optional_numbers_of_the_spec_are_read() {
+        let plain =
+            load("o a\nv 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0.25 0\nvt 1 0\nvt 1 0\nf 1/1 2/2 3/3\n");
+        let spec = load(
+            "o a\nv 0 0 0 1\nv 1 0 0 1.0\nv 1 1 0\nvp 0.5\nvp 0.5 0.5 1\nvt 0.25\nvt 1 0 0.7\nvt 1\nf 1/1 2/2 3/3\n",
+        );
+        assert_eq!(spec.len(), 1);
+        assert_eq!(spec[0].triangles, plain[0].triangles);
+        assert_eq!(spec[0].uvs, plain[0].uvs);
+        assert_eq!(spec[0].uvs.as_ref().unwrap()[0][0], [0.25, 0.0]);
     }
 
     #[test]
