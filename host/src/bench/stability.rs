@@ -918,8 +918,34 @@ fn family_verdict(
     }
 }
 
+/// Classes right against the truth over all runs, and per family run: the studies'
+/// headline count, which docs/stability.md once summed by hand.
+fn classes_right_line(runs: &[StabilityRun]) -> String {
+    let count = |of: &mut dyn Iterator<Item = &StabilityRun>| {
+        of.map(|r| r.judged.summary())
+            .fold((0, 0), |(right, all), s| {
+                (right + s.classes_right, all + s.groups)
+            })
+    };
+    let (right, all) = count(&mut runs.iter());
+    let per_family: Vec<String> = Family::ALL
+        .into_iter()
+        .filter(|&f| runs.iter().any(|r| r.family == f))
+        .map(|f| {
+            let (right, all) = count(&mut runs.iter().filter(|r| r.family == f));
+            format!("{} {right}/{all}", f.name())
+        })
+        .collect();
+    format!(
+        "classes right over all {} runs: {right}/{all} ({})",
+        runs.len(),
+        per_family.join(", ")
+    )
+}
+
 fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread], families: &[Family]) {
     println!();
+    println!("{}", classes_right_line(runs));
     let worst = spread
         .iter()
         .filter_map(|s| Some((s.rel_std?, s)))
@@ -1200,6 +1226,29 @@ mod tests {
         assert_eq!(
             family_verdict(&unchanged, &base.judged, Family::Noise, &Family::ALL),
             "noise: no class changes in the tested range"
+        );
+    }
+
+    #[test]
+    fn classes_right_are_counted_over_all_runs_and_per_family() {
+        // Each group's truth is diffuse: a run's isotropic groups are wrong.
+        let judged = |model: Model| GroupOutcome {
+            class_ok: model == Model::Diffuse,
+            ..outcome("a", material("a", model, 0.5, 0.1), 10)
+        };
+        let run = |family: Family, size: f64, models: [Model; 2]| StabilityRun {
+            family,
+            size,
+            ..seed_run(0, models.into_iter().map(judged).collect())
+        };
+        let runs = vec![
+            run(Family::Seed, 1.0, [Model::Diffuse, Model::Isotropic]),
+            run(Family::Seed, 2.0, [Model::Isotropic, Model::Isotropic]),
+            run(Family::Noise, 1.0, [Model::Diffuse, Model::Diffuse]),
+        ];
+        assert_eq!(
+            classes_right_line(&runs),
+            "classes right over all 3 runs: 3/6 (seed 1/4, noise 2/2)"
         );
     }
 
