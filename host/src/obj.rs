@@ -361,13 +361,7 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                 n_v += 1;
             }
             "vt" => {
-                let xs = numbers(&args, "vt", &err)?;
-                if !(1..=3).contains(&xs.len()) {
-                    return Err(err(format!(
-                        "`vt` needs 1 to 3 numbers (u, v and w, v and w 0 if left out), found {}",
-                        xs.len()
-                    )));
-                }
+                one_to_three_numbers(&args, "vt", "u, v and w, v and w 0 if left out", &err)?;
                 // The spec's default v is 0 (a 1D texture); w has no place in a 2D map.
                 let v = args.get(1).copied().unwrap_or("0");
                 out.push_str(&format!("vt {} {v}\n", args[0]));
@@ -457,13 +451,7 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
             // Free-form geometry's parameter-space points: harmless alone, and whatever
             // would use them (`curv`, `surf`, ...) is refused below.
             "vp" => {
-                let xs = numbers(&args, "vp", &err)?;
-                if !(1..=3).contains(&xs.len()) {
-                    return Err(err(format!(
-                        "`vp` needs 1 to 3 numbers (u v w), found {}",
-                        xs.len()
-                    )));
-                }
+                one_to_three_numbers(&args, "vp", "u v w", &err)?;
             }
             "g" | "s" | "mtllib" | "usemtl" | "l" | "p" => {}
             other => return Err(err(format!("unknown OBJ statement '{other}'"))),
@@ -474,6 +462,22 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
         text: out,
         named_by_g: !has_o,
     })
+}
+
+/// [`numbers`], and 1 to 3 of them, as `vt` and `vp` take (`form` names them).
+fn one_to_three_numbers(
+    args: &[&str],
+    key: &str,
+    form: &str,
+    err: &dyn Fn(String) -> Error,
+) -> Result<(), Error> {
+    let n = numbers(args, key, err)?.len();
+    if !(1..=3).contains(&n) {
+        return Err(err(format!(
+            "`{key}` needs 1 to 3 numbers ({form}), found {n}"
+        )));
+    }
+    Ok(())
 }
 
 /// Parses all arguments as finite numbers.
