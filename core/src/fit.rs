@@ -212,6 +212,11 @@ impl ErrorEstimate {
     }
 
     /// Whether the error is more than [`EXCEEDS_SIGMAS`] standard errors above `threshold`.
+    ///
+    /// Taken on the root, with `sigma` by the delta method: near 0 that passes errors the
+    /// square (where [`ErrorEstimate::upper_bound`] is taken) would not. Kept so on
+    /// purpose where it sends a group on to a test: a false go-on costs a test, a false
+    /// stop a weak lobe (docs/tradeoff.md, box-diffuse at 4 loop spp).
     pub fn exceeds(&self, threshold: f64) -> bool {
         self.error - EXCEEDS_SIGMAS * self.sigma > threshold
     }
