@@ -647,7 +647,7 @@ mod tests {
     }
 
     /// A circle traced twice turns left at every corner and crosses itself nowhere near a
-    /// corner: a face of more corners than the edge test once took is found by it.
+    /// corner: past the 4,096 corners where the edge test once stopped, it is still told.
     #[test]
     fn a_circle_traced_twice_crosses_itself() {
         let n = 4100;

@@ -954,18 +954,12 @@ fn family_verdict(
 /// Classes right against the truth over all runs, and per family run: the studies'
 /// headline count, which docs/stability.md once summed by hand.
 fn classes_right_line(runs: &[StabilityRun]) -> String {
-    let count = |of: &mut dyn Iterator<Item = &StabilityRun>| {
-        of.map(|r| r.judged.summary())
-            .fold((0, 0), |(right, all), s| {
-                (right + s.classes_right, all + s.groups)
-            })
-    };
-    let (right, all) = count(&mut runs.iter());
+    let (right, all) = classes_right(runs.iter());
     let per_family: Vec<String> = Family::ALL
         .into_iter()
         .filter(|&f| runs.iter().any(|r| r.family == f))
         .map(|f| {
-            let (right, all) = count(&mut runs.iter().filter(|r| r.family == f));
+            let (right, all) = classes_right(runs.iter().filter(|r| r.family == f));
             format!("{} {right}/{all}", f.name())
         })
         .collect();
@@ -974,6 +968,14 @@ fn classes_right_line(runs: &[StabilityRun]) -> String {
         runs.len(),
         per_family.join(", ")
     )
+}
+
+/// The classes right, and the groups judged, over `runs`.
+fn classes_right<'a>(runs: impl Iterator<Item = &'a StabilityRun>) -> (usize, usize) {
+    runs.map(|r| r.judged.summary())
+        .fold((0, 0), |(right, all), s| {
+            (right + s.classes_right, all + s.groups)
+        })
 }
 
 fn print_verdict(runs: &[StabilityRun], baseline: &Judged, spread: &[Spread], families: &[Family]) {
