@@ -1204,6 +1204,47 @@ fn living_room_small_renders_no_lobe_its_cache_rules_out() {
     }
 }
 
+/// Every untextured group that stage 2 decided has a word from stage 4, whether it went
+/// on or not. The brushed plate (isotropic here, anisotropic in truth) is left with less
+/// than `DIFFUSE_THRESHOLD` by its isotropic lobe, so stage 4 does not try it: the report
+/// says so with the error the gate read, and that note does not pass for the decision
+/// that set its model, which stays stage 2's.
+#[test]
+fn living_room_small_says_why_stage_4_leaves_a_group_alone() {
+    let (out, _) = living_room_small();
+    let report = report_json(out);
+    for group in report["groups"].as_array().unwrap() {
+        let name = group["group"].as_str().unwrap();
+        let model = group["model"].as_str().unwrap();
+        if group["error_decided"].is_null() || !matches!(model, "diffuse" | "isotropic") {
+            continue;
+        }
+        let decisions = decisions(group);
+        assert!(
+            decisions.iter().any(|d| d.starts_with("stage 4")),
+            "{name}: {decisions:?}"
+        );
+    }
+    let plate = group_report(out, "brushed_plate");
+    assert_eq!(plate["model"], "isotropic", "{plate}");
+    let decided = plate["error_decided"].as_f64().unwrap();
+    assert!(decided <= relume_core::fit::DIFFUSE_THRESHOLD, "{plate}");
+    let decisions = decisions(&plate);
+    let gate = decisions
+        .iter()
+        .find(|d| d.starts_with("stage 4 gate: not tried"))
+        .unwrap_or_else(|| panic!("{decisions:?}"));
+    assert!(
+        gate.contains(&format!("leaves {decided:.4} of relative error")),
+        "{gate}"
+    );
+    assert!(gate.contains("DIFFUSE_THRESHOLD 0.05"), "{gate}");
+    assert!(
+        !decisions.iter().any(|d| d.starts_with("stage 4:")),
+        "{decisions:?}"
+    );
+}
+
 /// Glossy at 64 px, seed 4: the teal box's ladder (s 0.04, roughness 0.08 in the truth;
 /// 426 pixels) has not chosen at its first round's 77 spp, where no rung gains at its lower
 /// bound and the best there is the sharpest (0.005). Its three rungs of most gain are

@@ -132,6 +132,39 @@ struct Levelled {
     said: String,
 }
 
+/// How the report names a note on the stage's gate: not `"stage 4:"`, which marks a
+/// decision that set the group's model (`GroupReport::settling_decision`).
+const GATE: &str = "stage 4 gate";
+
+/// Says, for every untextured group that stage 2 decided and this stage leaves alone, why:
+/// its decided error is not above `DIFFUSE_THRESHOLD`, the error left for an anisotropic
+/// lobe to explain. Without it a group's route ends at stage 2 with no word on stage 4 (the
+/// living room's brushed plate: isotropic, 0.035 left, and anisotropic in truth).
+fn say_why_not_tried(
+    rec: &Recovery,
+    reports: &mut [GroupReport],
+    textured: &[bool],
+    tried: &[usize],
+) {
+    for (g, r) in reports.iter_mut().enumerate() {
+        let model = match rec.models[g] {
+            GroupModel::Isotropic { .. } => "isotropic",
+            GroupModel::Diffuse { .. } => "diffuse",
+            _ => continue,
+        };
+        let Some(error) = r.error_decided else {
+            continue;
+        };
+        if textured[g] || tried.contains(&g) {
+            continue;
+        }
+        r.decisions.push(format!(
+            "{GATE}: not tried: its {model} model leaves {error:.4} of relative error as stage 2 decided, not above DIFFUSE_THRESHOLD {}, the error an anisotropic lobe is sought for",
+            fit::DIFFUSE_THRESHOLD
+        ));
+    }
+}
+
 /// Whether a group that stage 2 left diffuse goes on to this stage's search, and its
 /// colour levelled by the colour polish's step (`polish::colour_step`, at least
 /// `POLISH_MIN_SAMPLES` samples), against which the lobes are weighed.
@@ -227,12 +260,16 @@ pub(super) fn run(
             _ => false,
         })
         .collect();
+    say_why_not_tried(rec, reports, textured, &stage4);
     let bar = progress_bar(stage4.len() as u64, STAGE);
     let mut laps = Laps::new(STAGE);
     for g in stage4 {
         laps.start(g, evaluations, reports);
         let mut stage2 = rec.models[g];
         let Some(basis) = anisotropic::tangent_basis(rec, g) else {
+            reports[g].decisions.push(format!(
+                "{GATE}: not tried: its largest triangle has no tangent plane to orient a lobe in"
+            ));
             bar.inc(1);
             continue;
         };
