@@ -1204,8 +1204,8 @@ fn living_room_small_renders_no_lobe_its_cache_rules_out() {
     }
 }
 
-/// Every untextured group that stage 2 decided has a word from stage 4, whether it went
-/// on or not. The brushed plate (isotropic here, anisotropic in truth) is left with less
+/// Every untextured group that stage 2 decided has a word from stages 3 and 4, whether it
+/// went on or not. The brushed plate (isotropic here, anisotropic in truth) is left with less
 /// than `DIFFUSE_THRESHOLD` by its isotropic lobe, so stage 4 does not try it: the report
 /// says so with the error the gate read, and that note does not pass for the decision
 /// that set its model, which stays stage 2's.
@@ -1220,10 +1220,12 @@ fn living_room_small_says_why_stage_4_leaves_a_group_alone() {
             continue;
         }
         let decisions = decisions(group);
-        assert!(
-            decisions.iter().any(|d| d.starts_with("stage 4")),
-            "{name}: {decisions:?}"
-        );
+        for stage in ["stage 3", "stage 4"] {
+            assert!(
+                decisions.iter().any(|d| d.starts_with(stage)),
+                "{name}, {stage}: {decisions:?}"
+            );
+        }
     }
     let plate = group_report(out, "brushed_plate");
     assert_eq!(plate["model"], "isotropic", "{plate}");
@@ -1241,6 +1243,13 @@ fn living_room_small_says_why_stage_4_leaves_a_group_alone() {
     assert!(gate.contains("DIFFUSE_THRESHOLD 0.05"), "{gate}");
     assert!(
         !decisions.iter().any(|d| d.starts_with("stage 4:")),
+        "{decisions:?}"
+    );
+    // Nor is a metal tested for texture, and the report says so too.
+    assert!(
+        decisions
+            .iter()
+            .any(|d| d.starts_with("stage 3: not tested for texture: a metal")),
         "{decisions:?}"
     );
 }

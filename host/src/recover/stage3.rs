@@ -36,6 +36,50 @@ pub(super) struct Coordinates<'a> {
     pub overlapping: &'a [Option<String>],
 }
 
+/// Says, for every group that stage 2 decided and this stage does not test, why: a metal
+/// (textured models apply to plastic groups, reflectance.md), no texture coordinates, or
+/// an error not above `SPECULAR_GAIN_THRESHOLD`, which no map could explain more of. A
+/// plastic seen in too few pixels for the statistic is said of in `run`, and a group stage
+/// 1 settled in stage 1's decision.
+fn say_why_not_tested(
+    rec: &Recovery,
+    reports: &mut [GroupReport],
+    kinds: &[GroupKind],
+    mapped: &[bool],
+    tested: &[usize],
+) {
+    for (g, r) in reports.iter_mut().enumerate() {
+        let lobe_kind = match rec.models[g] {
+            GroupModel::Isotropic { kind, .. } if kinds[g] != GroupKind::Auto => Some(kind),
+            GroupModel::Isotropic { .. } | GroupModel::Diffuse { .. } => None,
+            _ => continue,
+        };
+        let metal = kinds[g] == GroupKind::Metal || lobe_kind == Some(Kind::Metal);
+        let few = r.pure_pixels < fit::MIN_PIXELS_FOR_TEXTURE;
+        if r.error_decided.is_none() || tested.contains(&g) || (few && mapped[g] && !metal) {
+            continue;
+        }
+        let why = match (metal, mapped[g], r.latest_error) {
+            (true, ..) => {
+                "a metal: textured models apply to plastic groups (reflectance.md)".to_string()
+            }
+            (false, false, _) => {
+                "some of its objects have no texture coordinates (vt on every face), which a diffuse map needs".to_string()
+            }
+            (false, true, Some(e)) => format!(
+                "its error {:.4} +- {:.4} is not above SPECULAR_GAIN_THRESHOLD {} by EXCEEDS_SIGMAS {} standard errors, and a map can explain no more error than there is",
+                e.error,
+                e.sigma,
+                fit::SPECULAR_GAIN_THRESHOLD,
+                fit::EXCEEDS_SIGMAS
+            ),
+            (false, true, None) => continue,
+        };
+        r.decisions
+            .push(format!("stage 3: not tested for texture: {why}"));
+    }
+}
+
 /// Runs stage 3 with renders at `4 * verify_spp` on `seed`, recording each tested group's
 /// contrast and decision in `reports`. Groups without texture coordinates (`mapped`
 /// false) are not tested; one that shows a texture over coordinates no map can be laid
@@ -80,6 +124,7 @@ pub(super) fn run(
                 }
         })
         .collect();
+    say_why_not_tested(rec, reports, kinds, mapped, &tested);
     // Seen in too few pixels for the statistic, a texture cannot be told from a lobe or a
     // colour: said, since such a group keeps a uniform model (whatever error a picture
     // leaves goes to stage 4's lobe).
