@@ -1854,6 +1854,52 @@ fn model_of(materials: &[u8], group: &str) -> String {
     material["model"].as_str().unwrap().to_string()
 }
 
+/// A picture frame's worth of plain glossy plastic, with texture coordinates: stage 2 finds
+/// its lobe, and what the lobe leaves is not established above `SPECULAR_GAIN_THRESHOLD`,
+/// so stage 3 does not test it for texture and stage 4 does not try it. Both say so, with
+/// the error they read (before, its route ended at stage 2 without a word on either).
+#[test]
+fn a_plain_glossy_group_with_coordinates_says_why_stages_3_and_4_pass_it_by() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    picture_scene(dir, [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
+    let truth = "format = 1\n\n[[material]]\ngroup = \"picture\"\nmodel = \"isotropic\"\nkind = \"plastic\"\ncolor = [0.6, 0.5, 0.4]\nspecularity = 0.08\nroughness = 0.1\n\n[[material]]\ngroup = \"floor\"\nmodel = \"diffuse\"\ncolor = [0.5, 0.4, 0.3]\n";
+    std::fs::write(dir.join("truth.toml"), truth).unwrap();
+    let args = ["render", "scene.toml", "--materials", "truth.toml"];
+    relume_ok(
+        dir,
+        &[&args[..], &["--out", "views", "--spp", "256"]].concat(),
+    );
+    let out = dir.join("rec");
+    recover(&dir.join("scene.toml"), &out, &["--effort", "fast"]);
+    let picture = group_report(&out, "picture");
+    assert_eq!(picture["model"], "isotropic", "{picture}");
+    let decided = picture["error_decided"].as_f64().unwrap();
+    let decisions = decisions(&picture);
+    let said = |start: &str| {
+        decisions
+            .iter()
+            .find(|d| d.starts_with(start))
+            .unwrap_or_else(|| panic!("no {start:?} in {decisions:?}"))
+            .to_string()
+    };
+    let stage3 = said("stage 3: not tested for texture: its error ");
+    assert!(
+        stage3.contains(&format!("its error {decided:.4} +- ")),
+        "{stage3}"
+    );
+    assert!(
+        stage3.contains("not above SPECULAR_GAIN_THRESHOLD 0.01"),
+        "{stage3}"
+    );
+    let stage4 = said("stage 4 gate: not tried: its isotropic model leaves ");
+    assert!(
+        stage4.contains(&format!("leaves {decided:.4} of")),
+        "{stage4}"
+    );
+    assert!(!out.join("textures/picture.exr").exists());
+}
+
 /// The panorama's noise bound, which stage 3 corrects contrasts by, is the tightest of the
 /// groups' errors: when it is the tested group's own (here the only group seen), a
 /// texture is in the bound it is corrected by, and stage 3 cannot tell it from noise. The
