@@ -36,6 +36,10 @@ pub(super) struct Coordinates<'a> {
     pub overlapping: &'a [Option<String>],
 }
 
+/// Why a group without texture coordinates is not tested for texture.
+const NO_COORDINATES: &str =
+    "some of its objects have no texture coordinates (vt on every face), which a diffuse map needs";
+
 /// Says, for every group that stage 2 decided and this stage does not test, why: a metal
 /// (textured models apply to plastic groups, reflectance.md), no texture coordinates, or
 /// an error not above `SPECULAR_GAIN_THRESHOLD`, which no map could explain more of. A
@@ -63,9 +67,7 @@ fn say_why_not_tested(
             (true, ..) => {
                 "a metal: textured models apply to plastic groups (reflectance.md)".to_string()
             }
-            (false, false, _) => {
-                "some of its objects have no texture coordinates (vt on every face), which a diffuse map needs".to_string()
-            }
+            (false, false, _) => NO_COORDINATES.to_string(),
             (false, true, Some(e)) => format!(
                 "its error {:.4} +- {:.4} is not above SPECULAR_GAIN_THRESHOLD {} by EXCEEDS_SIGMAS {} standard errors, and a map can explain no more error than there is",
                 e.error,
@@ -141,9 +143,9 @@ pub(super) fn run(
     // A map lies over the OBJ texture coordinates: a group without them cannot have one.
     let (tested, unmapped): (Vec<usize>, Vec<usize>) = tested.into_iter().partition(|&g| mapped[g]);
     for g in unmapped {
-        reports[g].decisions.push(
-            "stage 3: not tested for texture: some of its objects have no texture coordinates (vt on every face), which a diffuse map needs".into(),
-        );
+        reports[g]
+            .decisions
+            .push(format!("stage 3: not tested for texture: {NO_COORDINATES}"));
     }
     // Each well-seen group's own bound on the panorama's noise; the tightest is the bound.
     let bound_of: Vec<Option<f64>> = reports
