@@ -40,45 +40,90 @@ pub(super) struct Coordinates<'a> {
 const NO_COORDINATES: &str =
     "some of its objects have no texture coordinates (vt on every face), which a diffuse map needs";
 
-/// Says, for every group that stage 2 decided and this stage does not test, why: a metal
-/// (textured models apply to plastic groups, reflectance.md), no texture coordinates, or
-/// an error not above `SPECULAR_GAIN_THRESHOLD`, which no map could explain more of. A
-/// plastic seen in too few pixels for the statistic is said of in `run`, and a group stage
-/// 1 settled in stage 1's decision.
-fn say_why_not_tested(
+/// Why stage 3 does not test a group for texture.
+enum NotTested {
+    /// A plastic with texture coordinates seen in fewer pure pixels than the step
+    /// statistic needs (none at all: unseen, which the report's pixel count says).
+    FewPixels(u32),
+    /// Its model is not one a map lies under (a mirror), said by the stage that set it.
+    OtherModel,
+    /// Textured models apply to plastic groups (reflectance.md).
+    Metal,
+    /// A map lies over the OBJ texture coordinates.
+    NoCoordinates,
+    /// Its error, if measured, is not above `SPECULAR_GAIN_THRESHOLD`: a map can explain
+    /// no more error than there is.
+    SmallError(Option<fit::ErrorEstimate>),
+}
+
+/// Why stage 3 does not test group `g` for texture; `None` when it does. The one place
+/// the test's conditions are written: `run` takes the groups it tests from it, and the
+/// report's words for the others.
+fn why_not_tested(
     rec: &Recovery,
-    reports: &mut [GroupReport],
+    r: &GroupReport,
+    g: usize,
     kinds: &[GroupKind],
     mapped: &[bool],
-    tested: &[usize],
-) {
-    for (g, r) in reports.iter_mut().enumerate() {
-        let lobe_kind = match rec.models[g] {
-            GroupModel::Isotropic { kind, .. } if kinds[g] != GroupKind::Auto => Some(kind),
-            GroupModel::Isotropic { .. } | GroupModel::Diffuse { .. } => None,
-            _ => continue,
-        };
-        let metal = kinds[g] == GroupKind::Metal || lobe_kind == Some(Kind::Metal);
-        let few = r.pure_pixels < fit::MIN_PIXELS_FOR_TEXTURE;
-        if r.error_decided.is_none() || tested.contains(&g) || (few && mapped[g] && !metal) {
-            continue;
-        }
-        let why = match (metal, mapped[g], r.latest_error) {
-            (true, ..) => {
+) -> Option<NotTested> {
+    let few = r.pure_pixels < fit::MIN_PIXELS_FOR_TEXTURE;
+    // Seen in too few pixels for the statistic, a texture cannot be told from a lobe or
+    // a colour: such a group keeps a uniform model (whatever error a picture leaves goes
+    // to stage 4's lobe).
+    if few && mapped[g] && kinds[g] != GroupKind::Metal {
+        return Some(NotTested::FewPixels(r.pure_pixels));
+    }
+    // A textured group is a plastic; one of kind "auto" is tested whatever kind stage 2
+    // gave its lobe: a picture's colours can pass for a metal's tinted highlight
+    // (textured's checker at 64 px, seed 1: metal by 0.0034 +- 0.0006, z 5.7), and stage
+    // 4 fits it again as a plastic.
+    let lobe_kind = match rec.models[g] {
+        GroupModel::Isotropic { kind, .. } if kinds[g] != GroupKind::Auto => Some(kind),
+        GroupModel::Isotropic { .. } | GroupModel::Diffuse { .. } => None,
+        _ => return Some(NotTested::OtherModel),
+    };
+    if kinds[g] == GroupKind::Metal || lobe_kind == Some(Kind::Metal) {
+        return Some(NotTested::Metal);
+    }
+    if !mapped[g] {
+        return Some(NotTested::NoCoordinates);
+    }
+    // As stage 1 sends a group on: a texture, like a lobe, cannot remove more error than
+    // there is (the living room's desk, 0.0141 +- 0.0026 after stage 1, read its missed
+    // weak lobe's highlight as a texture).
+    let error = r.latest_error;
+    if !error.is_some_and(|e| e.exceeds(fit::SPECULAR_GAIN_THRESHOLD)) {
+        return Some(NotTested::SmallError(error));
+    }
+    None
+}
+
+impl NotTested {
+    /// Stage 3's decision for a group it does not test, if it records one: not for a
+    /// group stage 1 settled (stage 1's decision says why), an unseen one, or one whose
+    /// model another stage set.
+    fn decision(&self, r: &GroupReport) -> Option<String> {
+        let decided = r.error_decided.is_some();
+        let why = match self {
+            NotTested::FewPixels(0) | NotTested::OtherModel => return None,
+            NotTested::FewPixels(pixels) => format!(
+                "{pixels} pure pixels, fewer than MIN_PIXELS_FOR_TEXTURE {} that the step statistic needs; it keeps a uniform model",
+                fit::MIN_PIXELS_FOR_TEXTURE
+            ),
+            NotTested::Metal if decided => {
                 "a metal: textured models apply to plastic groups (reflectance.md)".to_string()
             }
-            (false, false, _) => NO_COORDINATES.to_string(),
-            (false, true, Some(e)) => format!(
+            NotTested::NoCoordinates if decided => NO_COORDINATES.to_string(),
+            NotTested::SmallError(Some(e)) if decided => format!(
                 "its error {:.4} +- {:.4} is not above SPECULAR_GAIN_THRESHOLD {} by EXCEEDS_SIGMAS {} standard errors, and a map can explain no more error than there is",
                 e.error,
                 e.sigma,
                 fit::SPECULAR_GAIN_THRESHOLD,
                 fit::EXCEEDS_SIGMAS
             ),
-            (false, true, None) => continue,
+            _ => return None,
         };
-        r.decisions
-            .push(format!("stage 3: not tested for texture: {why}"));
+        Some(format!("stage 3: not tested for texture: {why}"))
     }
 }
 
@@ -103,49 +148,12 @@ pub(super) fn run(
     let stage_start = Instant::now();
     let mut evaluations = 0;
     let mut notes = Vec::new();
-    let tested: Vec<usize> = (0..n_groups)
-        .filter(|&g| {
-            reports[g].pure_pixels >= fit::MIN_PIXELS_FOR_TEXTURE
-                && kinds[g] != GroupKind::Metal
-                // As stage 1 sends a group on: a texture, like a lobe, cannot remove more
-                // error than there is (the living room's desk, 0.0141 +- 0.0026 after
-                // stage 1, read its missed weak lobe's highlight as a texture).
-                && reports[g]
-                    .latest_error
-                    .is_some_and(|e| e.exceeds(fit::SPECULAR_GAIN_THRESHOLD))
-                && match rec.models[g] {
-                    GroupModel::Diffuse { .. } => true,
-                    // A textured group is a plastic; one of kind "auto" is tested whatever
-                    // kind stage 2 gave its lobe: a picture's colours can pass for a
-                    // metal's tinted highlight (textured's checker at 64 px, seed 1: metal
-                    // by 0.0034 +- 0.0006, z 5.7), and stage 4 fits it again as a plastic.
-                    GroupModel::Isotropic { kind, .. } => {
-                        kind == Kind::Plastic || kinds[g] == GroupKind::Auto
-                    }
-                    _ => false,
-                }
-        })
-        .collect();
-    say_why_not_tested(rec, reports, kinds, mapped, &tested);
-    // Seen in too few pixels for the statistic, a texture cannot be told from a lobe or a
-    // colour: said, since such a group keeps a uniform model (whatever error a picture
-    // leaves goes to stage 4's lobe).
+    let mut tested = Vec::new();
     for (g, r) in reports.iter_mut().enumerate() {
-        let few = r.pure_pixels > 0 && r.pure_pixels < fit::MIN_PIXELS_FOR_TEXTURE;
-        if few && mapped[g] && kinds[g] != GroupKind::Metal {
-            r.decisions.push(format!(
-                "stage 3: not tested for texture: {} pure pixels, fewer than MIN_PIXELS_FOR_TEXTURE {} that the step statistic needs; it keeps a uniform model",
-                r.pure_pixels,
-                fit::MIN_PIXELS_FOR_TEXTURE
-            ));
+        match why_not_tested(rec, r, g, kinds, mapped) {
+            None => tested.push(g),
+            Some(why) => r.decisions.extend(why.decision(r)),
         }
-    }
-    // A map lies over the OBJ texture coordinates: a group without them cannot have one.
-    let (tested, unmapped): (Vec<usize>, Vec<usize>) = tested.into_iter().partition(|&g| mapped[g]);
-    for g in unmapped {
-        reports[g]
-            .decisions
-            .push(format!("stage 3: not tested for texture: {NO_COORDINATES}"));
     }
     // Each well-seen group's own bound on the panorama's noise; the tightest is the bound.
     let bound_of: Vec<Option<f64>> = reports
