@@ -23,28 +23,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render every view of a scene with the given materials (one EXR and one PNG per view).
-    Render {
-        /// The scene.toml to render.
-        scene: PathBuf,
-        /// materials.toml file(s); every group must get exactly one material.
-        #[arg(long, required = true, num_args = 1..)]
-        materials: Vec<PathBuf>,
-        /// Output folder.
-        #[arg(long)]
-        out: PathBuf,
-        /// Samples per pixel.
-        #[arg(long, default_value_t = 64)]
-        spp: u32,
-        /// Random seed: the same seed gives the same bytes.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Worker threads (default: all cores); the result does not depend on it.
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Render only these views (by name).
-        #[arg(long = "view")]
-        views: Vec<String>,
-    },
+    Render(render_cmd::RenderArgs),
     /// Recover every group's material from the panorama (the views' images).
     Recover {
         /// The scene.toml, whose views carry the panorama's images.
@@ -321,94 +300,17 @@ enum BenchCommand {
     /// Recovery's accuracy against wall time, one knob at a time (effort, annealing
     /// length, samples per evaluation, view resolution, Nelder-Mead against annealing):
     /// tradeoff.csv, tradeoff.svg (and the same chart as tradeoff.png) and a table.
-    Tradeoff {
-        /// The scene.toml to recover, whose views carry the panorama's images.
-        scene: PathBuf,
-        /// The true materials (truth.toml) the recoveries are judged against.
-        #[arg(long)]
-        truth: PathBuf,
-        /// Output folder: the runs, the CSV and the chart.
-        #[arg(long)]
-        out: PathBuf,
-        /// The seed of every recovery.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Worker threads (default: all cores); the materials do not depend on it, the
-        /// wall times do.
-        #[arg(long)]
-        threads: Option<usize>,
-        /// The base effort level the knobs are swept from.
-        #[arg(long, value_enum, default_value_t = Effort::Fast)]
-        effort: Effort,
-        /// Two points per knob and no effort sweep (a first look, and the tests).
-        #[arg(long)]
-        quick: bool,
-    },
+    Tradeoff(bench::tradeoff::TradeoffArgs),
     /// Recovery under perturbations (seeds, image noise, exposure, light radiance, view
     /// size, pixels of one group): stability.csv, seed-spread.csv, stability.svg (and .png)
     /// and a verdict on the targets.
-    Stability {
-        /// The scene.toml to recover, whose views carry the panorama's images.
-        scene: PathBuf,
-        /// The true materials (truth.toml) the recoveries are judged against.
-        #[arg(long)]
-        truth: PathBuf,
-        /// Output folder: the perturbed scenes, the runs, the CSVs and the chart.
-        #[arg(long)]
-        out: PathBuf,
-        /// The first seed; the seed family runs ten from here.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Worker threads (default: all cores); the materials do not depend on it, the
-        /// wall times do.
-        #[arg(long)]
-        threads: Option<usize>,
-        /// The effort level of every recovery.
-        #[arg(long, value_enum, default_value_t = Effort::Fast)]
-        effort: Effort,
-        /// Fewer points per family.
-        #[arg(long)]
-        quick: bool,
-        /// The group seen in fewer and fewer pixels (default: the largest one that is not
-        /// diffuse in the truth).
-        #[arg(long)]
-        group: Option<String>,
-        /// The families to run, comma-separated (default: all). The first seed, the
-        /// baseline, runs always; the other nine seeds with `seed`.
-        #[arg(long, value_enum, value_delimiter = ',')]
-        families: Vec<bench::stability::Family>,
-    },
+    Stability(bench::stability::StabilityArgs),
     /// Edited scenes (other lights, a new viewpoint, objects removed or added) rendered
     /// from recovered materials and from the true ones, each against the edit's reference
     /// images: edits.csv, edits.json and a table. Each is rendered again on the next seed,
     /// so that the errors are also given with the render noise taken out. Materials for
     /// added objects come from a materials.toml beside the edit's scene.toml.
-    Edits {
-        /// The edits' scene.toml files; their view images are the references.
-        #[arg(required = true, num_args = 1..)]
-        edits: Vec<PathBuf>,
-        /// The recovered materials.toml, and with it any more files the recovered model
-        /// is rendered with (its unseen.toml: the stand-ins of groups not recovered).
-        #[arg(long, required = true, num_args = 1..)]
-        recovered: Vec<PathBuf>,
-        /// The true materials (truth.toml).
-        #[arg(long)]
-        truth: PathBuf,
-        /// Output folder: the renders, the CSV and the JSON.
-        #[arg(long)]
-        out: PathBuf,
-        /// Samples per pixel of every render (relume's noise is in both errors as they are:
-        /// enough that it does not hide the recovered model's own).
-        #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
-        spp: u32,
-        /// Seed of each model's first render; its second, for the errors with the render
-        /// noise taken out, is on the next seed.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Worker threads (default: all cores); the figures do not depend on it.
-        #[arg(long)]
-        threads: Option<usize>,
-    },
+    Edits(bench::edits::EditsArgs),
 }
 
 /// `relume check`'s findings: a table of each group's pure pixels per view, the lights'
@@ -502,24 +404,7 @@ pub fn main() -> i32 {
 
 fn run(command: Command) -> Result<(), Error> {
     match command {
-        Command::Render {
-            scene,
-            materials,
-            out,
-            spp,
-            seed,
-            threads,
-            views,
-        } => {
-            let args = render_cmd::RenderArgs {
-                scene,
-                materials,
-                out,
-                spp,
-                seed,
-                threads,
-                views,
-            };
+        Command::Render(args) => {
             let summary = render_cmd::run(&args)?;
             for w in &summary.warnings {
                 eprintln!("relume: warning: {w}");
@@ -711,24 +596,7 @@ fn run(command: Command) -> Result<(), Error> {
             println!("wrote {}", out.join("scene.toml").display());
             Ok(())
         }
-        Command::Bench(BenchCommand::Tradeoff {
-            scene,
-            truth,
-            out,
-            seed,
-            threads,
-            effort,
-            quick,
-        }) => {
-            let args = bench::tradeoff::TradeoffArgs {
-                scene,
-                truth,
-                out,
-                seed,
-                threads,
-                effort,
-                quick,
-            };
+        Command::Bench(BenchCommand::Tradeoff(args)) => {
             bench::tradeoff::run(&args)?;
             println!(
                 "wrote {}, {} and {}",
@@ -738,28 +606,7 @@ fn run(command: Command) -> Result<(), Error> {
             );
             Ok(())
         }
-        Command::Bench(BenchCommand::Stability {
-            scene,
-            truth,
-            out,
-            seed,
-            threads,
-            effort,
-            quick,
-            group,
-            families,
-        }) => {
-            let args = bench::stability::StabilityArgs {
-                scene,
-                truth,
-                out,
-                seed,
-                threads,
-                effort,
-                quick,
-                group,
-                families,
-            };
+        Command::Bench(BenchCommand::Stability(args)) => {
             bench::stability::run(&args)?;
             println!(
                 "wrote {}, {}, {} and {}",
@@ -770,24 +617,7 @@ fn run(command: Command) -> Result<(), Error> {
             );
             Ok(())
         }
-        Command::Bench(BenchCommand::Edits {
-            edits,
-            recovered,
-            truth,
-            out,
-            spp,
-            seed,
-            threads,
-        }) => {
-            let args = bench::edits::EditsArgs {
-                edits,
-                recovered,
-                truth,
-                out,
-                spp,
-                seed,
-                threads,
-            };
+        Command::Bench(BenchCommand::Edits(args)) => {
             let outcomes = bench::edits::run(&args)?;
             bench::edits::print_table(&outcomes);
             println!(

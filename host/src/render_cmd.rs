@@ -21,14 +21,27 @@ use crate::scene_file::SceneDesc;
 /// The settings and timing of a render, beside its views.
 const RENDER_JSON: &str = "render.json";
 
+#[derive(clap::Args)]
 pub struct RenderArgs {
+    /// The scene.toml to render.
     pub scene: PathBuf,
+    /// materials.toml file(s); every group must get exactly one material.
+    #[arg(long, required = true, num_args = 1..)]
     pub materials: Vec<PathBuf>,
+    /// Output folder.
+    #[arg(long)]
     pub out: PathBuf,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 64)]
     pub spp: u32,
+    /// Random seed: the same seed gives the same bytes.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Worker threads (default: all cores); the result does not depend on it.
+    #[arg(long)]
     pub threads: Option<usize>,
-    /// Only these views (all when empty).
+    /// Render only these views (by name).
+    #[arg(long = "view")]
     pub views: Vec<String>,
 }
 

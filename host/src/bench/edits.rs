@@ -38,17 +38,31 @@ pub const RATIO_GOAL: f64 = 1.2;
 /// The materials of objects an edit adds, beside its scene.toml.
 pub const ADDED_MATERIALS: &str = "materials.toml";
 
+#[derive(clap::Args)]
 pub struct EditsArgs {
-    /// The edits' scene.toml files.
+    /// The edits' scene.toml files; their view images are the references.
+    #[arg(required = true, num_args = 1..)]
     pub edits: Vec<PathBuf>,
-    /// The recovered materials.toml, and any more files the recovered model is rendered
-    /// with (its unseen.toml: the stand-ins of groups the recovery could not recover).
+    /// The recovered materials.toml, and with it any more files the recovered model
+    /// is rendered with (its unseen.toml: the stand-ins of groups not recovered).
+    #[arg(long, required = true, num_args = 1..)]
     pub recovered: Vec<PathBuf>,
     /// The true materials (truth.toml).
+    #[arg(long)]
     pub truth: PathBuf,
+    /// Output folder: the renders, the CSV and the JSON.
+    #[arg(long)]
     pub out: PathBuf,
+    /// Samples per pixel of every render (relume's noise is in both errors as they are:
+    /// enough that it does not hide the recovered model's own).
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     pub spp: u32,
+    /// Seed of each model's first render; its second, for the errors with the render
+    /// noise taken out, is on the next seed.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Worker threads (default: all cores); the figures do not depend on it.
+    #[arg(long)]
     pub threads: Option<usize>,
 }
 

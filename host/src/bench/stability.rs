@@ -28,22 +28,38 @@ pub const NOISE_TARGET: f64 = 1.0;
 /// Exposure error (percent, either sign) up to which classes must not change.
 pub const EXPOSURE_TARGET: f64 = 5.0;
 
+#[derive(clap::Args)]
 pub struct StabilityArgs {
+    /// The scene.toml to recover, whose views carry the panorama's images.
     pub scene: PathBuf,
+    /// The true materials (truth.toml) the recoveries are judged against.
+    #[arg(long)]
     pub truth: PathBuf,
+    /// Output folder: the perturbed scenes, the runs, the CSVs and the chart.
+    #[arg(long)]
     pub out: PathBuf,
-    /// The first seed (the baseline); the seed family runs ten from here.
+    /// The first seed; the seed family runs ten from here.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Worker threads (default: all cores); the materials do not depend on it, the
+    /// wall times do.
+    #[arg(long)]
     pub threads: Option<usize>,
+    /// The effort level of every recovery.
+    #[arg(long, value_enum, default_value_t = Effort::Fast)]
     pub effort: Effort,
-    /// Fewer points per family (for tests and a first look).
+    /// Fewer points per family.
+    #[arg(long)]
     pub quick: bool,
-    /// The group seen in fewer and fewer pixels (default: the largest one not diffuse in
-    /// the truth).
+    /// The group seen in fewer and fewer pixels (default: the largest one that is not
+    /// diffuse in the truth).
+    #[arg(long)]
     pub group: Option<String>,
-    /// The families to run; empty: all. The baseline (the first seed) runs whatever they
-    /// are, since every other family is judged against it; the other nine seeds only with
-    /// [`Family::Seed`]. (At 256 px per side a whole study takes hours; one family, less.)
+    /// The families to run, comma-separated (default: all). The first seed, the
+    /// baseline, runs always; the other nine seeds with `seed`.
+    // Empty: all. The baseline runs whatever they are, since every other family is
+    // judged against it. (At 256 px per side a whole study takes hours; one family, less.)
+    #[arg(long, value_enum, value_delimiter = ',')]
     pub families: Vec<Family>,
 }
 

@@ -22,15 +22,28 @@ use crate::materials_file;
 use crate::recover::{Budget, Effort, Optimiser, RecoverArgs};
 use crate::scene_file::{self, SceneDesc};
 
+#[derive(clap::Args)]
 pub struct TradeoffArgs {
+    /// The scene.toml to recover, whose views carry the panorama's images.
     pub scene: PathBuf,
+    /// The true materials (truth.toml) the recoveries are judged against.
+    #[arg(long)]
     pub truth: PathBuf,
+    /// Output folder: the runs, the CSV and the chart.
+    #[arg(long)]
     pub out: PathBuf,
+    /// The seed of every recovery.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Worker threads (default: all cores); the materials do not depend on it, the
+    /// wall times do.
+    #[arg(long)]
     pub threads: Option<usize>,
-    /// The base the knobs are swept from.
+    /// The base effort level the knobs are swept from.
+    #[arg(long, value_enum, default_value_t = Effort::Fast)]
     pub effort: Effort,
-    /// A few points per knob only (for tests and a first look).
+    /// Two points per knob and no effort sweep (a first look, and the tests).
+    #[arg(long)]
     pub quick: bool,
 }
 
