@@ -357,7 +357,7 @@ impl OutputSet {
             let mut registry = staged();
             registry.dirs.extend(missing.iter().cloned());
             self.dirs.extend(missing);
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            make_folders(dir)?;
         }
         refuse_unwritable(dir)
     }
@@ -568,7 +568,33 @@ pub fn read_text(path: &Path) -> Result<String, Error> {
 /// Creates `dir` and its parents.
 pub fn create_dir(dir: &Path) -> Result<(), Error> {
     refuse_file_in_the_way(dir)?;
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+    make_folders(dir)
+}
+
+/// `create_dir_all`, whose error names the folder that could not be made: the outermost
+/// missing one, where `create_dir_all` named the innermost asked for (`--out /proc/x`
+/// read "/proc/x/views: No such file or directory", of a folder the user never named).
+fn make_folders(dir: &Path) -> Result<(), Error> {
+    let Err(e) = std::fs::create_dir_all(dir) else {
+        return Ok(());
+    };
+    let outermost_missing = dir
+        .ancestors()
+        .take_while(|d| !d.as_os_str().is_empty() && std::fs::symlink_metadata(d).is_err())
+        .last();
+    match outermost_missing {
+        Some(d) if d != dir => {
+            let why = std::io::Error::new(
+                e.kind(),
+                format!(
+                    "cannot make this folder ({e}), where {} would go",
+                    dir.display()
+                ),
+            );
+            Err(Error::io(d, why))
+        }
+        _ => Err(Error::io(dir, e)),
+    }
 }
 
 /// Removes the temp files `.<name>.tmp-<pid>` in `dir` that a run killed outright (no
@@ -980,6 +1006,38 @@ mod tests {
         std::fs::write(out.join("maps/mine.txt"), "mine").unwrap();
         drop(set);
         assert!(out.join("maps/mine.txt").exists());
+    }
+
+    /// A folder that cannot be made is the one the error names, not the deepest one asked
+    /// for: a name longer than a file system takes stands in for a place where no folder
+    /// can be made (root makes folders anywhere else).
+    #[test]
+    fn the_error_names_the_folder_that_could_not_be_made() {
+        let dir = tempfile::tempdir().unwrap();
+        let too_long = dir.path().join("x".repeat(300));
+        let views = too_long.join("views");
+        for e in [
+            OutputSet::default().create_dir(&views).unwrap_err(),
+            create_dir(&views).unwrap_err(),
+        ] {
+            let Error::Io { file, source } = &e else {
+                panic!("{e}");
+            };
+            assert_eq!(file, &too_long, "{e}");
+            assert!(
+                source.to_string().contains("cannot make this folder"),
+                "{e}"
+            );
+            assert!(e.to_string().contains(&views.display().to_string()), "{e}");
+        }
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+        // A missing folder the error is about is the one asked for: named as before.
+        let e = create_dir(&too_long).unwrap_err();
+        assert!(
+            matches!(&e, Error::Io { file, .. } if file == &too_long),
+            "{e}"
+        );
+        assert!(!e.to_string().contains("cannot make this folder"), "{e}");
     }
 
     /// A folder where no file can be made is refused when the set makes it, before the
