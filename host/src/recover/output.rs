@@ -328,13 +328,8 @@ fn mesh_obj<'a>(
     );
     for (i, t) in triangles.enumerate() {
         for (v, uv) in t.v.iter().zip(&t.uv) {
-            let [x, y, z] = [v.x, v.y, v.z]
-                .iter()
-                .zip(origin)
-                .map(|(c, o)| coordinate(o + f64::from(*c)))
-                .collect::<Vec<_>>()
-                .try_into()
-                .expect("three coordinates");
+            let c = [v.x, v.y, v.z];
+            let [x, y, z] = std::array::from_fn(|i| coordinate(origin[i] + f64::from(c[i])));
             text.push_str(&format!("v {x} {y} {z}\nvt {} {}\n", uv.x, uv.y));
         }
         let k = 3 * i + 1;
