@@ -346,11 +346,7 @@ impl OutputSet {
     /// folders it creates are removed again, if empty, when the set is dropped without
     /// its commit or the run is interrupted: a failed run leaves no empty output folder.
     pub fn create_dir(&mut self, dir: &Path) -> Result<(), Error> {
-        let mut missing: Vec<PathBuf> = dir
-            .ancestors()
-            .take_while(|d| !d.as_os_str().is_empty() && std::fs::symlink_metadata(d).is_err())
-            .map(Path::to_path_buf)
-            .collect();
+        let mut missing: Vec<PathBuf> = missing_folders(dir).map(Path::to_path_buf).collect();
         missing.reverse();
         refuse_file_in_the_way(dir)?;
         {
@@ -578,11 +574,7 @@ fn make_folders(dir: &Path) -> Result<(), Error> {
     let Err(e) = std::fs::create_dir_all(dir) else {
         return Ok(());
     };
-    let outermost_missing = dir
-        .ancestors()
-        .take_while(|d| !d.as_os_str().is_empty() && std::fs::symlink_metadata(d).is_err())
-        .last();
-    match outermost_missing {
+    match missing_folders(dir).last() {
         Some(d) if d != dir => {
             let why = std::io::Error::new(
                 e.kind(),
@@ -595,6 +587,12 @@ fn make_folders(dir: &Path) -> Result<(), Error> {
         }
         _ => Err(Error::io(dir, e)),
     }
+}
+
+/// `dir` and those of its parents that do not exist yet, innermost first.
+fn missing_folders(dir: &Path) -> impl Iterator<Item = &Path> {
+    dir.ancestors()
+        .take_while(|d| !d.as_os_str().is_empty() && std::fs::symlink_metadata(d).is_err())
 }
 
 /// Removes the temp files `.<name>.tmp-<pid>` in `dir` that a run killed outright (no

@@ -329,7 +329,8 @@ fn mesh_obj<'a>(
     for (i, t) in triangles.enumerate() {
         for (v, uv) in t.v.iter().zip(&t.uv) {
             let c = [v.x, v.y, v.z];
-            let [x, y, z] = std::array::from_fn(|i| coordinate(origin[i] + f64::from(c[i])));
+            let [x, y, z] =
+                std::array::from_fn(|axis| coordinate(origin[axis] + f64::from(c[axis])));
             text.push_str(&format!("v {x} {y} {z}\nvt {} {}\n", uv.x, uv.y));
         }
         let k = 3 * i + 1;
