@@ -48,13 +48,16 @@ pub(super) fn run(
     // seed: the loop's variance-subtracted error at a few samples per pixel misjudges its
     // own noise (heavy-tailed paths), by whole percents either way.
     let mut decided = rec.error_estimates(4 * spp)?;
-    // A small group whose error straddles the gate is measured again alone, with at least
-    // CACHE_MIN_SAMPLES pixel samples, and at 4x while it still does: at the loop's
-    // samples its standard error (0.024 on glossy's 492-pixel yellow box) hides a weak
-    // lobe either way.
+    // A group whose error straddles the gate is measured again alone, with more samples,
+    // while it still does: at the loop's samples its standard error (0.024 on glossy's
+    // 492-pixel yellow box, 0.0055 on the living room's 3742-pixel desk at 256 px) hides
+    // a weak lobe either way.
     for (g, estimate) in decided.iter_mut().enumerate() {
-        let first_spp = min_samples_spp(4 * spp, pure_pixels[g], CACHE_MIN_SAMPLES);
-        if pure_pixels[g] >= fit::MIN_PIXELS_FOR_MODEL_CHOICE && first_spp > 4 * spp {
+        if pure_pixels[g] < fit::MIN_PIXELS_FOR_MODEL_CHOICE {
+            continue;
+        }
+        let error = estimate.map_or(0.0, |e| e.error);
+        if let Some(first_spp) = first_remeasure_spp(4 * spp, pure_pixels[g], error) {
             *estimate = measured_until_it_sides(rec, g, pure_pixels[g], first_spp, *estimate)?;
         }
     }
@@ -302,6 +305,33 @@ impl Unlit {
     }
 }
 
+/// The samples per pixel at which a group of `pixels` pure pixels, whose error read
+/// `error` at `decided_spp`, is first measured again while that error straddles the gate:
+/// enough for [`CACHE_MIN_SAMPLES`] in all when that is more (a small group, cheap to
+/// measure again either way); for a larger group, only when the error reads above the
+/// gate, the next round of a decision within `DECISION_MAX_SAMPLES`
+/// ([`fit::next_decision_spp`]). `None` where no round is taken: below the gate the
+/// best estimate leaves a lobe less than the gate to gain, and a wall's rounds would only
+/// cost (rooms' walls and ceilings at 64 px read 0 +- 0.01-0.04 at stage 1's samples and
+/// about 0.01 at 4x: box-diffuse took 5.8 -> 7.5 s measuring them); and where the cap
+/// leaves no larger round (a wall at 256 px per face).
+///
+/// Once only small groups were measured again. At 5% exposure over its lights the living
+/// room's desk at 256 px read 0.0188 +- 0.0055 at 32 spp and stayed diffuse on 5 seeds of
+/// 6; at 128 spp it reads 0.0183 +- 0.0016 and goes on to stage 2, which finds its lobe
+/// (docs/stability.md, "A straddling group measured again").
+fn first_remeasure_spp(decided_spp: u32, pixels: u32, error: f64) -> Option<u32> {
+    let small = min_samples_spp(decided_spp, pixels, CACHE_MIN_SAMPLES);
+    if small > decided_spp {
+        return Some(small);
+    }
+    if error > fit::SPECULAR_GAIN_THRESHOLD {
+        fit::next_decision_spp(decided_spp, pixels as usize, fit::DECISION_MAX_SAMPLES)
+    } else {
+        None
+    }
+}
+
 /// Group `g`'s stage-1 error `estimate` (of `pixels` pure pixels), measured again alone
 /// while it straddles the gate (`SPECULAR_GAIN_THRESHOLD` within `EXCEEDS_SIGMAS` standard
 /// errors): first at `first_spp`, then at `fit::next_decision_spp`'s 4x within
@@ -544,6 +574,31 @@ fn newton_steps(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_straddling_group_is_measured_again_with_more_samples_within_the_cap() {
+        let above = 0.0188;
+        // A small group: enough samples in all for its cache, many times stage 1's, on
+        // either side of the gate.
+        let small = first_remeasure_spp(32, 161, above).unwrap();
+        assert_eq!(small, CACHE_MIN_SAMPLES.div_ceil(161) as u32);
+        assert!(small as u64 * 161 >= CACHE_MIN_SAMPLES);
+        assert_eq!(first_remeasure_spp(32, 161, 0.0), Some(small));
+        // A larger one (the desk at 256 px): the next decision round, 4x, within the cap,
+        // when its error reads above the gate; none when it reads at or below it.
+        let desk = first_remeasure_spp(32, 3742, above).unwrap();
+        assert_eq!(desk, 32 * fit::DECISION_SPP_GROWTH);
+        assert!(desk as u64 * 3742 <= fit::DECISION_MAX_SAMPLES);
+        assert_eq!(first_remeasure_spp(32, 3742, 0.0), None);
+        let gate = fit::SPECULAR_GAIN_THRESHOLD;
+        assert_eq!(first_remeasure_spp(32, 3742, gate), None);
+        // Where 4x passes the cap, as many as it allows, if that still doubles them.
+        let capped = first_remeasure_spp(32, 8406, above).unwrap();
+        assert_eq!(capped as u64, fit::DECISION_MAX_SAMPLES / 8406);
+        assert!(capped >= 2 * 32);
+        // A wall, whose first measurement already holds about as many as the cap: none.
+        assert_eq!(first_remeasure_spp(32, 129_043, above), None);
+    }
 
     /// A group's fit over one pixel: the panorama's value and the render's, grey.
     fn fit_of(real: f64, rendered: f64) -> fit::GroupFit {
