@@ -52,13 +52,15 @@ pub(super) fn run(
     // while it still does: at the loop's samples its standard error (0.024 on glossy's
     // 492-pixel yellow box, 0.0055 on the living room's 3742-pixel desk at 256 px) hides
     // a weak lobe either way.
+    let mut measured_again = vec![None; n_groups];
     for (g, estimate) in decided.iter_mut().enumerate() {
         if pure_pixels[g] < fit::MIN_PIXELS_FOR_MODEL_CHOICE {
             continue;
         }
         let error = estimate.map_or(0.0, |e| e.error);
         if let Some(first_spp) = first_remeasure_spp(4 * spp, pure_pixels[g], error) {
-            *estimate = measured_until_it_sides(rec, g, pure_pixels[g], first_spp, *estimate)?;
+            (*estimate, measured_again[g]) =
+                measured_until_it_sides(rec, g, pure_pixels[g], first_spp, *estimate)?;
         }
     }
     bar.finish_and_clear();
@@ -81,6 +83,9 @@ pub(super) fn run(
         r.set_diffuse(decided[g]);
         let e = decided[g].map_or(0.0, |e| e.error);
         let sigma = decided[g].map_or(0.0, |e| e.sigma);
+        let again = measured_again[g].map_or(String::new(), |spp| {
+            format!(" (measured again alone at {spp} spp, as it straddled the gate)")
+        });
         if let Some(unlit) = &unlit[g] {
             rec.models[g] = GroupModel::Unseen {
                 stand_in: NEUTRAL_STAND_IN,
@@ -143,7 +148,7 @@ pub(super) fn run(
             DiffuseVerdict::Diffuse => {
                 // A specular lobe cannot remove more error than there is.
                 r.decisions.push(format!(
-                    "stage 1: diffuse, error {e:.4} +- {sigma:.4} not above SPECULAR_GAIN_THRESHOLD {} by EXCEEDS_SIGMAS {} standard errors: no specular model could gain more",
+                    "stage 1: diffuse, error {e:.4} +- {sigma:.4}{again} not above SPECULAR_GAIN_THRESHOLD {} by EXCEEDS_SIGMAS {} standard errors: no specular model could gain more",
                     fit::SPECULAR_GAIN_THRESHOLD,
                     fit::EXCEEDS_SIGMAS
                 ));
@@ -159,7 +164,7 @@ pub(super) fn run(
                     ("above", "on to isotropic")
                 };
                 r.decisions.push(format!(
-                    "stage 1: diffuse error {e:.4} +- {sigma:.4} > SPECULAR_GAIN_THRESHOLD {} by more than EXCEEDS_SIGMAS {} standard errors ({side} DIFFUSE_THRESHOLD {} by them): {route}",
+                    "stage 1: diffuse error {e:.4} +- {sigma:.4}{again} > SPECULAR_GAIN_THRESHOLD {} by more than EXCEEDS_SIGMAS {} standard errors ({side} DIFFUSE_THRESHOLD {} by them): {route}",
                     fit::SPECULAR_GAIN_THRESHOLD,
                     fit::EXCEEDS_SIGMAS,
                     fit::DIFFUSE_THRESHOLD
@@ -336,18 +341,20 @@ fn first_remeasure_spp(decided_spp: u32, pixels: u32, error: f64) -> Option<u32>
 /// while it straddles the gate (`SPECULAR_GAIN_THRESHOLD` within `EXCEEDS_SIGMAS` standard
 /// errors): first at `first_spp`, then at `fit::next_decision_spp`'s 4x within
 /// `DECISION_MAX_SAMPLES`, for at most `DECISION_MAX_ROUNDS` more rounds, each on a fresh
-/// seed; the last measurement decides, as a keep-or-reject test's does. The living room's
-/// desk at 128 px (836 pixels; s 0.05, roughness 0.06) read 0.0185 +- 0.0048 at 79 spp and
-/// stopped at stage 1, where at 64 and 256 px its weak lobe is found.
+/// seed; the last measurement decides, as a keep-or-reject test's does. Returns it, and
+/// its samples per pixel when it is not `estimate` itself. The living room's desk at 128
+/// px (836 pixels; s 0.05, roughness 0.06) read 0.0185 +- 0.0048 at 79 spp and stopped at
+/// stage 1, where at 64 and 256 px its weak lobe is found.
 fn measured_until_it_sides(
     rec: &mut Recovery,
     g: usize,
     pixels: u32,
     first_spp: u32,
     mut estimate: Option<fit::ErrorEstimate>,
-) -> Result<Option<fit::ErrorEstimate>, Error> {
+) -> Result<(Option<fit::ErrorEstimate>, Option<u32>), Error> {
     let gate = fit::SPECULAR_GAIN_THRESHOLD;
     let mut spp = Some(first_spp);
+    let mut measured_at = None;
     for round in 0..=fit::DECISION_MAX_ROUNDS {
         let (Some(e), Some(at)) = (estimate, spp) else {
             break;
@@ -357,9 +364,10 @@ fn measured_until_it_sides(
         }
         let seed = rec.decision_seed() ^ 0x5A3E ^ ((round as u64) << 32);
         estimate = rec.error_estimate(g, at, seed)?;
+        measured_at = Some(at);
         spp = fit::next_decision_spp(at, pixels as usize, fit::DECISION_MAX_SAMPLES);
     }
-    Ok(estimate)
+    Ok((estimate, measured_at))
 }
 
 /// The groups that rendered black in `first` (the iteration's first step, at `spp`) and
