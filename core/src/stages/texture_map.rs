@@ -24,13 +24,16 @@ use crate::math::{Vec2, Vec3};
 pub const MIN_SIDE: u32 = 4;
 pub const MAX_SIDE: u32 = 1024;
 
-/// Texels per pure pixel: two, about 1.4 per pixel along each side. The pixels fall on
-/// the texel grid at every offset; at one texel per pixel the two grids beat, and a map
-/// of the pixels' own resolution is a poor sampling of what they saw. Above one, the extra
-/// texels are underdetermined, but the solver starts from a uniform map and stops after
+/// Texels per pixel the map is solved from (its group's pure pixels and those on its
+/// border): two, about 1.4 per pixel along each side. The pixels fall on the texel grid
+/// at every offset; at one texel per pixel the two grids beat, and a map of the pixels'
+/// own resolution is a poor sampling of what they saw. Above one, the extra texels are
+/// underdetermined, but the solver starts from a uniform map and stops after
 /// [`SOLVER_ITERATIONS`], which keeps what the pixels do not pin smooth. Simulated on the
 /// references' pictures (ideal pixels of a picture 59 pixels wide at three angles),
 /// 1.5-2.25 texels per pixel read best and one the worst (docs/recovery.md, "Map PSNR").
+/// Counted over the pure pixels alone, a picture at 64 px (a third of its pixels on its
+/// border) had 1.3 a pixel ("The map's side counts its border").
 pub const TEXELS_PER_PIXEL: f64 = 2.0;
 
 /// Iterations of the solver: enough for the bilinear kernel's coupling to settle (the
@@ -59,13 +62,14 @@ pub struct MapObservation {
     pub weight: f32,
 }
 
-/// The side of the square map for a group seen in `pixels` pure pixels whose texture
-/// coordinates cover `uv_coverage` of the map's [0, 1]^2 (its faces' areas in (u, v),
-/// taken as 1 above 1 and as [`MIN_UV_COVERAGE`] below it): [`TEXELS_PER_PIXEL`] texels a
-/// pixel where the group lies. A group laid over a corner of its map (a texture atlas)
-/// needs a finer map for as many: over a quarter of [0, 1]^2 it had a quarter of the
-/// texels. Square, so that RADIANCE's `colorpict` (which scales a picture's shorter side
-/// to 1) maps it as the truth maps are mapped, with one remapping for both axes.
+/// The side of the square map for a group seen in `pixels` pixels (pure or on its
+/// border) whose texture coordinates cover `uv_coverage` of the map's [0, 1]^2 (its
+/// faces' areas in (u, v), taken as 1 above 1 and as [`MIN_UV_COVERAGE`] below it):
+/// [`TEXELS_PER_PIXEL`] texels a pixel where the group lies. A group laid over a corner
+/// of its map (a texture atlas) needs a finer map for as many: over a quarter of [0, 1]^2
+/// it had a quarter of the texels. Square, so that RADIANCE's `colorpict` (which scales a
+/// picture's shorter side to 1) maps it as the truth maps are mapped, with one remapping
+/// for both axes.
 pub fn map_side(pixels: usize, uv_coverage: f64) -> u32 {
     let coverage = if uv_coverage >= 1.0 {
         1.0
