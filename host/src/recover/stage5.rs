@@ -105,7 +105,7 @@ pub(super) fn run(
         samples_per_pixel: settings.map_spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![
-            "textured groups: maps solved by least squares at two texels per pure pixel, from the pure pixels and those on the group's border, under the untextured stand-in's lobe".into(),
+            "textured groups: maps solved by least squares at two texels per pixel they are solved from, the pure pixels and those on the group's border, under the untextured stand-in's lobe".into(),
             format!(
                 "a lobe is kept with its map when its specularity is at least EXCEEDS_SIGMAS {} standard errors from none under that map; otherwise the map is solved again with none",
                 fit::EXCEEDS_SIGMAS
