@@ -848,15 +848,18 @@ fn textured_small_finds_the_textured_anisotropic_picture() {
 /// The pixels on a textured group's border its map was also solved from, as its stage-5
 /// decision gives them ("from N pure pixels and M on its border").
 fn map_border_pixels(out: &std::path::Path, group: &str) -> u32 {
-    let stage5 = map_decision(out, group);
-    let before = stage5.split(" on its border").next().unwrap();
-    before.rsplit(' ').next().unwrap().parse().unwrap()
+    map_pixel_count(out, group, " on its border")
 }
 
 /// The pure pixels a group's final map was solved from, as its report says.
 fn map_pure_pixels(out: &std::path::Path, group: &str) -> u32 {
+    map_pixel_count(out, group, " pure pixels")
+}
+
+/// The count just before `what` in group `group`'s final map decision.
+fn map_pixel_count(out: &std::path::Path, group: &str, what: &str) -> u32 {
     let stage5 = map_decision(out, group);
-    let before = stage5.split(" pure pixels").next().unwrap();
+    let before = stage5.split(what).next().unwrap();
     before.rsplit(' ').next().unwrap().parse().unwrap()
 }
 
