@@ -1,7 +1,7 @@
 //! Radiance RGBE pictures (.hdr): a pixel read as RADIANCE reads it, the header's `EXPOSURE`
 //! and `COLORCORR` lines (divided out of the pixels, and told in messages), and writing one.
 
-use std::io::BufRead;
+use std::io::{BufRead, Read};
 use std::path::Path;
 
 use super::{check_buffer, check_finite, Image};
@@ -30,15 +30,21 @@ pub(super) fn rgbe_half_step(pixel: [f32; 3]) -> [f32; 3] {
 /// the empty line that ends the header (or the file's end, which the decoder then refuses).
 /// No lines for a file without the signature, also left for the decoder to refuse.
 pub(super) fn hdr_header_lines(reader: &mut impl BufRead) -> std::io::Result<Vec<(usize, String)>> {
+    const SIGNATURE: &[u8] = b"#?RADIANCE";
     let mut lines = Vec::new();
-    if !reader.fill_buf()?.starts_with(b"#?RADIANCE") {
+    // The signature's bytes, however many pieces the reader hands them over in, and no
+    // further: a file without it is left for the decoder to refuse as it would.
+    let mut line = Vec::new();
+    reader
+        .by_ref()
+        .take(SIGNATURE.len() as u64)
+        .read_to_end(&mut line)?;
+    if line != SIGNATURE {
         return Ok(lines);
     }
-    let mut line = Vec::new();
     loop {
-        line.clear();
         // Lines end at '\n' alone, as the decoder reads them.
-        if reader.read_until(b'\n', &mut line)? == 0 {
+        if reader.read_until(b'\n', &mut line)? == 0 && line.is_empty() {
             return Ok(lines);
         }
         if line.last() == Some(&b'\n') {
@@ -48,6 +54,7 @@ pub(super) fn hdr_header_lines(reader: &mut impl BufRead) -> std::io::Result<Vec
             return Ok(lines);
         }
         lines.push((lines.len() + 1, String::from_utf8_lossy(&line).into_owned()));
+        line.clear();
     }
 }
 
@@ -166,6 +173,27 @@ mod tests {
     use super::*;
     use crate::images::tests::sized;
     use crate::images::{read_image, read_view_image, read_view_image_and_header};
+
+    /// The header is read line by line whatever pieces the reader hands its bytes over in:
+    /// it once looked for the signature in the first buffer alone, and a reader that gave
+    /// fewer than its ten bytes would have skipped the header's EXPOSURE silently.
+    #[test]
+    fn hdr_header_lines_do_not_hang_on_the_readers_buffer() {
+        let bytes = b"#?RADIANCE\nEXPOSURE=2\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 1\n";
+        let whole = hdr_header_lines(&mut &bytes[..]).unwrap();
+        let mut byte_by_byte = std::io::BufReader::with_capacity(1, &bytes[..]);
+        let in_pieces = hdr_header_lines(&mut byte_by_byte).unwrap();
+        assert_eq!(whole.len(), 3);
+        assert_eq!(whole[1], (2, "EXPOSURE=2".to_string()));
+        assert_eq!(in_pieces, whole);
+        // No signature, no lines; an empty first line is no signature either.
+        assert!(hdr_header_lines(&mut &b"P6\n1 1\n255\n"[..])
+            .unwrap()
+            .is_empty());
+        assert!(hdr_header_lines(&mut &b"\n#?RADIANCE\n\n"[..])
+            .unwrap()
+            .is_empty());
+    }
 
     /// RGBE is read as RADIANCE reads it, `(mantissa + 0.5) * 2^(e - 136)` with black at
     /// exponent 0: the image crate leaves out the half step, and every `.hdr` view and map
