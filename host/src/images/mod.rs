@@ -100,8 +100,10 @@ fn check_and_scale(
                     x,
                     y,
                     format!(
-                        "channel {} value {} times exposure {exposure}{header_note} overflows",
-                        CHANNELS[c], v
+                        "channel {} value {} times exposure {}{header_note} overflows",
+                        CHANNELS[c],
+                        value_text(*v),
+                        value_text(exposure)
                     ),
                 ));
             }
@@ -252,8 +254,7 @@ mod tests {
         let e = read_image(&big, f32::MAX).unwrap_err().to_string();
         assert!(
             e.contains("big.exr: pixel (x 1, y 0)")
-                && e.contains("channel B value 2")
-                && e.contains("overflows"),
+                && e.contains("channel B value 2 times exposure 3.4028235e38 overflows"),
             "{e}"
         );
         // A panorama's radiance (times exposure) stays within MAX_RADIANCE.
