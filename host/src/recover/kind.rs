@@ -33,7 +33,7 @@ pub(super) struct KindFit<T> {
 /// (`fit::cache_effect`, whose fit takes in the cache's noise and reads more gain, not
 /// less, than a render) and a render at `spp` then shows the metal proposal better by
 /// the keep rule (`fit::ModelComparison::favours_complex`). The choice is a decision in
-/// the report, the render a comparison of stage "<stage> kind", and the stage with the
+/// the report, the render a comparison of stage "`<stage>` kind", and the stage with the
 /// two cache errors `kind_choice`.
 pub(super) fn choose<T>(
     rec: &mut Recovery,
@@ -114,7 +114,7 @@ pub(super) fn choose_again(
 
 /// `plastic` against `metal` in a render at `spp` by the keep rule
 /// (`fit::ModelComparison::favours_complex`): whether metal wins. The decision (after
-/// `why`) goes into the report, the render as a comparison of stage "<stage> kind".
+/// `why`) goes into the report, the render as a comparison of stage "`<stage>` kind".
 /// Plastic where no pixel is lit.
 fn by_render(
     rec: &mut Recovery,

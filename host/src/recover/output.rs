@@ -435,7 +435,7 @@ impl Obj2radNames {
 /// each object's faces after its group's primitive in materials.rad, or its light's
 /// (without it, obj2rad names faces by `usemtl`, `g`, or "white"). Hidden objects are
 /// no part of the recovered scene and get no rule. The objects of the groups `on_mesh`
-/// (by index) are obj2mesh's, as meshes/<group>.obj: their rule is `void`, which obj2rad
+/// (by index) are obj2mesh's, as `meshes/<group>.obj`: their rule is `void`, which obj2rad
 /// skips, so that their faces are not polygons as well.
 fn obj2rad_map(
     desc: &SceneDesc,

@@ -318,7 +318,8 @@ fn uv_coverage(triangles: &[Triangle], g: u16) -> f64 {
         .sum()
 }
 
-/// One solve of a group's map under its current lobe: what [`MapSolve::run`] needs.
+/// One solve of a group's map under its current lobe: what [`MapSolve::observe`] and
+/// [`MapSolve::solve`] need.
 struct MapSolve<'a> {
     g: usize,
     /// The map's index in `Recovery::maps`.
