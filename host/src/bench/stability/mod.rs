@@ -41,7 +41,8 @@ use verdict::print_verdict;
 
 /// The target for the relative spread of a recovered parameter over seeds.
 pub const SEED_SPREAD_TARGET: f64 = 0.005;
-/// Noise (relative) up to which classes must not change.
+/// Noise, in percent of each pixel's value (the noise family's sizes), up to which classes
+/// must not change.
 pub const NOISE_TARGET: f64 = 1.0;
 /// Exposure error (percent, either sign) up to which classes must not change.
 pub const EXPOSURE_TARGET: f64 = 5.0;

@@ -138,14 +138,12 @@ fn classes_right<'a>(runs: impl Iterator<Item = &'a StabilityRun>) -> (usize, us
         })
 }
 
-pub(super) fn print_verdict(
-    runs: &[StabilityRun],
-    baseline: &Judged,
-    spread: &[Spread],
-    families: &[Family],
-) {
-    println!();
-    println!("{}", classes_right_line(runs));
+/// The verdict on the seed-spread target: the largest relative spread over `seeds` seed
+/// runs, the parameters above the target, and the groups whose class varies over the
+/// seeds (`flips`), which miss the target too. Without a parameter that spreads (every
+/// group's common model without one, say a textured-diffuse picture's) the classes are
+/// still judged.
+fn seed_spread_line(seeds: usize, spread: &[Spread], flips: &[String]) -> String {
     let worst = spread
         .iter()
         .filter_map(|s| Some((s.rel_std?, s)))
@@ -155,9 +153,13 @@ pub(super) fn print_verdict(
         .filter(|s| s.rel_std.is_some_and(|r| r > SEED_SPREAD_TARGET))
         .map(|s| format!("{}.{}", s.group, s.parameter))
         .collect();
-    let flips = class_flips(runs);
+    let flipped = if flips.is_empty() {
+        "none".into()
+    } else {
+        flips.join(", ")
+    };
     match worst {
-        Some((w, s)) => println!(
+        Some((w, s)) => format!(
             "target seed spread <= {}: {} (largest {} on {}.{}; {} of {} parameters above; classes varying over seeds: {})",
             pct(Some(SEED_SPREAD_TARGET)),
             if over.is_empty() && flips.is_empty() { "MET" } else { "MISSED" },
@@ -166,10 +168,27 @@ pub(super) fn print_verdict(
             s.parameter,
             over.len(),
             spread.len(),
-            if flips.is_empty() { "none".into() } else { flips.join(", ") }
+            flipped
         ),
-        None => println!("target seed spread: not measured (fewer than two seeds)"),
+        None if seeds < 2 => "target seed spread: not measured (fewer than two seeds)".into(),
+        None => format!(
+            "target seed spread <= {}: {} (no parameter spreads over the {seeds} seeds; classes varying over seeds: {flipped})",
+            pct(Some(SEED_SPREAD_TARGET)),
+            if flips.is_empty() { "not measured" } else { "MISSED" },
+        ),
     }
+}
+
+pub(super) fn print_verdict(
+    runs: &[StabilityRun],
+    baseline: &Judged,
+    spread: &[Spread],
+    families: &[Family],
+) {
+    println!();
+    println!("{}", classes_right_line(runs));
+    let seeds = runs.iter().filter(|r| r.family == Family::Seed).count();
+    println!("{}", seed_spread_line(seeds, spread, &class_flips(runs)));
     let kinds: Vec<String> = spread_by_kind(spread)
         .into_iter()
         .map(|k| {
@@ -240,6 +259,57 @@ mod tests {
     use crate::bench::stability::tests::{material, outcome, seed_run};
     use crate::bench::GroupOutcome;
     use crate::materials_file::Model;
+
+    /// Two seeds or more without a parameter that spreads (every group's common model
+    /// textured-diffuse, say) are not "fewer than two seeds", and a class that flips over
+    /// them misses the target: the line once said "not measured (fewer than two seeds)"
+    /// and left the flip out.
+    #[test]
+    fn the_seed_spread_line_judges_classes_without_a_spreading_parameter() {
+        let flips = vec!["picture_3".to_string()];
+        assert_eq!(
+            seed_spread_line(1, &[], &[]),
+            "target seed spread: not measured (fewer than two seeds)"
+        );
+        let line = seed_spread_line(3, &[], &flips);
+        assert!(
+            line.starts_with("target seed spread <= 0.50%: MISSED"),
+            "{line}"
+        );
+        assert!(
+            line.contains("no parameter spreads over the 3 seeds"),
+            "{line}"
+        );
+        assert!(
+            line.ends_with("classes varying over seeds: picture_3)"),
+            "{line}"
+        );
+        let line = seed_spread_line(3, &[], &[]);
+        assert!(line.contains(": not measured (no parameter"), "{line}");
+        let spread = |rel_std| Spread {
+            group: "floor".into(),
+            model: "diffuse".into(),
+            seeds_with_model: 3,
+            seeds: 3,
+            parameter: "color_r",
+            truth: Some(0.5),
+            mean: 0.5,
+            std: 0.5 * rel_std,
+            rel_std: Some(rel_std),
+        };
+        let line = seed_spread_line(3, &[spread(0.001)], &[]);
+        assert!(
+            line.contains(": MET (largest 0.10% on floor.color_r"),
+            "{line}"
+        );
+        let line = seed_spread_line(3, &[spread(0.001)], &flips);
+        assert!(line.contains(": MISSED (largest 0.10%"), "{line}");
+        let line = seed_spread_line(3, &[spread(0.01)], &[]);
+        assert!(
+            line.contains(": MISSED (largest 1.00% on floor.color_r; 1 of 1"),
+            "{line}"
+        );
+    }
 
     /// Fewer pixels are the harsher perturbation: the glossy study's 32-px run changed
     /// two classes and its 16-px run two others, and the verdict named 16 (2026-12-01).
