@@ -57,7 +57,7 @@ pub struct StabilityArgs {
     /// Output folder: the perturbed scenes, the runs, the CSVs and the chart.
     #[arg(long)]
     pub out: PathBuf,
-    /// The first seed; the seed family runs ten from here.
+    /// The first seed; the seed family runs ten from here (three with --quick).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Worker threads (default: all cores); the materials do not depend on it, the
@@ -75,7 +75,7 @@ pub struct StabilityArgs {
     #[arg(long)]
     pub group: Option<String>,
     /// The families to run, comma-separated (default: all). The first seed, the
-    /// baseline, runs always; the other nine seeds with `seed`.
+    /// baseline, runs always; the other seeds (nine, two with --quick) with `seed`.
     // Empty: all. The baseline runs whatever they are, since every other family is
     // judged against it. (At 256 px per side a whole study takes hours; one family, less.)
     #[arg(long, value_enum, value_delimiter = ',')]
