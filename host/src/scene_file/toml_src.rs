@@ -268,8 +268,14 @@ impl TomlFile {
             1.0
         };
         let exponent = (((largest * lift).to_bits() >> 52) & 0x7ff) as i64 - 1023;
+        // 2^-1023 is below the normal numbers, whose bits the scale is built from: a
+        // largest of 2^1023 or more (up to f64::MAX) is halved first. It read as zero.
+        let (halve, exponent) = match exponent > 1022 {
+            true => (0.5, exponent - 1),
+            false => (1.0, exponent),
+        };
         let scale = f64::from_bits(((1023 - exponent) as u64) << 52);
-        Ok(d.map(|x| (x * lift * scale) as f32))
+        Ok(d.map(|x| (x * lift * halve * scale) as f32))
     }
 
     /// Exactly `N` finite numbers that fit an f32, kept in 64 bits.
@@ -553,6 +559,20 @@ mod tests {
             "{:?}",
             desc.views[0]
         );
+        // From 2^1023 to f64::MAX, where the scale's bits once came out zero.
+        for huge in ["1e308", "9e307", "1.7976931348623157e308"] {
+            let (_dir, path) = write(
+                "direction = [0.0, 1.0, 0.0]\nup = [0.0, 0.0, 1.0]",
+                &format!("direction = [0.0, {huge}, 0.0]\nup = [0.0, 0.0, -{huge}]"),
+            );
+            let view = &load_scene(&path).unwrap().views[0];
+            // f64::MAX over 2^1023 rounds to 2 in f32.
+            let along = |v: [f32; 3], k: usize| {
+                (1.0..=2.0).contains(&v[k]) && (0..3).all(|i| i == k || v[i] == 0.0)
+            };
+            assert!(along(view.direction, 1), "{huge}: {view:?}");
+            assert!(along(view.up.map(|c| -c), 2), "{huge}: {view:?}");
+        }
         let (_dir, path) = write("up = [0.0, 0.0, 1.0]", "up = [0.0, 0.0, 2.5]");
         assert_eq!(load_scene(&path).unwrap().views[0].up, [0.0, 0.0, 2.5]);
         bad(
