@@ -132,8 +132,8 @@ pub(super) const DIFFUSE_GROUP_PIXELS: usize = 1 << 14;
 
 /// Pure pixels per group that a measurement of a whole group renders at most, spread
 /// evenly over a larger group (`pixels::spread_subset`): stage 1's bias-only errors
-/// ([`Recovery::error_estimates`](super::Recovery::error_estimates)) and stage 2's re-fit of a diffuse alternative's colour
-/// (`stage2::refit_diffuse`). Without a cap their cost grew with the panorama: at 512 px a
+/// ([`Recovery::error_estimates`](super::Recovery::error_estimates)) and stage 2's re-fit
+/// of a diffuse alternative's colour (`stage2::refit_diffuse`). Without a cap their cost grew with the panorama: at 512 px a
 /// face the living room's floor, ceiling, walls and accent wall (213,479-434,499 pixels)
 /// made half of stage 1's 40 s, and at 1024 px the re-fit took 25 s for the floor alone.
 ///
@@ -169,8 +169,8 @@ pub(super) const CACHE_MIN_SAMPLES: u64 = 1 << 16;
 pub(super) const MAX_CACHE_PIXELS: usize = 512;
 
 /// Samples per pixel on `subset` of a group's `all` pixels for as many samples in all as
-/// `spp` on every pixel, within `fit::DECISION_MAX_SAMPLES` ([`Recovery::decision_pixels`](super::Recovery::decision_pixels))
-/// and never below `spp`.
+/// `spp` on every pixel, within `fit::DECISION_MAX_SAMPLES`
+/// ([`Recovery::decision_pixels`](super::Recovery::decision_pixels)) and never below `spp`.
 pub(super) fn concentrated_spp(all: usize, subset: usize, spp: u32) -> u32 {
     let samples = (all as u64)
         .saturating_mul(spp as u64)

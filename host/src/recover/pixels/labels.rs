@@ -169,10 +169,11 @@ pub fn sight(pool: &rayon::ThreadPool, scene: &Scene, view: &View) -> Sight {
 }
 
 /// Per group for which `wanted` is true, the pixels of every view whose footprint sees it
-/// in part, in at least `min_share` of the [`LABEL_RAYS_PER_SIDE`]^2 rays that label a pixel (a grid
-/// over the pixel's square, edges included, as `render::pixel_surface`'s), and sees in the
-/// others only groups that `known` accepts: no light, no void, no group whose material is
-/// not known. Each with the group's share of the rays. In view and row order.
+/// in part, in at least `min_share` of the [`LABEL_RAYS_PER_SIDE`]^2 rays that label a
+/// pixel (a grid over the pixel's square, edges included, as `render::pixel_surface`'s),
+/// and sees in the others only groups that `known` accepts: no light, no void, no group
+/// whose material is not known. Each with the group's share of the rays. In view and row
+/// order.
 pub fn mixed_pixels(
     pool: &rayon::ThreadPool,
     scene: &Scene,
