@@ -6,9 +6,11 @@
 
 use std::time::Instant;
 
+use glam::Vec3;
 use relume_core::fit;
 use relume_core::material::Kind;
 use relume_core::render::RenderSettings;
+use relume_core::stages::anisotropic::Proposal;
 
 use super::cache::GroupCache;
 use super::kind::{self, KindFit};
@@ -226,22 +228,10 @@ fn diffuse_goes_on(
     Ok((levelled, goes_on, 2))
 }
 
-/// Runs stage 4 on the groups it applies to (`textured` from stage 3), recording in
-/// `reports` what each group became and why; every cache is traced with
-/// `cache_settings`. Leaves each group's model as decided.
-pub(super) fn run(
-    rec: &mut Recovery,
-    reports: &mut [GroupReport],
-    textured: &[bool],
-    kinds: &[GroupKind],
-    budget: &Budget,
-    cache_settings: &RenderSettings,
-) -> Result<StageReport, Error> {
-    let n_groups = reports.len();
-    let verify_spp = budget.loop_spp;
-    let stage_start = Instant::now();
-    let mut evaluations = 0;
-    let stage4: Vec<usize> = (0..n_groups)
+/// The groups stage 4 takes, in order: every textured group's stand-in, and every
+/// untextured group that stage 2 tried and left above `DIFFUSE_THRESHOLD`.
+fn groups_in(rec: &Recovery, reports: &[GroupReport], textured: &[bool]) -> Vec<usize> {
+    (0..reports.len())
         .filter(|&g| match rec.models[g] {
             // The paper's textured-anisotropic step, on the untextured stand-in as stage 2
             // fitted it, lobed or not. Its error is the picture's, so no error threshold
@@ -259,106 +249,229 @@ pub(super) fn run(
             }
             _ => false,
         })
-        .collect();
-    say_why_not_tried(rec, reports, textured, &stage4);
-    let bar = progress_bar(stage4.len() as u64, STAGE);
+        .collect()
+}
+
+/// Runs stage 4 on the groups it applies to (`textured` from stage 3), recording in
+/// `reports` what each group became and why; every cache is traced with
+/// `cache_settings`. Leaves each group's model as decided.
+pub(super) fn run(
+    rec: &mut Recovery,
+    reports: &mut [GroupReport],
+    textured: &[bool],
+    kinds: &[GroupKind],
+    budget: &Budget,
+    cache_settings: &RenderSettings,
+) -> Result<StageReport, Error> {
+    let stage_start = Instant::now();
+    let stage = Stage {
+        textured,
+        kinds,
+        budget,
+        cache_settings,
+        verify_spp: budget.loop_spp,
+    };
+    let groups = groups_in(rec, reports, textured);
+    say_why_not_tried(rec, reports, textured, &groups);
+    let bar = progress_bar(groups.len() as u64, STAGE);
     let mut laps = Laps::new(STAGE);
-    for g in stage4 {
+    let mut evaluations = 0;
+    for g in groups {
         laps.start(g, evaluations, reports);
+        evaluations += stage.search(rec, &mut reports[g], g)?;
+        bar.inc(1);
+    }
+    laps.close(evaluations, reports);
+    bar.finish_and_clear();
+    Ok(StageReport {
+        stage: STAGE.into(),
+        evaluations,
+        samples_per_pixel: stage.verify_spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "untextured groups with more than DIFFUSE_THRESHOLD {} of error left (those stage 2 left diffuse measured again with their colour levelled under the scene as now known, and going on unless below it by EXCEEDS_SIGMAS {} standard errors), and textured groups' isotropic stand-ins: each fitted on a transport cache of at least CACHE_MIN_SAMPLES {CACHE_MIN_SAMPLES} samples: colour and specularity in closed form, the lobe (log roughness_u, log roughness_v, direction angle) by a grid and Nelder-Mead, then annealing on renders; decided against the best isotropic fit, and kept anisotropic only if it also beats its own isotropic shadow (the roughnesses' geometric mean), else the shadow is kept",
+            fit::DIFFUSE_THRESHOLD,
+            fit::EXCEEDS_SIGMAS
+        )],
+    })
+}
+
+/// What every group's search in this stage shares.
+struct Stage<'a> {
+    textured: &'a [bool],
+    kinds: &'a [GroupKind],
+    budget: &'a Budget,
+    cache_settings: &'a RenderSettings,
+    /// Samples per pixel of the loop's renders (`Budget::loop_spp`); the decisions' renders
+    /// start at four times as many.
+    verify_spp: u32,
+}
+
+/// A group whose anisotropic fit is weighed, once the kind of its lobe is chosen.
+#[derive(Clone, Copy)]
+struct Searched<'c> {
+    g: usize,
+    cache: &'c GroupCache,
+    kind: Kind,
+    /// A textured group's picture, which its lobes must explain a highlight over.
+    pictured: Option<&'c pattern::TexturedGroup>,
+}
+
+/// The isotropic side an anisotropic fit is weighed against.
+#[derive(Clone, Copy)]
+struct IsotropicSide {
+    /// The best isotropic (or diffuse) explanation found, however slight its edge: what
+    /// the anisotropic fit must beat.
+    rival: GroupModel,
+    /// The model the group keeps if the anisotropic fit loses: stage 2's, unless an
+    /// alternative measured better at `RACE_SIGNIFICANCE`.
+    kept: GroupModel,
+    /// Whether `kept` is one of this stage's fits rather than stage 2's.
+    replaced: bool,
+}
+
+impl Stage<'_> {
+    /// Stage 4 for group `g`: whether it goes on, its anisotropic fit, the isotropic side
+    /// that fit is weighed against, and the decision, each said in `r`. Leaves the group's
+    /// model as decided; returns the evaluations spent.
+    fn search(&self, rec: &mut Recovery, r: &mut GroupReport, g: usize) -> Result<u32, Error> {
+        let textured = self.textured[g];
+        let mut evaluations = 0;
         let mut stage2 = rec.models[g];
         let Some(basis) = anisotropic::tangent_basis(rec, g) else {
-            reports[g].decisions.push(format!(
+            r.decisions.push(format!(
                 "{GATE}: not tried: its largest triangle has no tangent plane to orient a lobe in"
             ));
-            bar.inc(1);
-            continue;
+            return Ok(evaluations);
         };
         // A group stage 2 left diffuse is levelled under the scene as now known, and goes
         // on only if its error stays above the threshold there (`diffuse_goes_on`).
-        let levelled = match (stage2, textured[g]) {
+        let levelled = match (stage2, textured) {
             (GroupModel::Diffuse { color }, false) => {
-                let (levelled, goes_on, n) =
-                    diffuse_goes_on(rec, &mut reports[g], g, color, verify_spp)?;
+                let (levelled, goes_on, n) = diffuse_goes_on(rec, r, g, color, self.verify_spp)?;
                 evaluations += n;
                 if !goes_on {
-                    bar.inc(1);
-                    continue;
+                    return Ok(evaluations);
                 }
                 Some(levelled)
             }
             _ => None,
         };
-        let cache = rec.group_cache(g, cache_settings)?;
-        // A textured group is a plastic (reflectance.md, "Textures"): where stage 2 gave a
-        // group of kind "auto" a metal lobe, it is fitted again as a plastic's.
-        if let (
-            true,
-            GroupModel::Isotropic {
-                kind: Kind::Metal, ..
-            },
-        ) = (textured[g], stage2)
-        {
-            let (iso, alpha, n) = fit_ward(&rec.pool, &cache, Kind::Plastic);
+        let cache = rec.group_cache(g, self.cache_settings)?;
+        if textured {
+            let (plastic, n) = textured_stand_in_as_plastic(rec, r, g, &cache, stage2);
             evaluations += n;
-            stage2 = GroupModel::Isotropic {
-                kind: Kind::Plastic,
-                color: iso.color,
-                specularity: iso.specularity,
-                roughness: alpha,
-            };
-            rec.models[g] = stage2;
-            reports[g].decisions.push(format!(
-                "stage 4: textured, so a plastic: stage 2's metal lobe fitted again as a plastic's on its cache (s {:.4}, roughness {alpha:.4})",
-                iso.specularity
-            ));
+            stage2 = plastic;
         }
         let kinds_to_try = match stage2 {
             GroupModel::Isotropic { kind, .. } => vec![kind],
-            _ if textured[g] => vec![Kind::Plastic],
-            _ => lobe_kinds(kinds[g]).to_vec(),
+            _ if textured => vec![Kind::Plastic],
+            _ => lobe_kinds(self.kinds[g]).to_vec(),
         };
         // A textured group's lobe is fitted on a uniform stand-in, whose misfit is the
         // picture: the lobe must explain a highlight, not follow the picture.
-        let pictured = match textured[g] {
+        let pictured = match textured {
             true => Some(pattern::TexturedGroup::new(rec, &cache, basis)?),
             false => None,
         };
-        evaluations += pictured.as_ref().map_or(0, |p| p.lobes());
-        if let (Some(pictured), GroupModel::Isotropic { kind, .. }) = (&pictured, stage2) {
-            if let Some(test) = pictured.isotropic(&rec.pool, kind) {
-                let r = &mut reports[g];
-                if !test.passes() {
-                    // The stand-in goes on diffuse, as one stage 2 left diffuse.
-                    stage2 = GroupModel::Diffuse {
-                        color: pictured.diffuse_color(),
-                    };
-                    rec.models[g] = stage2;
-                    // Stage 2's comparison kept a lobe that is no longer there.
-                    for c in r
-                        .comparisons
-                        .iter_mut()
-                        .filter(|c| c.stage.starts_with('2'))
-                    {
-                        c.kept_complex = false;
-                    }
-                    r.decisions.push(format!(
-                        "stage 4: the stand-in's isotropic lobe follows the picture, not a highlight; the stand-in is diffuse: {}",
-                        test.describe()
-                    ));
-                } else {
-                    r.decisions.push(format!(
-                        "stage 4: the stand-in's isotropic lobe explains a highlight: {}",
-                        test.describe()
-                    ));
-                }
-            }
+        if let Some(pictured) = &pictured {
+            evaluations += pictured.lobes();
+            stage2 = stand_in_lobe_tested(rec, r, g, pictured, stage2);
         }
         // The anisotropic side as stage 2 found the isotropic one: the cache proposes
         // (reflectances in closed form, the lobe by grid and simplex), annealing on
         // renders refines, a race on fresh samples chooses.
+        let (chosen, n) = self.propose(rec, r, g, &cache, basis, &kinds_to_try)?;
+        evaluations += n;
+        let Some(KindFit {
+            kind,
+            fit: proposal,
+            ..
+        }) = chosen
+        else {
+            return Ok(evaluations);
+        };
+        let refined = anisotropic::anneal_anisotropic(
+            rec,
+            g,
+            kind,
+            &proposal,
+            basis,
+            (self.verify_spp, self.budget.anneal_levels),
+        )?;
+        evaluations += refined.evaluations;
+        if let Some(race) = &refined.race {
+            r.decisions
+                .push(format!("stage 4 search: {}", race.describe()));
+        }
+        // A diffuse rival's colour is stage 1's, before any polish, and each fit on the
+        // cache brings a level of its own: cornell's ceiling (seed 3), its stage-1 colour
+        // 3.6% dark, took a weak lobe at the bound (s 0.035, roughness 0.3) on its level
+        // alone. So the lobes are weighed against the diffuse model levelled by the colour
+        // polish's step (`diffuse_goes_on`, at the top); the colour kept is still stage
+        // 1's, which the diffuse refinement after stage 5 takes up.
+        let start = IsotropicSide {
+            rival: levelled.map_or(stage2, |color| GroupModel::Diffuse { color }),
+            kept: stage2,
+            replaced: false,
+        };
+        let searched = Searched {
+            g,
+            cache: &cache,
+            kind,
+            pictured: pictured.as_ref(),
+        };
+        let isotropic = self.isotropic_side(rec, r, &searched, start, refined.model)?;
+        evaluations += isotropic.evaluations;
+        let mut side = isotropic.side;
+        if let Some((metal, n)) = self.metal_again(rec, r, g, &cache, side.kept, isotropic.error)? {
+            evaluations += n;
+            if let Some(metal) = metal {
+                side = IsotropicSide {
+                    rival: metal,
+                    kept: metal,
+                    replaced: true,
+                };
+            }
+        }
+        if let (
+            true,
+            GroupModel::Isotropic {
+                kind,
+                specularity,
+                roughness,
+                ..
+            },
+        ) = (side.replaced, side.kept)
+        {
+            // The lobe kept is one of this cache's fits (or the anisotropic fit's, on the
+            // same cache).
+            lobe_of_this_cache(r, rec, &cache, kind, specularity, roughness);
+        }
+        let comparison = rec.compare_models(g, side.rival, refined.model, 4 * self.verify_spp)?;
+        rec.models[g] = side.kept;
+        let Some(comparison) = comparison else {
+            return Ok(evaluations);
+        };
+        let n = self.decide(rec, r, &searched, side, refined.model, comparison)?;
+        Ok(evaluations + n)
+    }
+
+    /// The anisotropic lobe the cache proposes for each kind in `kinds`, and the one
+    /// chosen to go on (`kind::choose`; `None`: none); also the evaluations spent.
+    fn propose(
+        &self,
+        rec: &mut Recovery,
+        r: &mut GroupReport,
+        g: usize,
+        cache: &GroupCache,
+        basis: (Vec3, Vec3),
+        kinds: &[Kind],
+    ) -> Result<(Option<KindFit<Proposal>>, u32), Error> {
+        let mut evaluations = 0;
         let mut fits = Vec::new();
-        for &kind in &kinds_to_try {
-            let (proposal, n) = anisotropic::propose_from_cache(&rec.pool, &cache, kind, basis)?;
+        for &kind in kinds {
+            let (proposal, n) = anisotropic::propose_from_cache(&rec.pool, cache, kind, basis)?;
             evaluations += n;
             fits.push(KindFit {
                 kind,
@@ -367,41 +480,35 @@ pub(super) fn run(
                 fit: proposal,
             });
         }
-        let (chosen, n) = kind::choose(rec, g, fits, (4, 4 * verify_spp), &mut reports[g])?;
-        evaluations += n;
-        let Some(KindFit {
-            kind,
-            fit: proposal,
-            ..
-        }) = chosen
-        else {
-            bar.inc(1);
-            continue;
-        };
-        let refined = anisotropic::anneal_anisotropic(
-            rec,
+        let (chosen, n) = kind::choose(rec, g, fits, (4, 4 * self.verify_spp), r)?;
+        Ok((chosen, evaluations + n))
+    }
+
+    /// The isotropic side, from `start`: stage 2's fit, unless one of this cache's
+    /// isotropic fits (the scene's other materials are better known now) or the
+    /// anisotropic fit's own shadow (roughness sqrt(u v)) measures better. The anisotropic
+    /// fit is weighed against the better of them (`rival`) however slight its edge, so
+    /// that it wins only over the best isotropic explanation; but if it loses, the
+    /// isotropic model kept (`kept`) changes only when a render shows the alternative
+    /// better at `RACE_SIGNIFICANCE`, as the race's incumbent does: glossy's steel box on
+    /// seed 4 took the shadow's s 0.80, roughness 0.086 (truth 0.95, 0.14) over stage 2's
+    /// 0.90, 0.10 on a gain of 0.0015 +- 0.0020.
+    fn isotropic_side(
+        &self,
+        rec: &mut Recovery,
+        r: &mut GroupReport,
+        searched: &Searched,
+        start: IsotropicSide,
+        anisotropic_fit: GroupModel,
+    ) -> Result<IsotropicFits, Error> {
+        let Searched {
             g,
+            cache,
             kind,
-            &proposal,
-            basis,
-            (verify_spp, budget.anneal_levels),
-        )?;
-        evaluations += refined.evaluations;
-        if let Some(race) = &refined.race {
-            reports[g]
-                .decisions
-                .push(format!("stage 4 search: {}", race.describe()));
-        }
-        // The isotropic side: stage 2's fit, unless one of this cache's isotropic fits
-        // (the scene's other materials are better known now) or the anisotropic fit's own
-        // shadow (roughness sqrt(u v)) measures better. The anisotropic fit is weighed
-        // against the better of them (`rival`) however slight its edge, so that it wins
-        // only over the best isotropic explanation; but if it loses, the isotropic model
-        // kept (`kept`) changes only when a render shows the alternative better at
-        // `RACE_SIGNIFICANCE`, as the race's incumbent does: glossy's steel box on seed 4
-        // took the shadow's s 0.80, roughness 0.086 (truth 0.95, 0.14) over stage 2's
-        // 0.90, 0.10 on a gain of 0.0015 +- 0.0020.
-        let (iso, alpha, n) = fit_ward(&rec.pool, &cache, kind);
+            pictured,
+        } = *searched;
+        let mut evaluations = 0;
+        let (iso, alpha, n) = fit_ward(&rec.pool, cache, kind);
         evaluations += n;
         let on_cache = GroupModel::Isotropic {
             kind,
@@ -416,7 +523,7 @@ pub(super) fn run(
         // steel box on seed 4 (64 px): the plain fit s 0.80, roughness 0.087, this one
         // 0.92, 0.113 at z 4.8 over it (truth 0.95, 0.14).
         let (across, across_alpha, n) =
-            fit_ward_by(|alpha| cache::isotropic_fit_across_halves(&rec.pool, &cache, kind, alpha));
+            fit_ward_by(|alpha| cache::isotropic_fit_across_halves(&rec.pool, cache, kind, alpha));
         evaluations += n;
         let across_halves = (across.specularity > 0.0 && across.specularity <= 1.0).then_some(
             GroupModel::Isotropic {
@@ -426,15 +533,7 @@ pub(super) fn run(
                 roughness: across_alpha,
             },
         );
-        // A diffuse rival's colour is stage 1's, before any polish, and each fit on the
-        // cache brings a level of its own: cornell's ceiling (seed 3), its stage-1 colour
-        // 3.6% dark, took a weak lobe at the bound (s 0.035, roughness 0.3) on its level
-        // alone. So the lobes are weighed against the diffuse model levelled by the colour
-        // polish's step (`diffuse_goes_on`, at the top); the colour kept is still stage
-        // 1's, which the diffuse refinement after stage 5 takes up.
-        let mut rival = levelled.map_or(stage2, |color| GroupModel::Diffuse { color });
-        let mut kept = stage2;
-        let mut replaced = false;
+        let mut side = start;
         for (what, alternative) in [
             ("the isotropic fit on this cache", Some(on_cache)),
             (
@@ -443,7 +542,7 @@ pub(super) fn run(
             ),
             (
                 "the anisotropic fit's isotropic shadow",
-                anisotropic::isotropic_projection(refined.model),
+                anisotropic::isotropic_projection(anisotropic_fit),
             ),
         ] {
             // A fit of no lobe (specularity 0) is the diffuse model of its colour.
@@ -451,15 +550,16 @@ pub(super) fn run(
                 continue;
             };
             evaluations += 2;
-            let Some((c, spp)) = rec.compare_models(g, rival, alternative, 4 * verify_spp)? else {
+            let Some((c, spp)) =
+                rec.compare_models(g, side.rival, alternative, 4 * self.verify_spp)?
+            else {
                 continue;
             };
             // Between two isotropic fits the better one; a group stage 2 left diffuse
             // takes a lobe here only as stage 2 would have kept one (significance).
             // A picture's lobe must also explain a highlight rather than the picture.
-            let verdict = isotropic_alternative(&rival, &c, || {
+            let verdict = isotropic_alternative(&side.rival, &c, || {
                 pictured
-                    .as_ref()
                     .and_then(|p| p.isotropic(&rec.pool, kind))
                     .is_none_or(|t| t.passes())
             });
@@ -468,12 +568,12 @@ pub(super) fn run(
             }
             let measured = format!(
                 "{what} measures better than the {} model: it removes {:.4} +- {:.4} more relative error in a render at {spp} spp (z {:.1})",
-                rival.name(),
+                side.rival.name(),
                 c.gain,
                 c.gain_sigma,
                 c.z()
             );
-            rival = alternative;
+            side.rival = alternative;
             let decision = match (verdict, alternative) {
                 (
                     Alternative::Replaces,
@@ -483,21 +583,40 @@ pub(super) fn run(
                         ..
                     },
                 ) => {
-                    kept = alternative;
-                    replaced = true;
+                    side.kept = alternative;
+                    side.replaced = true;
                     format!("stage 4: {measured}, and replaces it (s {specularity:.4}, roughness {roughness:.4})")
                 }
                 _ => format!(
                     "stage 4: {measured}: the anisotropic fit is weighed against it, but short of RACE_SIGNIFICANCE {RACE_SIGNIFICANCE} it does not replace the model kept"
                 ),
             };
-            reports[g].decisions.push(decision);
+            r.decisions.push(decision);
         }
-        // Kind "auto": a plastic lobe whose group came on to this stage (more than
-        // DIFFUSE_THRESHOLD of error left) may be a metal's highlight that stage 2 could
-        // not tell apart on its proposals, whose colours were fitted under the scene as it
-        // was then (glossy's steel box: 10% bright).
-        if let (
+        Ok(IsotropicFits {
+            side,
+            error: iso.relative_error,
+            evaluations,
+        })
+    }
+
+    /// Kind "auto": a plastic lobe whose group came on to this stage (more than
+    /// DIFFUSE_THRESHOLD of error left) may be a metal's highlight that stage 2 could not
+    /// tell apart on its proposals, whose colours were fitted under the scene as it was
+    /// then (glossy's steel box: 10% bright). So the metal stage 2 passed over, its colour
+    /// levelled, is weighed against `kept` once more (`kind::choose_again`, with the
+    /// cache's `plastic_error` beside the metal's). `None` where that does not apply, else
+    /// the metal when it is chosen, and the evaluations spent.
+    fn metal_again(
+        &self,
+        rec: &mut Recovery,
+        r: &mut GroupReport,
+        g: usize,
+        cache: &GroupCache,
+        kept: GroupModel,
+        plastic_error: f64,
+    ) -> Result<Option<(Option<GroupModel>, u32)>, Error> {
+        let (
             GroupKind::Auto,
             false,
             GroupModel::Isotropic {
@@ -510,67 +629,68 @@ pub(super) fn run(
                 specularity,
                 roughness,
             }),
-        ) = (kinds[g], textured[g], kept, reports[g].metal_passed_over)
-        {
-            let (metal_fit, _, n) = fit_ward(&rec.pool, &cache, Kind::Metal);
-            evaluations += n;
-            let metal = |color| GroupModel::Isotropic {
-                kind: Kind::Metal,
-                color,
-                specularity,
-                roughness,
-            };
-            let Levelled {
-                color: levelled,
-                said: levelling,
-                ..
-            } = levelled_colour(
-                rec,
-                g,
-                metal(color),
-                color,
-                (verify_spp, reports[g].pure_pixels),
-            )?;
-            evaluations += 1;
-            let levelled_by = format!("its colour {levelling}");
-            let (chosen, n) = kind::choose_again(
-                rec,
-                g,
-                (kept, metal(levelled)),
-                [iso.relative_error, metal_fit.relative_error],
-                (4 * verify_spp, &levelled_by),
-                &mut reports[g],
-            )?;
-            evaluations += n;
-            if let Some(metal) = chosen {
-                kept = metal;
-                rival = metal;
-                replaced = true;
-            }
-        }
-        if let (
-            true,
-            GroupModel::Isotropic {
-                kind,
-                specularity,
-                roughness,
-                ..
-            },
-        ) = (replaced, kept)
-        {
-            // The lobe kept is one of this cache's fits (or the anisotropic fit's, on the
-            // same cache).
-            lobe_of_this_cache(&mut reports[g], rec, &cache, kind, specularity, roughness);
-        }
-        bar.inc(1);
-        let comparison = rec.compare_models(g, rival, refined.model, 4 * verify_spp)?;
-        rec.models[g] = kept;
-        let Some((c, decision_spp)) = comparison else {
-            continue;
+        ) = (self.kinds[g], self.textured[g], kept, r.metal_passed_over)
+        else {
+            return Ok(None);
         };
+        let mut evaluations = 0;
+        let (metal_fit, _, n) = fit_ward(&rec.pool, cache, Kind::Metal);
+        evaluations += n;
+        let metal = |color| GroupModel::Isotropic {
+            kind: Kind::Metal,
+            color,
+            specularity,
+            roughness,
+        };
+        let Levelled {
+            color: levelled,
+            said: levelling,
+            ..
+        } = levelled_colour(
+            rec,
+            g,
+            metal(color),
+            color,
+            (self.verify_spp, r.pure_pixels),
+        )?;
+        evaluations += 1;
+        let levelled_by = format!("its colour {levelling}");
+        let (chosen, n) = kind::choose_again(
+            rec,
+            g,
+            (kept, metal(levelled)),
+            [plastic_error, metal_fit.relative_error],
+            (4 * self.verify_spp, &levelled_by),
+            r,
+        )?;
+        Ok(Some((chosen, evaluations + n)))
+    }
+
+    /// The decision between the isotropic side and the anisotropic fit `refined`, by their
+    /// comparison `(c, decision_spp)` (a render at `decision_spp`): for a textured group the
+    /// anisotropic gain must also come from a highlight, and a fit that beats the rival
+    /// must also beat its own isotropic shadow. Sets the group's model where the decision
+    /// changes it from `side.kept`, says why in `r`; returns the evaluations spent.
+    fn decide(
+        &self,
+        rec: &mut Recovery,
+        r: &mut GroupReport,
+        searched: &Searched,
+        side: IsotropicSide,
+        refined: GroupModel,
+        (c, decision_spp): (fit::ModelComparison, u32),
+    ) -> Result<u32, Error> {
+        let Searched {
+            g,
+            cache,
+            kind,
+            pictured,
+        } = *searched;
+        let IsotropicSide { rival, kept, .. } = side;
+        let mut evaluations = 0;
         // For a textured group, the anisotropic gain must also come from a highlight.
         let over_isotropic = matches!(rival, GroupModel::Isotropic { .. });
-        let pattern = match (&pictured, c.favours_complex()) {
+        let pattern = match (pictured, c.favours_complex()) {
             (Some(p), true) => p.anisotropic(&rec.pool, kind, over_isotropic),
             _ => None,
         };
@@ -580,21 +700,20 @@ pub(super) fn run(
         // 64 px, seed 4: roughness_u 0.0803 against roughness_v 0.0794, kept
         // anisotropic at z 7.1 over stage 2's lobe).
         let passes =
-            c.favours_complex() && refined.model.has_lobe() && pattern.is_none_or(|t| t.passes());
-        let shape = match anisotropic::isotropic_projection(refined.model) {
+            c.favours_complex() && refined.has_lobe() && pattern.is_none_or(|t| t.passes());
+        let shape = match anisotropic::isotropic_projection(refined) {
             Some(shadow) if passes => {
                 evaluations += 2;
-                rec.compare_models(g, shadow, refined.model, 4 * verify_spp)?
+                rec.compare_models(g, shadow, refined, 4 * self.verify_spp)?
                     .map(|(s, spp)| (shadow, s, spp))
             }
             _ => None,
         };
-        let r = &mut reports[g];
         let shape_shown = shape.is_none_or(|(_, s, _)| s.favours_complex());
         let mut report = ComparisonReport::new(
             "4 anisotropic",
             rival.name(),
-            refined.model.name(),
+            refined.name(),
             &c,
             decision_spp,
         );
@@ -630,7 +749,7 @@ pub(super) fn run(
                 ..
             } = shadow
             else {
-                continue;
+                return Ok(evaluations);
             };
             r.decisions.push(format!(
                 "stage 4: isotropic (s {specularity:.4}, roughness {roughness:.4}), the anisotropic fit's shadow: the anisotropic fit {measured}, but not for its shape: against its isotropic shadow it removes {:.4} +- {:.4} in a render at {spp} spp (z {:.1}; needs {})",
@@ -641,7 +760,7 @@ pub(super) fn run(
             ));
             rec.models[g] = shadow;
             r.set_decided(s.simple_estimate());
-            lobe_of_this_cache(r, rec, &cache, kind, specularity, roughness);
+            lobe_of_this_cache(r, rec, cache, kind, specularity, roughness);
         } else if let (
             true,
             GroupModel::Anisotropic {
@@ -650,7 +769,7 @@ pub(super) fn run(
                 direction: d,
                 ..
             },
-        ) = (passes, refined.model)
+        ) = (passes, refined)
         {
             if let Some(test) = pattern {
                 r.decisions.push(format!(
@@ -671,9 +790,9 @@ pub(super) fn run(
                 d[0], d[1], d[2],
                 keep_rule(&c),
             ));
-            rec.models[g] = refined.model;
+            rec.models[g] = refined;
             r.set_decided(c.complex_estimate());
-        } else if c.favours_complex() && !refined.model.has_lobe() {
+        } else if c.favours_complex() && !refined.has_lobe() {
             r.decisions.push(format!(
                 "stage 4: stays {}: the best anisotropic fit {measured}, but it has no lobe (specularity 0): its gain is its colour's, which the colour polish takes up",
                 kept.name(),
@@ -685,20 +804,89 @@ pub(super) fn run(
                 keep_rule(&c),
             ));
         }
+        Ok(evaluations)
     }
-    laps.close(evaluations, reports);
-    bar.finish_and_clear();
-    Ok(StageReport {
-        stage: STAGE.into(),
-        evaluations,
-        samples_per_pixel: verify_spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![format!(
-            "untextured groups with more than DIFFUSE_THRESHOLD {} of error left (those stage 2 left diffuse measured again with their colour levelled under the scene as now known, and going on unless below it by EXCEEDS_SIGMAS {} standard errors), and textured groups' isotropic stand-ins: each fitted on a transport cache of at least CACHE_MIN_SAMPLES {CACHE_MIN_SAMPLES} samples: colour and specularity in closed form, the lobe (log roughness_u, log roughness_v, direction angle) by a grid and Nelder-Mead, then annealing on renders; decided against the best isotropic fit, and kept anisotropic only if it also beats its own isotropic shadow (the roughnesses' geometric mean), else the shadow is kept",
-            fit::DIFFUSE_THRESHOLD,
-            fit::EXCEEDS_SIGMAS
-        )],
-    })
+}
+
+/// The isotropic side a stage-4 search found ([`Stage::isotropic_side`]).
+struct IsotropicFits {
+    side: IsotropicSide,
+    /// The relative error of the isotropic fit on the cache, of the kind searched.
+    error: f64,
+    evaluations: u32,
+}
+
+/// A textured group is a plastic (reflectance.md, "Textures"): where stage 2 gave a group
+/// of kind "auto" a metal lobe, it is fitted again as a plastic's on its cache. Returns the
+/// stand-in's model (set as the group's) and the evaluations spent.
+fn textured_stand_in_as_plastic(
+    rec: &mut Recovery,
+    r: &mut GroupReport,
+    g: usize,
+    cache: &GroupCache,
+    stage2: GroupModel,
+) -> (GroupModel, u32) {
+    let GroupModel::Isotropic {
+        kind: Kind::Metal, ..
+    } = stage2
+    else {
+        return (stage2, 0);
+    };
+    let (iso, alpha, n) = fit_ward(&rec.pool, cache, Kind::Plastic);
+    let plastic = GroupModel::Isotropic {
+        kind: Kind::Plastic,
+        color: iso.color,
+        specularity: iso.specularity,
+        roughness: alpha,
+    };
+    rec.models[g] = plastic;
+    r.decisions.push(format!(
+        "stage 4: textured, so a plastic: stage 2's metal lobe fitted again as a plastic's on its cache (s {:.4}, roughness {alpha:.4})",
+        iso.specularity
+    ));
+    (plastic, n)
+}
+
+/// A textured group's stand-in with an isotropic lobe keeps it only if the lobe explains a
+/// highlight rather than follows the picture (`pattern`); otherwise the stand-in goes on
+/// diffuse, as one stage 2 left diffuse. Returns the stand-in's model (set as the group's).
+fn stand_in_lobe_tested(
+    rec: &mut Recovery,
+    r: &mut GroupReport,
+    g: usize,
+    pictured: &pattern::TexturedGroup,
+    stage2: GroupModel,
+) -> GroupModel {
+    let GroupModel::Isotropic { kind, .. } = stage2 else {
+        return stage2;
+    };
+    let Some(test) = pictured.isotropic(&rec.pool, kind) else {
+        return stage2;
+    };
+    if test.passes() {
+        r.decisions.push(format!(
+            "stage 4: the stand-in's isotropic lobe explains a highlight: {}",
+            test.describe()
+        ));
+        return stage2;
+    }
+    let diffuse = GroupModel::Diffuse {
+        color: pictured.diffuse_color(),
+    };
+    rec.models[g] = diffuse;
+    // Stage 2's comparison kept a lobe that is no longer there.
+    for c in r
+        .comparisons
+        .iter_mut()
+        .filter(|c| c.stage.starts_with('2'))
+    {
+        c.kept_complex = false;
+    }
+    r.decisions.push(format!(
+        "stage 4: the stand-in's isotropic lobe follows the picture, not a highlight; the stand-in is diffuse: {}",
+        test.describe()
+    ));
+    diffuse
 }
 
 #[cfg(test)]
