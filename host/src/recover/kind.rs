@@ -57,26 +57,25 @@ pub(super) fn choose<T>(
         plastic.cache_error, metal.cache_error
     );
     let metal_on_cache = fit::cache_effect(plastic.cache_error, metal.cache_error);
-    let (metal_wins, renders) = if metal_on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
+    let mut renders = 0;
+    let metal_wins = if metal_on_cache <= fit::SPECULAR_GAIN_THRESHOLD {
         report.decisions.push(format!(
             "stage {stage}: kind auto: plastic, the simpler: metal accounts for {metal_on_cache:.4} more on its transport cache, at most SPECULAR_GAIN_THRESHOLD {} ({on_cache})",
             fit::SPECULAR_GAIN_THRESHOLD
         ));
-        (false, 0)
+        false
     } else {
         let why = format!(
             "metal accounts for {metal_on_cache:.4} more on its transport cache ({on_cache})"
         );
-        let wins = by_render(
+        by_render(
             rec,
             g,
-            plastic.model,
-            metal.model,
+            (plastic.model, metal.model),
             (stage, spp),
-            &why,
-            report,
-        )?;
-        (wins, 2)
+            (&why, report),
+            &mut renders,
+        )?
     };
     if metal_wins {
         return Ok((Some(metal), renders));
@@ -108,24 +107,31 @@ pub(super) fn choose_again(
     let why = format!(
         "again, for the plastic lobe stage 4 kept: stage 2's metal proposal, {levelled_by}"
     );
-    let metal_wins = by_render(rec, g, kept, passed_over, (4, spp), &why, report)?;
-    Ok((metal_wins.then_some(passed_over), 2))
+    let mut renders = 0;
+    let metal_wins = by_render(
+        rec,
+        g,
+        (kept, passed_over),
+        (4, spp),
+        (&why, report),
+        &mut renders,
+    )?;
+    Ok((metal_wins.then_some(passed_over), renders))
 }
 
 /// `plastic` against `metal` in a render at `spp` by the keep rule
 /// (`fit::ModelComparison::favours_complex`): whether metal wins. The decision (after
 /// `why`) goes into the report, the render as a comparison of stage "`<stage>` kind".
-/// Plastic where no pixel is lit.
+/// Plastic where no pixel is lit. Adds the comparison's evaluations to `evaluations`.
 fn by_render(
     rec: &mut Recovery,
     g: usize,
-    plastic: GroupModel,
-    metal: GroupModel,
+    (plastic, metal): (GroupModel, GroupModel),
     (stage, spp): (u32, u32),
-    why: &str,
-    report: &mut GroupReport,
+    (why, report): (&str, &mut GroupReport),
+    evaluations: &mut u32,
 ) -> Result<bool, Error> {
-    let Some((c, decision_spp)) = rec.compare_models(g, plastic, metal, spp)? else {
+    let Some((c, decision_spp)) = rec.compare_models(g, (plastic, metal), spp, evaluations)? else {
         report.decisions.push(format!(
             "stage {stage}: kind auto: plastic, the simpler: no lit pixel to compare the kinds on ({why})"
         ));

@@ -502,8 +502,7 @@ pub fn second_look(
     // glossy's white sphere at 256 px read its rung (s 0.025, roughness 0.039 against
     // 0.03, 0.02) at z -1.0 on 96 spp of its decision pixels, where its proposal had 384.
     let test_spp = ladder.group_spp.max(4 * spp);
-    let test = rec.compare_models(g, diffuse, rung.model, test_spp)?;
-    evaluations += 2;
+    let test = rec.compare_models(g, (diffuse, rung.model), test_spp, &mut evaluations)?;
     Ok(SecondLook {
         found: match test {
             Some(test) => Ok(Found {

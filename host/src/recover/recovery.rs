@@ -354,18 +354,20 @@ impl Recovery {
     /// ([`fit::ModelComparison::next_look_cap`], [`fit::next_decision_spp`]). A subtracted variance
     /// estimate would favour the model whose sampling is noisier (any Ward lobe, however
     /// weak), not the better model. Leaves the group's model as it was. Returns the last
-    /// comparison and its samples per pixel; `None` for a group without lit pixels.
+    /// comparison and its samples per pixel; `None` for a group without lit pixels. Adds
+    /// to `evaluations` two for each round (one measurement of each model).
     pub(super) fn compare_models(
         &mut self,
         g: usize,
-        simple: GroupModel,
-        complex: GroupModel,
+        (simple, complex): (GroupModel, GroupModel),
         spp: u32,
+        evaluations: &mut u32,
     ) -> Result<Option<(fit::ModelComparison, u32)>, Error> {
         let (pixels, mut spp) = self.decision_pixels(g, spp);
         let mut round = 0;
         loop {
             let seed = self.decision_seed() ^ ((round as u64) << 32);
+            *evaluations += 2;
             let Some(c) = self.compare_once(g, simple, complex, &pixels, spp, seed)? else {
                 return Ok(None);
             };

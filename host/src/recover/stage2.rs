@@ -291,8 +291,8 @@ pub(super) fn run(
         let mut mirror_why = None;
         let searched = match (refined.model, refined.mirror) {
             (lobe @ GroupModel::Isotropic { .. }, Some(mirror)) => {
-                let comparison = rec.compare_models(g, mirror, lobe, 4 * verify_spp)?;
-                evaluations += 2;
+                let comparison =
+                    rec.compare_models(g, (mirror, lobe), 4 * verify_spp, &mut evaluations)?;
                 match comparison {
                     Some((c, spp)) if !c.favours_complex() => {
                         mirror_why = Some(format!(
@@ -336,8 +336,8 @@ pub(super) fn run(
         };
         let (stage1, n) = refit_diffuse(rec, g, stage1, reports[g].pure_pixels, verify_spp)?;
         evaluations += n;
-        let mut comparison = rec.compare_models(g, stage1, candidate.0, 4 * verify_spp)?;
-        evaluations += 2;
+        let mut comparison =
+            rec.compare_models(g, (stage1, candidate.0), 4 * verify_spp, &mut evaluations)?;
         // A weak lobe's proposal is the cache's least reliable: a failed one gets a
         // second look on a ladder of roughnesses (see `ladder`).
         let mut candidate = candidate;
@@ -383,8 +383,8 @@ pub(super) fn run(
             (failed, challenger, candidate.0)
         {
             if challenger != candidate.0 && mirror_test(&challenger).is_none() {
-                let test = rec.compare_models(g, stage1, challenger, 4 * verify_spp)?;
-                evaluations += 2;
+                let test =
+                    rec.compare_models(g, (stage1, challenger), 4 * verify_spp, &mut evaluations)?;
                 let look = |c: &fit::ModelComparison, spp: u32| {
                     format!(
                         "stage 2 second look: the candidate tested last removes {:.4} +- {:.4} (z {:.1}), short of the test; the search's point that rendered best against the proposal in the race (z {race_z:.1}) removes {:.4} +- {:.4} (z {:.1}) at {spp} spp",

@@ -448,7 +448,12 @@ impl Stage<'_> {
             // same cache).
             lobe_of_this_cache(r, rec, &cache, kind, specularity, roughness);
         }
-        let comparison = rec.compare_models(g, side.rival, refined.model, 4 * self.verify_spp)?;
+        let comparison = rec.compare_models(
+            g,
+            (side.rival, refined.model),
+            4 * self.verify_spp,
+            &mut evaluations,
+        )?;
         rec.models[g] = side.kept;
         let Some(comparison) = comparison else {
             return Ok(evaluations);
@@ -549,9 +554,12 @@ impl Stage<'_> {
             let Some(alternative) = alternative.filter(GroupModel::has_lobe) else {
                 continue;
             };
-            evaluations += 2;
-            let Some((c, spp)) =
-                rec.compare_models(g, side.rival, alternative, 4 * self.verify_spp)?
+            let Some((c, spp)) = rec.compare_models(
+                g,
+                (side.rival, alternative),
+                4 * self.verify_spp,
+                &mut evaluations,
+            )?
             else {
                 continue;
             };
@@ -702,11 +710,9 @@ impl Stage<'_> {
         let passes =
             c.favours_complex() && refined.has_lobe() && pattern.is_none_or(|t| t.passes());
         let shape = match anisotropic::isotropic_projection(refined) {
-            Some(shadow) if passes => {
-                evaluations += 2;
-                rec.compare_models(g, shadow, refined, 4 * self.verify_spp)?
-                    .map(|(s, spp)| (shadow, s, spp))
-            }
+            Some(shadow) if passes => rec
+                .compare_models(g, (shadow, refined), 4 * self.verify_spp, &mut evaluations)?
+                .map(|(s, spp)| (shadow, s, spp)),
             _ => None,
         };
         let shape_shown = shape.is_none_or(|(_, s, _)| s.favours_complex());
