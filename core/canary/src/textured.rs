@@ -1,7 +1,7 @@
 //! Stages 3 and 5 on the canary's floor: the cross contrast (stage 3) tells a checker
 //! floor, fitted as one colour, from the glossy floor under its recovered lobe, and the
 //! map solve (stage 5) recovers the checker's texels from its pixels and the irradiance.
-//! As the host does it (`host/src/recover/texture.rs`), in fixed storage.
+//! As the host does it (`host/src/recover/texture/`), in fixed storage.
 
 use crate::{render_view, Line, PANORAMA_SPP, PIXELS, RENDER_SPP, SIDE};
 use relume_core::fit::TEXTURE_STEP;
