@@ -15,10 +15,13 @@ use relume_core::fit;
 use relume_core::material::{Kind, Material};
 use relume_core::render::RenderSettings;
 use relume_core::stages::diffuse;
-use relume_core::stages::isotropic;
+use relume_core::stages::isotropic::{self, WardFit};
 
+use super::cache::GroupCache;
 use super::kind::{self, KindFit};
+use super::ladder::LobeSigmas;
 use super::model::GroupModel;
+use super::refine::Refined;
 use super::report::Laps;
 use super::{
     cache, fit_ward, keep_rule, ladder, lobe_kinds, min_samples_spp, mirror_test, progress_bar,
@@ -185,7 +188,11 @@ pub(super) fn run(
             .into_iter()
             .find_map(|(g, cache)| (g == first).then_some(cache))
     });
-    let verify_spp = budget.loop_spp;
+    let stage = Stage {
+        kinds,
+        budget,
+        verify_spp: budget.loop_spp,
+    };
     let bar = progress_bar(candidates.len() as u64, STAGE);
     let mut laps = Laps::new(STAGE);
     for &(g, diffuse_error) in candidates.iter() {
@@ -194,42 +201,90 @@ pub(super) fn run(
             Some(cache) => cache,
             None => rec.group_cache(g, cache_settings)?,
         };
+        evaluations += stage.search(rec, &mut reports[g], (g, diffuse_error), &cache)?;
+        bar.inc(1);
+    }
+    laps.close(evaluations, reports);
+    bar.finish_and_clear();
+    Ok(StageReport {
+        stage: STAGE.into(),
+        evaluations,
+        samples_per_pixel: cache_settings.spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![
+            "each candidate group fitted on its transport cache: reflectances in closed form, roughness by a log grid and golden section".into(),
+            format!(
+                "a group whose diffuse error is not above DIFFUSE_THRESHOLD {} by EXCEEDS_SIGMAS standard errors (room for a weak lobe only) and whose proposal fails the test gets a second look: LADDER_RUNGS {} roughnesses rendered with at least LADDER_SAMPLES {} pixel samples, the best by its gain's lower bound tested in its place",
+                fit::DIFFUSE_THRESHOLD,
+                ladder::LADDER_RUNGS,
+                ladder::LADDER_SAMPLES
+            ),
+        ],
+    })
+}
+
+/// What every group's search in this stage shares.
+struct Stage<'a> {
+    kinds: &'a [GroupKind],
+    budget: &'a Budget,
+    /// Samples per pixel of the loop's renders (`Budget::loop_spp`); the decisions' renders
+    /// start at four times as many.
+    verify_spp: u32,
+}
+
+/// The lobe the cache proposes for a group, of the kind chosen.
+#[derive(Clone, Copy)]
+struct Proposal {
+    kind: Kind,
+    ward: WardFit,
+    roughness: f64,
+}
+
+/// A group's proposal after the search: what is tested against its diffuse model, and
+/// what the test found.
+struct Tested {
+    /// A lobe, or a mirror with why it is one.
+    model: GroupModel,
+    mirror_why: Option<String>,
+    /// The lobe's specularity and roughness, as the report gives them.
+    specularity: f64,
+    roughness: f64,
+    /// Against the diffuse model, with its samples per pixel (`None`: no lit pixel).
+    comparison: Option<(fit::ModelComparison, u32)>,
+    /// The spread of the ladder's rungs, when the lobe is the ladder's.
+    ladder_sigmas: Option<LobeSigmas>,
+}
+
+impl Stage<'_> {
+    /// Stage 2 for group `g` (stage 1 left it `diffuse_error`), on its transport `cache`:
+    /// the proposal, the search, the mirror, the test against the diffuse model and a weak
+    /// lobe's second look, each said in `r`. Leaves the group's model as decided; returns
+    /// the evaluations spent.
+    fn search(
+        &self,
+        rec: &mut Recovery,
+        r: &mut GroupReport,
+        (g, diffuse_error): (usize, fit::ErrorEstimate),
+        cache: &GroupCache,
+    ) -> Result<u32, Error> {
+        let mut evaluations = 0;
         let diffuse_fit = isotropic::solve_diffuse(&cache::linear_sums(
             &rec.pool,
-            &cache,
+            cache,
             &Material::Diffuse {
                 rho_d: glam::Vec3::ZERO,
             },
         ));
-        let mut fits = Vec::new();
-        for &kind in lobe_kinds(kinds[g]) {
-            let (fit, alpha, n) = fit_ward(&rec.pool, &cache, kind);
-            evaluations += n;
-            fits.push(KindFit {
-                kind,
-                cache_error: fit.relative_error,
-                model: GroupModel::Isotropic {
-                    kind,
-                    color: fit.color,
-                    specularity: fit.specularity,
-                    roughness: alpha,
-                },
-                fit: (fit, alpha),
-            });
-        }
-        bar.inc(1);
-        let (chosen, n) = kind::choose(rec, g, fits, (2, 4 * verify_spp), &mut reports[g])?;
+        let (proposal, n) = self.propose(rec, r, g, cache)?;
         evaluations += n;
-        let Some(KindFit {
-            kind,
-            fit: (ward, alpha),
-            ..
-        }) = chosen
-        else {
-            continue;
+        let Some(proposal) = proposal else {
+            return Ok(evaluations);
         };
-        let proposal_roughness = alpha;
-        let r = &mut reports[g];
+        let Proposal {
+            kind,
+            ward,
+            roughness: alpha,
+        } = proposal;
         r.cache_error_diffuse = Some(diffuse_fit.relative_error);
         r.cache_error_specular = Some(ward.relative_error);
         // A candidate's best lobe on its own cache is the most a render could show: where
@@ -254,17 +309,17 @@ pub(super) fn run(
             }
             // Its colour re-fitted under the materials found so far, as when a render
             // keeps it diffuse.
-            let (diffuse, n) = refit_diffuse(rec, g, stage1, r.pure_pixels, verify_spp)?;
+            let (diffuse, n) = refit_diffuse(rec, g, stage1, r.pure_pixels, self.verify_spp)?;
             evaluations += n;
             rec.models[g] = diffuse;
-            continue;
+            return Ok(evaluations);
         }
 
         // The cache proposes; annealing on renders of the group's pixels refines; a
         // render decides. The cache's error carries its own sampling noise and the bias of
         // a finite set of incident samples, which a specular lobe can partly "explain"; the
         // render's error is noise-corrected (fit::GroupFit), so the gain it shows is real.
-        let proposal = GroupModel::Isotropic {
+        let proposed = GroupModel::Isotropic {
             kind,
             color: ward.color,
             specularity: ward.specularity,
@@ -273,44 +328,18 @@ pub(super) fn run(
         let refined = refine::anneal_isotropic(
             rec,
             g,
-            proposal,
-            verify_spp,
-            budget.anneal_levels,
-            budget.optimiser,
+            proposed,
+            self.verify_spp,
+            self.budget.anneal_levels,
+            self.budget.optimiser,
         )?;
         evaluations += refined.evaluations;
         if let Some(race) = &refined.race {
-            reports[g]
-                .decisions
+            r.decisions
                 .push(format!("stage 2 search: {}", race.describe()));
         }
-        // A perfect mirror is simpler than any lobe: the lobe the race kept stands against
-        // the search's mirror only as a model stands against a simpler one. (The race
-        // asks a challenger to render better; a lobe at the roughness bound and a mirror
-        // render alike, and the living room's mirror stayed a lobe on 2 seeds of 10.)
-        let mut mirror_why = None;
-        let searched = match (refined.model, refined.mirror) {
-            (lobe @ GroupModel::Isotropic { .. }, Some(mirror)) => {
-                let comparison =
-                    rec.compare_models(g, (mirror, lobe), 4 * verify_spp, &mut evaluations)?;
-                match comparison {
-                    Some((c, spp)) if !c.favours_complex() => {
-                        mirror_why = Some(format!(
-                            "mirror: the lobe renders no better than a perfect mirror (tint <= MIRROR_MAX_TINT {}): it removes {:.4} +- {:.4} more at {spp} spp (z {:.1}); a lobe needs {}",
-                            fit::MIRROR_MAX_TINT,
-                            c.gain,
-                            c.gain_sigma,
-                            c.z(),
-                            keep_rule(&c),
-                        ));
-                        mirror
-                    }
-                    _ => lobe,
-                }
-            }
-            (model, _) => model,
-        };
-        let candidate = match mirror_test(&searched) {
+        let (searched, mirror_why) = self.lobe_or_mirror(rec, g, &refined, &mut evaluations)?;
+        let (model, mirror_why) = match mirror_test(&searched) {
             _ if matches!(searched, GroupModel::Mirror { .. }) => (
                 searched,
                 mirror_why.or_else(|| {
@@ -326,7 +355,7 @@ pub(super) fn run(
             }
             None => (searched, None),
         };
-        let (specularity, alpha) = match searched {
+        let (specularity, roughness) = match searched {
             GroupModel::Isotropic {
                 specularity,
                 roughness,
@@ -334,15 +363,20 @@ pub(super) fn run(
             } => (specularity, roughness),
             _ => (ward.specularity, alpha),
         };
-        let (stage1, n) = refit_diffuse(rec, g, stage1, reports[g].pure_pixels, verify_spp)?;
+        let (stage1, n) = refit_diffuse(rec, g, stage1, r.pure_pixels, self.verify_spp)?;
         evaluations += n;
-        let mut comparison =
-            rec.compare_models(g, (stage1, candidate.0), 4 * verify_spp, &mut evaluations)?;
+        let comparison =
+            rec.compare_models(g, (stage1, model), 4 * self.verify_spp, &mut evaluations)?;
+        let mut tested = Tested {
+            model,
+            mirror_why,
+            specularity,
+            roughness,
+            comparison,
+            ladder_sigmas: None,
+        };
         // A weak lobe's proposal is the cache's least reliable: a failed one gets a
         // second look on a ladder of roughnesses (see `ladder`).
-        let mut candidate = candidate;
-        let (mut specularity, mut alpha) = (specularity, alpha);
-        let mut ladder_sigmas = None;
         let proposal_failed = matches!(comparison, Some((c, _)) if !c.favours_complex());
         // Room for a weak lobe only, by stage 1's measurement or by the test's, of the
         // diffuse model under the scene as now known: the living room's lamp_body read
@@ -350,88 +384,213 @@ pub(super) fn run(
         // the mirror was one, and went without a second look.
         let weak_only = ladder::applies(&diffuse_error)
             || matches!(comparison, Some((c, _)) if ladder::applies(&c.simple_estimate()));
-        if proposal_failed && weak_only && matches!(candidate.0, GroupModel::Isotropic { .. }) {
+        if proposal_failed && weak_only && matches!(model, GroupModel::Isotropic { .. }) {
             let proposal = comparison.map(|(c, _)| c);
-            let look = ladder::second_look(rec, g, &cache, kind, stage1, verify_spp, proposal)?;
+            let look = ladder::second_look(rec, g, cache, kind, stage1, self.verify_spp, proposal)?;
             evaluations += look.evaluations;
             match look.found {
-                Err(why) => reports[g].decisions.push(why),
+                Err(why) => r.decisions.push(why),
                 Ok(found) => {
-                    reports[g].decisions.push(found.decision);
-                    (specularity, alpha) = (found.rung.specularity, found.rung.roughness);
-                    candidate = (found.rung.model, None);
-                    comparison = Some(found.test);
-                    ladder_sigmas = Some(found.spread.sigmas(&found.rung));
+                    r.decisions.push(found.decision);
+                    tested = Tested {
+                        model: found.rung.model,
+                        mirror_why: None,
+                        specularity: found.rung.specularity,
+                        roughness: found.rung.roughness,
+                        comparison: Some(found.test),
+                        ladder_sigmas: Some(found.spread.sigmas(&found.rung)),
+                    };
                 }
             }
         }
-        // The race keeps the cache's proposal unless a search point renders better at
-        // RACE_SIGNIFICANCE; a proposal the test then rejects has lost that credit. Where
-        // the ladder finds nothing either, the point that rendered best against the
-        // proposal in the race is tested in its place: glossy's teal box at 64 px (effort
-        // fast, seed 2 before 48b2516; s 0.04, roughness 0.08), whose proposal (s 0.118)
-        // and best rung fell short, was kept with the race's point (s 0.051, roughness
-        // 0.086) at z 3.3. A rare rescue: on 1 of glossy's seeds 1-10 then, none of 1-21
-        // since.
+        self.race_challenger(rec, r, (g, stage1), &refined, &mut tested, &mut evaluations)?;
+        let Some(comparison) = tested.comparison else {
+            r.decisions
+                .push("stage 2: stays diffuse: no lit pixel to compare the models on".into());
+            rec.models[g] = stage1;
+            return Ok(evaluations);
+        };
+        let decided = Decided {
+            g,
+            cache,
+            proposal: &proposal,
+            stage1,
+            weak_only,
+        };
+        evaluations += self.decide(rec, r, &decided, tested, comparison)?;
+        Ok(evaluations)
+    }
+
+    /// The cache's isotropic fit of each kind the group may take, and the one chosen to go
+    /// on (`kind::choose`; `None`: none); also the evaluations spent.
+    fn propose(
+        &self,
+        rec: &mut Recovery,
+        r: &mut GroupReport,
+        g: usize,
+        cache: &GroupCache,
+    ) -> Result<(Option<Proposal>, u32), Error> {
+        let mut evaluations = 0;
+        let mut fits = Vec::new();
+        for &kind in lobe_kinds(self.kinds[g]) {
+            let (fit, alpha, n) = fit_ward(&rec.pool, cache, kind);
+            evaluations += n;
+            fits.push(KindFit {
+                kind,
+                cache_error: fit.relative_error,
+                model: GroupModel::Isotropic {
+                    kind,
+                    color: fit.color,
+                    specularity: fit.specularity,
+                    roughness: alpha,
+                },
+                fit: (fit, alpha),
+            });
+        }
+        let (chosen, n) = kind::choose(rec, g, fits, (2, 4 * self.verify_spp), r)?;
+        let proposal = chosen.map(|KindFit { kind, fit, .. }| Proposal {
+            kind,
+            ward: fit.0,
+            roughness: fit.1,
+        });
+        Ok((proposal, evaluations + n))
+    }
+
+    /// The search's model, or the perfect mirror it raced where the lobe it kept renders
+    /// no better than that mirror, with why. A perfect mirror is simpler than any lobe:
+    /// the lobe the race kept stands against the search's mirror only as a model stands
+    /// against a simpler one. (The race asks a challenger to render better; a lobe at the
+    /// roughness bound and a mirror render alike, and the living room's mirror stayed a
+    /// lobe on 2 seeds of 10.)
+    fn lobe_or_mirror(
+        &self,
+        rec: &mut Recovery,
+        g: usize,
+        refined: &Refined,
+        evaluations: &mut u32,
+    ) -> Result<(GroupModel, Option<String>), Error> {
+        let (lobe @ GroupModel::Isotropic { .. }, Some(mirror)) = (refined.model, refined.mirror)
+        else {
+            return Ok((refined.model, None));
+        };
+        let comparison = rec.compare_models(g, (mirror, lobe), 4 * self.verify_spp, evaluations)?;
+        Ok(match comparison {
+            Some((c, spp)) if !c.favours_complex() => (
+                mirror,
+                Some(format!(
+                    "mirror: the lobe renders no better than a perfect mirror (tint <= MIRROR_MAX_TINT {}): it removes {:.4} +- {:.4} more at {spp} spp (z {:.1}); a lobe needs {}",
+                    fit::MIRROR_MAX_TINT,
+                    c.gain,
+                    c.gain_sigma,
+                    c.z(),
+                    keep_rule(&c),
+                )),
+            ),
+            _ => (lobe, None),
+        })
+    }
+
+    /// The race keeps the cache's proposal unless a search point renders better at
+    /// RACE_SIGNIFICANCE; a proposal the test then rejects has lost that credit. Where
+    /// the ladder finds nothing either, the point that rendered best against the
+    /// proposal in the race is tested in its place (against `stage1`, the diffuse model),
+    /// and replaces `tested` if it passes: glossy's teal box at 64 px (effort fast, seed 2
+    /// before 48b2516; s 0.04, roughness 0.08), whose proposal (s 0.118) and best rung
+    /// fell short, was kept with the race's point (s 0.051, roughness 0.086) at z 3.3. A
+    /// rare rescue: on 1 of glossy's seeds 1-10 then, none of 1-21 since.
+    fn race_challenger(
+        &self,
+        rec: &mut Recovery,
+        r: &mut GroupReport,
+        (g, stage1): (usize, GroupModel),
+        refined: &Refined,
+        tested: &mut Tested,
+        evaluations: &mut u32,
+    ) -> Result<(), Error> {
         let challenger = refined
             .race
             .filter(|race| !race.replaced)
             .and_then(|race| Some((race.best_challenger?, race.best_z?)))
             .filter(|&(_, z)| z > 0.0);
-        let failed = comparison.filter(|(c, _)| !c.favours_complex());
-        if let (Some((failed, _)), Some((challenger, race_z)), GroupModel::Isotropic { .. }) =
-            (failed, challenger, candidate.0)
-        {
-            if challenger != candidate.0 && mirror_test(&challenger).is_none() {
-                let test =
-                    rec.compare_models(g, (stage1, challenger), 4 * verify_spp, &mut evaluations)?;
-                let look = |c: &fit::ModelComparison, spp: u32| {
-                    format!(
-                        "stage 2 second look: the candidate tested last removes {:.4} +- {:.4} (z {:.1}), short of the test; the search's point that rendered best against the proposal in the race (z {race_z:.1}) removes {:.4} +- {:.4} (z {:.1}) at {spp} spp",
-                        failed.gain,
-                        failed.gain_sigma,
-                        failed.z(),
-                        c.gain,
-                        c.gain_sigma,
-                        c.z()
-                    )
-                };
-                if let Some((c, spp)) = test.filter(|(c, _)| !c.favours_complex()) {
-                    let why = format!("{}: short of the test too", look(&c, spp));
-                    reports[g].decisions.push(why);
-                }
-                if let Some((c, spp)) = test.filter(|(c, _)| c.favours_complex()) {
-                    let why = format!("{} and is taken in its place", look(&c, spp));
-                    reports[g].decisions.push(why);
-                    if let GroupModel::Isotropic {
-                        specularity: s,
-                        roughness: a,
-                        ..
-                    } = challenger
-                    {
-                        (specularity, alpha) = (s, a);
-                    }
-                    candidate = (challenger, None);
-                    comparison = test;
-                    ladder_sigmas = None;
-                }
-            }
-        }
-        let r = &mut reports[g];
-        let Some((c, decision_spp)) = comparison else {
-            r.decisions
-                .push("stage 2: stays diffuse: no lit pixel to compare the models on".into());
-            rec.models[g] = stage1;
-            continue;
+        let failed = tested.comparison.filter(|(c, _)| !c.favours_complex());
+        let (Some((failed, _)), Some((challenger, race_z)), GroupModel::Isotropic { .. }) =
+            (failed, challenger, tested.model)
+        else {
+            return Ok(());
         };
+        if challenger == tested.model || mirror_test(&challenger).is_some() {
+            return Ok(());
+        }
+        let test = rec.compare_models(g, (stage1, challenger), 4 * self.verify_spp, evaluations)?;
+        let look = |c: &fit::ModelComparison, spp: u32| {
+            format!(
+                "stage 2 second look: the candidate tested last removes {:.4} +- {:.4} (z {:.1}), short of the test; the search's point that rendered best against the proposal in the race (z {race_z:.1}) removes {:.4} +- {:.4} (z {:.1}) at {spp} spp",
+                failed.gain,
+                failed.gain_sigma,
+                failed.z(),
+                c.gain,
+                c.gain_sigma,
+                c.z()
+            )
+        };
+        if let Some((c, spp)) = test.filter(|(c, _)| !c.favours_complex()) {
+            let why = format!("{}: short of the test too", look(&c, spp));
+            r.decisions.push(why);
+        }
+        if let Some((c, spp)) = test.filter(|(c, _)| c.favours_complex()) {
+            let why = format!("{} and is taken in its place", look(&c, spp));
+            r.decisions.push(why);
+            if let GroupModel::Isotropic {
+                specularity,
+                roughness,
+                ..
+            } = challenger
+            {
+                (tested.specularity, tested.roughness) = (specularity, roughness);
+            }
+            tested.model = challenger;
+            tested.mirror_why = None;
+            tested.comparison = test;
+            tested.ladder_sigmas = None;
+        }
+        Ok(())
+    }
+
+    /// The decision by the test `(c, decision_spp)` of `tested` against the diffuse model:
+    /// the lobe (or mirror) kept with its spread, or the group left diffuse. Sets the
+    /// group's model and says why in `r`; returns the evaluations spent.
+    fn decide(
+        &self,
+        rec: &mut Recovery,
+        r: &mut GroupReport,
+        decided: &Decided,
+        tested: Tested,
+        (c, decision_spp): (fit::ModelComparison, u32),
+    ) -> Result<u32, Error> {
+        let Decided {
+            g,
+            cache,
+            proposal,
+            stage1,
+            weak_only,
+        } = *decided;
+        let Tested {
+            model: candidate,
+            mirror_why,
+            specularity,
+            roughness: alpha,
+            ladder_sigmas,
+            ..
+        } = tested;
+        let mut evaluations = 0;
         let mut report = ComparisonReport::new(
             "2 isotropic",
             stage1.name(),
-            candidate.0.name(),
+            candidate.name(),
             &c,
             decision_spp,
         );
-        report.kept_complex &= candidate.0.has_lobe();
+        report.kept_complex &= candidate.has_lobe();
         r.add_comparison(report, &c);
         let measured = format!(
             "accounts for {:.4} of relative error (removes {:.4} +- {:.4}) in a render at {decision_spp} spp (z {:.1}; diffuse {:.4}, specular {:.4})",
@@ -442,39 +601,39 @@ pub(super) fn run(
             c.error_simple,
             c.error_complex
         );
-        if c.favours_complex() && candidate.0.has_lobe() {
+        if c.favours_complex() && candidate.has_lobe() {
             r.decisions.push(format!(
                 "stage 2: {} {} (s {specularity:.4}, roughness {alpha:.4}; cache proposed s {:.4}) {measured}: {}",
-                candidate.0.name(),
-                format!("{kind:?}").to_lowercase(),
-                ward.specularity,
+                candidate.name(),
+                format!("{:?}", proposal.kind).to_lowercase(),
+                proposal.ward.specularity,
                 keep_rule(&c),
             ));
-            if let Some(why) = candidate.1 {
+            if let Some(why) = mirror_why {
                 r.decisions.push(format!("stage 2: {why}"));
             }
-            rec.models[g] = candidate.0;
+            rec.models[g] = candidate;
             r.set_decided(c.complex_estimate());
             r.lobe_from_ladder = ladder_sigmas.is_some();
             r.lobe_sigmas = match ladder_sigmas {
                 Some(sigmas) => Vec::from(sigmas),
-                None if matches!(candidate.0, GroupModel::Isotropic { .. }) => {
+                None if matches!(candidate, GroupModel::Isotropic { .. }) => {
                     let mut sigmas = Vec::from(uncertainty::proposal_size_dependence(
                         &rec.pool,
-                        &cache,
-                        kind,
-                        ward.specularity,
-                        proposal_roughness,
+                        cache,
+                        proposal.kind,
+                        proposal.ward.specularity,
+                        proposal.roughness,
                     ));
                     if weak_only {
                         let (spread, spent) = ladder::spread_around(
                             rec,
                             g,
-                            &cache,
-                            kind,
+                            cache,
+                            proposal.kind,
                             stage1,
-                            verify_spp,
-                            candidate.0,
+                            self.verify_spp,
+                            candidate,
                         )?;
                         evaluations += spent;
                         if let Some([(_, roughness), (_, s)]) = spread {
@@ -505,24 +664,20 @@ pub(super) fn run(
             rec.models[g] = stage1;
             r.set_decided(more_precise(r.latest_error, c.simple_estimate()));
         }
+        Ok(evaluations)
     }
-    laps.close(evaluations, reports);
-    bar.finish_and_clear();
-    Ok(StageReport {
-        stage: STAGE.into(),
-        evaluations,
-        samples_per_pixel: cache_settings.spp,
-        seconds: stage_start.elapsed().as_secs_f64(),
-        notes: vec![
-            "each candidate group fitted on its transport cache: reflectances in closed form, roughness by a log grid and golden section".into(),
-            format!(
-                "a group whose diffuse error is not above DIFFUSE_THRESHOLD {} by EXCEEDS_SIGMAS standard errors (room for a weak lobe only) and whose proposal fails the test gets a second look: LADDER_RUNGS {} roughnesses rendered with at least LADDER_SAMPLES {} pixel samples, the best by its gain's lower bound tested in its place",
-                fit::DIFFUSE_THRESHOLD,
-                ladder::LADDER_RUNGS,
-                ladder::LADDER_SAMPLES
-            ),
-        ],
-    })
+}
+
+/// What stage 2's decision on a group needs besides the test.
+#[derive(Clone, Copy)]
+struct Decided<'c> {
+    g: usize,
+    cache: &'c GroupCache,
+    proposal: &'c Proposal,
+    /// The diffuse model the lobe was tested against, its colour re-fitted.
+    stage1: GroupModel,
+    /// Whether stage 1 or the test left room for a weak lobe only (`ladder::applies`).
+    weak_only: bool,
 }
 
 #[cfg(test)]
