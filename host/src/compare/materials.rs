@@ -17,7 +17,8 @@ use crate::materials_file::{self, MaterialDesc, MaterialsDesc, Model};
 use crate::scene_file::{self, SceneDesc};
 
 /// Errors of one recovered material against the truth; `None` where the parameter does not
-/// apply to both.
+/// apply to both, but for the specularity, which a model without a lobe has as 0: a lobe
+/// missed reads 100% there (and no roughness error).
 #[derive(Serialize, Debug, Default)]
 pub struct MaterialRow {
     pub group: String,
@@ -127,14 +128,24 @@ fn materials_rows(t: &MaterialsDesc, m: &MaterialsDesc) -> Result<Vec<MaterialRo
                         Some((0..3).map(|c| rel(a[c] as f64, b[c] as f64)).sum::<f64>() / 3.0);
                 }
             }
-            let pair = |a: Option<f32>, b: Option<f32>| match (a, b) {
+            // A lobe's shape only where both models have a lobe: a diffuse's `roughness =
+            // 0.0` says it has none, and is no value of one. Its `specularity = 0.0` is a
+            // value, the lobe's strength: a lobe missed reads 100% there.
+            let pair = |key: &str, a: Option<f32>, b: Option<f32>| match (a, b) {
+                (Some(a), Some(b))
+                    if b > 0.0 && rm.model.requires(key) && tm.model.requires(key) =>
+                {
+                    Some(rel(a as f64, b as f64))
+                }
+                _ => None,
+            };
+            row.specularity_rel_err = match (rm.specularity, tm.specularity) {
                 (Some(a), Some(b)) if b > 0.0 => Some(rel(a as f64, b as f64)),
                 _ => None,
             };
-            row.specularity_rel_err = pair(rm.specularity, tm.specularity);
-            row.roughness_rel_err = pair(rm.roughness, tm.roughness);
-            row.roughness_u_rel_err = pair(rm.roughness_u, tm.roughness_u);
-            row.roughness_v_rel_err = pair(rm.roughness_v, tm.roughness_v);
+            row.roughness_rel_err = pair("roughness", rm.roughness, tm.roughness);
+            row.roughness_u_rel_err = pair("roughness_u", rm.roughness_u, tm.roughness_u);
+            row.roughness_v_rel_err = pair("roughness_v", rm.roughness_v, tm.roughness_v);
             if let (Some(a), Some(b)) = (rm.direction_u, tm.direction_u) {
                 row.direction_err_deg = Some(angle_between_axes_deg(a, b));
             }
@@ -409,6 +420,42 @@ mod tests {
         assert_eq!(rows.len(), 2);
         assert_eq!((rows[0].model.as_deref(), rows[0].class_ok), (None, false));
         assert!(rows[1].class_ok);
+    }
+
+    /// A recovered diffuse writes `specularity = 0.0` and `roughness = 0.0`: against a
+    /// truth with a lobe the specularity is a lobe missed, 100% off, but the roughness is
+    /// no value of a lobe and read a 100% error of a parameter its model does not have. A
+    /// truth's diffuse against a recovered lobe has no relative error of either.
+    #[test]
+    fn a_roughness_only_one_side_has_gives_no_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = |name: &str, material: &str| {
+            let path = dir.path().join(name);
+            let text = format!("format = 1\n\n[[material]]\ngroup = \"box\"\n{material}");
+            std::fs::write(&path, text).unwrap();
+            path
+        };
+        let lobe = "model = \"isotropic\"\ncolor = [0.5, 0.5, 0.5]\nspecularity = 0.06\nroughness = 0.08\n";
+        let diffuse =
+            "model = \"diffuse\"\ncolor = [0.5, 0.5, 0.5]\nspecularity = 0.0\nroughness = 0.0\n";
+        let (lobe, diffuse) = (file("lobe.toml", lobe), file("diffuse.toml", diffuse));
+        for (truth, recovered, specularity) in
+            [(&lobe, &diffuse, Some(1.0)), (&diffuse, &lobe, None)]
+        {
+            let row = &materials_report(truth, recovered).unwrap()[0];
+            assert!(!row.class_ok && row.diffuse_rel_err.is_some(), "{row:?}");
+            assert_eq!(
+                (row.specularity_rel_err, row.roughness_rel_err),
+                (specularity, None),
+                "{row:?}"
+            );
+        }
+        std::fs::copy(&lobe, dir.path().join("copy.toml")).unwrap();
+        let row = &materials_report(&lobe, &dir.path().join("copy.toml")).unwrap()[0];
+        assert_eq!(
+            (row.specularity_rel_err, row.roughness_rel_err),
+            (Some(0.0), Some(0.0))
+        );
     }
 
     #[test]
