@@ -140,7 +140,19 @@ impl TomlFile {
                 );
             }
         }
-        let hint = match text(line).split('=').next().map(str::trim) {
+        // In an inline table (`light = [{object = "a", object = "b"}]`) the key given
+        // twice is the one at the error, after the line's first `=`.
+        let start = span.start.min(self.text.len());
+        let line_start = self
+            .text
+            .get(..start)
+            .and_then(|t| t.rfind('\n'))
+            .map_or(0, |i| i + 1);
+        let key_text = match self.text.get(line_start..start) {
+            Some(before) if before.contains('=') => self.text[start..].lines().next().unwrap_or(""),
+            _ => text(line),
+        };
+        let hint = match key_text.split('=').next().map(str::trim) {
             Some(key) if duplicate && !key.is_empty() => format!(": `{key}` is given twice"),
             _ => String::new(),
         };
@@ -411,6 +423,15 @@ mod tests {
             16,
             &["[light] is a table, but [[light]] at line 20 makes a list; each entry of a list is written [[light]]"],
         );
+        // A key given twice in an inline table is that key, not the line's first
+        // ("`light` is given twice").
+        let e = bad(
+            "hide = []",
+            "hide = []\nlight = [{object = \"lamp\", object = \"x\", radiance = [5.0, 5.0, 5.0]}]",
+            5,
+            &["duplicate key", "`object` is given twice"],
+        );
+        assert!(!e.contains("`light`"), "{e}");
     }
 
     #[test]
