@@ -261,15 +261,17 @@ impl TomlFile {
 
     /// Three finite numbers that give a direction, whose length does not matter: one
     /// whose squares would leave f32's range (`[1e-300, 0, 0]` read as zero, `[1e300,
-    /// 0, 0]` as out of range) is first scaled by a power of two, exactly, to a largest
-    /// component in [1, 2). Ordinary directions are kept as written.
+    /// 0, 0]` as out of range), or the squares of its cross product with another (the
+    /// core's view frame: `1e18` and `1e-18` left it), is first scaled by a power of
+    /// two, exactly, to a largest component in [1, 2). Ordinary directions are kept as
+    /// written.
     pub fn direction(&self, v: &Spanned<Vec<f64>>, what: &str) -> Result<[f32; 3], Error> {
         let d: [f64; 3] = self.numbers(v, what, |x| match x.is_finite() {
             true => Ok(x),
             false => Err(format!("must be a finite number, got {x}")),
         })?;
         let largest = d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        if largest == 0.0 || (1e-18..=1e18).contains(&largest) {
+        if largest == 0.0 || (1e-6..=1e6).contains(&largest) {
             return Ok(d.map(|x| x as f32));
         }
         // 2^600 lifts an f64 subnormal to a normal number, whose exponent field is
@@ -602,6 +604,23 @@ mod tests {
             10,
             &["direction is zero"],
         );
+    }
+
+    /// Directions at the ends of the range kept as written: the core's frame squares
+    /// their cross product, the fourth power of their size, which left f32's range (1e18)
+    /// or fell below it (1e-18), and refused the view at no line as "up parallel to the
+    /// direction".
+    #[test]
+    fn directions_kept_as_written_make_a_frame_in_the_core() {
+        for size in ["1e18", "1e-18", "1e12", "1e-12", "1e6", "1e-6"] {
+            let (_dir, path) = write(
+                "direction = [0.0, 1.0, 0.0]\nup = [0.0, 0.0, 1.0]",
+                &format!("direction = [0.0, {size}, 0.0]\nup = [0.0, 0.0, {size}]"),
+            );
+            let view = &load_scene(&path).unwrap().views[0];
+            view.view()
+                .unwrap_or_else(|e| panic!("{size}: {view:?}: {e}"));
+        }
     }
 
     #[test]
