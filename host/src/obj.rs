@@ -30,6 +30,7 @@
 //! - An object's `uvs` are present only when all of its faces have texture coordinates.
 
 use std::borrow::Cow;
+use std::collections::HashMap;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
@@ -314,6 +315,8 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
     let has_o = statements.iter().any(|(_, l)| keyword(l) == Some("o"));
     let naming = if has_o { "o" } else { "g" };
     let mut objects: Vec<ObjectInfo> = Vec::new();
+    // Each name's line, to find one given twice without comparing it with every other.
+    let mut named_at: HashMap<&str, usize> = HashMap::new();
     let mut out = String::with_capacity(text.len());
     let (mut n_v, mut n_vt, mut n_vn) = (0usize, 0usize, 0usize);
     // The vertices' positions, for the triangles of a concave face (`polygon`).
@@ -432,10 +435,9 @@ fn check_text(path: &Path, text: &str) -> Result<Checked, Error> {
                         "object name '{name}' contains '#': OBJ has no comments after a statement; put the comment on a line of its own"
                     )));
                 }
-                if let Some(first) = objects.iter().find(|o| o.name == name) {
+                if let Some(first) = named_at.insert(name, line_no) {
                     return Err(err(format!(
-                        "object '{name}' appears twice in the file (first at line {}): names must be unique",
-                        first.line
+                        "object '{name}' appears twice in the file (first at line {first}): names must be unique"
                     )));
                 }
                 objects.push(ObjectInfo {
