@@ -1,7 +1,7 @@
 //! The scene's object names checked against the objects of its OBJ files
 //! ([`check_objects`]), each error at the line that names the object.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use crate::error::Error;
@@ -107,11 +107,17 @@ pub fn check_objects(desc: &SceneDesc, objects: &[ObjObject]) -> Result<(), Erro
             return Err(missing(h, "in `hide`".into(), lines.hide(hi)));
         }
     }
+    // Every name the scene assigns, so that each object is looked up once, not searched
+    // for in every list.
+    let assigned: HashSet<&str> = desc
+        .hide
+        .iter()
+        .chain(desc.lights.iter().map(|l| &l.object))
+        .chain(desc.groups.iter().flat_map(|g| &g.objects))
+        .map(String::as_str)
+        .collect();
     for o in objects {
-        let assigned = desc.hide.contains(&o.name)
-            || desc.lights.iter().any(|l| l.object == o.name)
-            || desc.groups.iter().any(|g| g.objects.contains(&o.name));
-        if !assigned {
+        if !assigned.contains(o.name.as_str()) {
             let msg = format!(
                 "object '{}' is in no group, is no light and is not hidden in {}",
                 o.name,
