@@ -2,19 +2,25 @@
 //! area, faces laid over the same texels, and coordinates past [0, 1] that lay a map as
 //! tiles.
 
+use std::collections::HashSet;
+
 use crate::assemble;
 use crate::obj::ObjObject;
 use crate::scene_file::{GroupDesc, SceneDesc};
 
-/// The objects of `group` that the scene does not hide.
+/// The objects of `group` that the scene does not hide. (Looked up in sets: searched in
+/// the group's list for every object of the scene, 30,000 objects in one group took
+/// `check` 1.5 s here.)
 pub(super) fn shown_objects<'a>(
     desc: &'a SceneDesc,
     objects: &'a [ObjObject],
     group: &'a GroupDesc,
 ) -> impl Iterator<Item = &'a ObjObject> {
+    let names = |list: &'a [String]| list.iter().map(String::as_str).collect::<HashSet<_>>();
+    let (listed, hidden) = (names(&group.objects), names(&desc.hide));
     objects
         .iter()
-        .filter(|o| group.objects.contains(&o.name) && !desc.hide.contains(&o.name))
+        .filter(move |o| listed.contains(o.name.as_str()) && !hidden.contains(o.name.as_str()))
 }
 
 /// The first object of `group` (not hidden) whose OBJ texture coordinates no map can be
