@@ -59,7 +59,11 @@ pub fn read_text(path: &Path) -> Result<String, Error> {
         Err(e) => {
             let bytes = e.as_bytes();
             let at = e.utf8_error().valid_up_to();
-            let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+            // Lines end in LF (or CRLF); a file of CR alone (classic Mac OS) has its lines
+            // counted by CR, as the OBJ reader reads them (it said line 1 for any byte).
+            let cr_only = bytes.contains(&b'\r') && !bytes.contains(&b'\n');
+            let end = if cr_only { b'\r' } else { b'\n' };
+            let line = 1 + bytes[..at].iter().filter(|&&b| b == end).count();
             Err(Error::at_line(
                 path,
                 line,
@@ -101,6 +105,9 @@ mod tests {
         std::fs::write(&path, "\u{feff}o quad\nv 0 0 0\n").unwrap();
         assert_eq!(read_text(&path).unwrap(), "o quad\nv 0 0 0\n");
         std::fs::write(&path, b"o quad\nv 0 0 0\nv 1 \xff 0\n").unwrap();
+        let err = read_text(&path).unwrap_err().to_string();
+        assert!(err.contains("a.obj:3") && err.contains("0xff"), "{err}");
+        std::fs::write(&path, b"o quad\rv 0 0 0\rv 1 \xff 0\r").unwrap();
         let err = read_text(&path).unwrap_err().to_string();
         assert!(err.contains("a.obj:3") && err.contains("0xff"), "{err}");
     }
