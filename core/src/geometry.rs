@@ -115,8 +115,10 @@ impl View {
                 what: "view position, direction and up must be finite",
             });
         }
-        let direction = math::representable_direction(direction);
-        let up = math::representable_direction(up);
+        // Both at unit size: the frame squares their cross product, the fourth power of
+        // their size, which left f32 from a size of 1e10 (or 1e-12) on.
+        let direction = math::scaled_to_unit_size(direction);
+        let up = math::scaled_to_unit_size(up);
         if !(direction.length_squared() > 0.0) {
             return Err(Error::InvalidValue {
                 what: "view direction must not be zero",
@@ -220,6 +222,62 @@ mod tests {
                 assert!(
                     (a - b).length() < 1e-6,
                     "scale {scale}: {a:?} against {b:?}"
+                );
+            }
+        }
+    }
+
+    /// The rays of `rpict -vtv` (scene-format.md, "Views") in f64, from `direction` and
+    /// `up` of any length: the formula as the spec writes it.
+    fn rpict_ray(
+        d: [f64; 3],
+        up: [f64; 3],
+        fov_deg: [f64; 2],
+        size: [f64; 2],
+        x: f64,
+        y: f64,
+    ) -> [f64; 3] {
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let unit = |a: [f64; 3]| {
+            let l = libm::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+            a.map(|c| c / l)
+        };
+        let (f, r) = (unit(d), unit(cross(d, up)));
+        let u = cross(r, f);
+        let (sx, sy) = (x / size[0] - 0.5, 0.5 - y / size[1]);
+        let (th, tv) = fov_deg
+            .map(|a| 2.0 * libm::tan(a.to_radians() * 0.5))
+            .into();
+        unit(core::array::from_fn(|k| {
+            f[k] + sx * th * r[k] + sy * tv * u[k]
+        }))
+    }
+
+    /// A direction and an up both long (or both short) are a view like any other: their
+    /// cross product, the square of their size, once overflowed f32 (from 1e10: the
+    /// image's right and up were zero, every pixel looked straight ahead, silently; from
+    /// 1e15 the view was refused as "up parallel to the direction") or underflowed it
+    /// (1e-12).
+    #[test]
+    fn a_view_of_long_or_short_direction_and_up_follows_rpict() {
+        let (d, up) = ([1.0f64, 2.0, -0.5], [0.0f64, 0.0, 1.0]);
+        for scale in [1e10f64, 1e15, 1e18, 1e-12, 1e-18] {
+            let at = |v: [f64; 3]| Vec3::from_array(v.map(|c| (c * scale) as f32));
+            let view = View::new(Vec3::ZERO, at(d), at(up), [60.0, 45.0], [8, 6])
+                .unwrap_or_else(|e| panic!("scale {scale:e}: {e}"));
+            for (x, y) in [(0.0, 0.0), (3.5, 2.0), (8.0, 6.0), (1.0, 5.5)] {
+                let got = view.ray(x, y).direction;
+                let want = rpict_ray(d, up, [60.0, 45.0], [8.0, 6.0], x as f64, y as f64);
+                let want = Vec3::from_array(want.map(|c| c as f32));
+                assert!(
+                    (got - want).length() < 1e-6,
+                    "scale {scale:e}, ({x}, {y}): {got:?} against {want:?}"
                 );
             }
         }

@@ -159,7 +159,7 @@ pub fn is_finite(v: Vec3) -> bool {
     v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
 }
 
-/// A user's direction (a view's, a material's `direction_u`) whose squared length f32
+/// A user's direction (a material's `direction_u`) whose squared length f32
 /// cannot hold (it underflows or overflows, as at lengths 1e-30 or 1e30), scaled to a
 /// largest component of 1; any other vector unchanged, so that ordinary inputs keep their
 /// exact bits. Only the direction of such vectors counts.
@@ -170,6 +170,22 @@ pub fn representable_direction(v: Vec3) -> Vec3 {
     } else {
         v / m
     }
+}
+
+/// `v` scaled by a power of two, exactly, to a largest component in [1, 2) (the zero
+/// vector and one with a component not finite unchanged): the same direction, whose
+/// squares, and whose cross product with another so scaled, f32 holds at any length of
+/// `v`. Scaling by a power of two commutes with every rounding until a product leaves
+/// f32's normal range, so a direction normalised, or crossed with another and then
+/// normalised, has the same bits as from `v` itself wherever those stayed in range.
+pub fn scaled_to_unit_size(v: Vec3) -> Vec3 {
+    let m = v.abs().max_element();
+    if !(m > 0.0 && m.is_finite()) {
+        return v;
+    }
+    // m = f 2^e with f in [0.5, 1): m 2^(1 - e) is in [1, 2).
+    let (_, e) = libm::frexpf(m);
+    Vec3::from_array(v.to_array().map(|c| libm::scalbnf(c, 1 - e)))
 }
 
 /// An orthonormal basis whose `z` is the given unit normal (Duff et al. 2017, branchless).
