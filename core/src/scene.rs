@@ -337,6 +337,32 @@ impl LightGuide {
     }
 }
 
+/// A light triangle's power, area times luminance, as the table weighs it: the f32
+/// product where f32 holds it, else the product in f64 (a radiance the scene accepts on a
+/// large triangle: 1e37 over 50 square units is 5e38, which overflowed to infinity and
+/// made every pick probability inf / inf).
+fn light_power(t: &Triangle, radiance: Vec3) -> f64 {
+    let area = t.area();
+    let luminance = math::luminance(radiance);
+    let power = area * luminance;
+    if power.is_finite() {
+        return power as f64;
+    }
+    let [a, b, c] = t.v.map(|v| v.to_array().map(f64::from));
+    let (e1, e2): ([f64; 3], [f64; 3]) = (
+        core::array::from_fn(|k| b[k] - a[k]),
+        core::array::from_fn(|k| c[k] - a[k]),
+    );
+    let n = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let area = 0.5 * libm::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    let [r, g, bl] = radiance.to_array().map(f64::from);
+    area * (0.2126 * r + 0.7152 * g + 0.0722 * bl)
+}
+
 /// Fills the light-sampling table (emitting triangles picked in proportion to area times
 /// luminance; switched-off lights are never picked). Returns the entries used.
 fn fill_light_table(
@@ -344,17 +370,19 @@ fn fill_light_table(
     light_radiance: &[Vec3],
     table: &mut [LightTriangle],
 ) -> Result<usize, Error> {
+    let radiance_of = |l: u16| {
+        light_radiance
+            .get(l as usize)
+            .copied()
+            .unwrap_or(Vec3::ZERO)
+    };
     let mut total_power = 0.0f64;
     let mut n_emitting = 0usize;
     for (i, t) in triangles.iter().enumerate() {
         let Surface::Light(l) = t.surface else {
             continue;
         };
-        let radiance = light_radiance
-            .get(l as usize)
-            .copied()
-            .unwrap_or(Vec3::ZERO);
-        let power = t.area() * math::luminance(radiance);
+        let power = light_power(t, radiance_of(l));
         if power > 0.0 {
             let Some(slot) = table.get_mut(n_emitting) else {
                 return Err(Error::BufferTooSmall {
@@ -365,17 +393,23 @@ fn fill_light_table(
             };
             *slot = LightTriangle {
                 triangle: i as u32,
-                cdf: power,
+                cdf: 0.0,
                 pick_pdf: 0.0,
             };
             n_emitting += 1;
-            total_power += power as f64;
+            total_power += power;
         }
     }
     let table = &mut table[..n_emitting];
     let mut running = 0.0f64;
     for entry in table.iter_mut() {
-        let power = entry.cdf as f64;
+        let Some(t) = triangles.get(entry.triangle as usize) else {
+            continue;
+        };
+        let Surface::Light(l) = t.surface else {
+            continue;
+        };
+        let power = light_power(t, radiance_of(l));
         running += power;
         entry.pick_pdf = (power / total_power) as f32;
         entry.cdf = (running / total_power) as f32;
@@ -560,6 +594,7 @@ impl<'a> Scene<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::{BvhNode, PackedTriangle};
     use crate::math::Vec2;
 
     fn tri(v: [[f32; 3]; 3], group: u16) -> Triangle {
@@ -629,6 +664,72 @@ mod tests {
                 assert_eq!(guide.pick(&table, u), whole, "n {n}, u {u:e}");
             }
         }
+    }
+
+    /// A light whose power (area times luminance) f32 cannot hold, of a finite radiance
+    /// that the scene accepts, is picked by its power like any other. Its power, 5e38,
+    /// once overflowed to infinity and made its probability inf / inf: a NaN pdf, which
+    /// next-event estimation skipped and MIS weighed as 0 where a path hit the light, so
+    /// the brightest light in the scene lit nothing.
+    #[test]
+    fn a_light_of_more_power_than_f32_holds_is_sampled_by_its_power() {
+        let light = |v: [[f32; 3]; 3], l: u16| Triangle {
+            v: v.map(Vec3::from_array),
+            uv: [Vec2::ZERO; 3],
+            surface: Surface::Light(l),
+        };
+        let triangles = [
+            tri([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], 0),
+            // Area 50, facing down; radiance 1e37: power 5e38, past f32's 3.4e38.
+            light([[0.0, 0.0, 1.0], [0.0, 10.0, 1.0], [10.0, 0.0, 1.0]], 0),
+            // Area 0.5, radiance 1: power 0.5.
+            light([[5.0, 5.0, 1.0], [5.0, 6.0, 1.0], [6.0, 5.0, 1.0]], 1),
+        ];
+        let materials = [material(Material::Diffuse {
+            rho_d: Vec3::splat(0.5),
+        })];
+        let radiance = [Vec3::splat(1e37), Vec3::ONE];
+        let (n_nodes, n_packed) = Bvh::buffer_sizes(triangles.len());
+        let mut nodes = std::vec![BvhNode::default(); n_nodes];
+        let mut packed = std::vec![PackedTriangle::default(); n_packed];
+        let mut table = [LightTriangle::default(); 3];
+        let mut planes = [GroupPlane::default(); 1];
+        let scene = Scene::build(
+            &triangles,
+            &materials,
+            &radiance,
+            Textures::default(),
+            SceneStorage {
+                bvh: BvhBuffers {
+                    nodes: &mut nodes,
+                    packed: &mut packed,
+                },
+                light_table: &mut table,
+                group_planes: &mut planes,
+            },
+        )
+        .unwrap();
+        // The bright light holds all but 1e-39 of the power: its area pdf is 1 / 50.
+        let sample = scene.sample_light(0.5, [0.3, 0.3]).unwrap();
+        assert_eq!(sample.radiance, radiance[0]);
+        assert!((sample.pdf_area - 0.02).abs() <= 1e-6 * 0.02, "{sample:?}");
+        let pdf = scene.light_pdf_area(1);
+        assert!((pdf - 0.02).abs() <= 1e-6 * 0.02, "{pdf}");
+        // The dim one keeps its share, which f32 holds as a subnormal, or 0.
+        let dim = scene.light_pdf_area(2);
+        assert!(dim.is_finite() && (0.0..1e-37).contains(&dim), "{dim}");
+        // And the floor under it is lit: below the light, at most rho_d L = 5e36 on
+        // average (the light fills less than its hemisphere), where it rendered 0.
+        let settings = crate::render::RenderSettings::default();
+        let mean = (0..16u32)
+            .map(|k| {
+                let mut sampler = crate::rng::Sampler::for_pixel_sample(1, 0, k, 0);
+                let ray = Ray::new(Vec3::new(0.2, 0.2, 0.5), Vec3::NEG_Z);
+                crate::render::radiance(&scene, ray, &mut sampler, &settings).y as f64
+            })
+            .sum::<f64>()
+            / 16.0;
+        assert!(mean > 1e36 && mean < 1e37, "{mean:e}");
     }
 
     /// A mirror as a scanned mesh gives it, a tilted quad far from the origin split into
