@@ -82,7 +82,7 @@ impl<const D: usize> Annealer<D> {
         check_bounds(
             &lower,
             &upper,
-            "annealing bounds: need finite lower < upper",
+            "annealing bounds: need finite lower < upper, a finite width apart",
         )?;
         let start = clamp_into(start, &lower, &upper);
         let cost = if start_cost.is_nan() {
@@ -198,7 +198,10 @@ pub(crate) fn check_bounds<const D: usize>(
     what: &'static str,
 ) -> Result<(), Error> {
     for d in 0..D {
-        if !(lower[d].is_finite() && upper[d].is_finite() && lower[d] < upper[d]) {
+        // The width too: the steps are fractions of it, and a box of -1e308..1e308 (whose
+        // width is infinite) would propose its corners alone.
+        let width = upper[d] - lower[d];
+        if !(lower[d].is_finite() && upper[d].is_finite() && width > 0.0 && width.is_finite()) {
             return Err(Error::InvalidValue { what });
         }
     }
@@ -305,6 +308,8 @@ mod tests {
     #[test]
     fn bad_bounds_and_schedules_are_errors() {
         assert!(Annealer::new([1.0], [0.0], [0.5], 0.0, schedule(), 1).is_err());
+        // Each bound finite, their width not.
+        assert!(Annealer::new([-1e308], [1e308], [0.5], 0.0, schedule(), 1).is_err());
         let mut s = schedule();
         s.cooling = 1.5;
         assert!(Annealer::new([0.0], [1.0], [0.5], 0.0, s, 1).is_err());

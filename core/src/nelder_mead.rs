@@ -82,7 +82,7 @@ impl<const D: usize> NelderMead<D> {
         check_bounds(
             &lower,
             &upper,
-            "Nelder-Mead bounds: need finite lower < upper",
+            "Nelder-Mead bounds: need finite lower < upper, a finite width apart",
         )?;
         if !(initial_step > 0.0 && initial_step <= 1.0) {
             return Err(Error::InvalidValue {
@@ -398,6 +398,7 @@ mod tests {
     fn bad_bounds_and_steps_are_errors() {
         assert!(NelderMead::new([1.0], [0.0], [0.5], 0.0, 10, 0.25).is_err());
         assert!(NelderMead::new([0.0], [f64::NAN], [0.5], 0.0, 10, 0.25).is_err());
+        assert!(NelderMead::new([-1e308], [1e308], [0.5], 0.0, 10, 0.25).is_err());
         assert!(NelderMead::new([0.0], [1.0], [0.5], 0.0, 10, 0.0).is_err());
         assert!(NelderMead::new([0.0], [1.0], [0.5], 0.0, 10, 1.5).is_err());
         assert!(NelderMead::<0>::new([], [], [], 0.0, 10, 0.25).is_err());
