@@ -499,7 +499,26 @@ fn gross_view_warnings(
             )
         })
         .collect();
+    // A view the model renders black where its panorama is not has no factor either (the
+    // panorama over a black render is infinite, and read "off by about infx"): what it
+    // sees, no light of the scene reaches.
+    warnings.extend(
+        readings
+            .iter()
+            .filter(|r| r.pure_pixels > 0 && r.panorama_mean > 0.0 && r.render_mean == 0.0)
+            .map(|r| {
+                format!(
+                    "view '{}': {subject} its {} black, where the panorama's mean over them is {:.3e}: no light of the scene reaches what it sees, or its image is not of this scene (the groups only it sees are not recovered)",
+                    r.view,
+                    counted(r.pure_pixels, "pure pixel"),
+                    r.panorama_mean
+                )
+            }),
+    );
     for (r, diff, typical) in against_the_others(readings, 1) {
+        if r.render_mean == 0.0 {
+            continue; // Told above.
+        }
         let factor = view_factor(diff, typical);
         if (1.0 / VIEW_GROSS_FACTOR..=VIEW_GROSS_FACTOR).contains(&factor) {
             continue;
@@ -791,6 +810,42 @@ mod tests {
         // Nor is a difference within three of the view's standard errors a finding.
         readings[3].rel_mean_diff_sigma = Some(0.011);
         assert!(view_warnings(&readings, ImageHeaders::NONE).is_empty());
+    }
+
+    /// A view whose pure pixels the model renders black (all on a group no light of the
+    /// scene reaches) where its panorama is not has no factor to give: the panorama over
+    /// a black render is infinite. It read "0.000e0x the panorama ... off by about infx"
+    /// (a cellar under a lit floor, seen by its own view of four, its panorama 0.05).
+    #[test]
+    fn a_view_the_model_renders_black_is_told_without_an_infinite_factor() {
+        let reading = |view: &str, panorama: f64, render: f64| ViewReading {
+            view: view.into(),
+            pure_pixels: 1024,
+            panorama_mean: panorama,
+            render_mean: render,
+            rel_mean_diff: Some((render - panorama) / panorama),
+            rel_mean_diff_sigma: Some(0.0005),
+        };
+        let readings = [
+            reading("floor", 0.2195, 0.2193),
+            reading("floor2", 0.2226, 0.2226),
+            reading("floor3", 0.2287, 0.2288),
+            reading("cellar", 0.05, 0.0),
+        ];
+        for warnings in [
+            view_warnings(&readings, ImageHeaders::NONE),
+            preview_view_warnings(&readings, ImageHeaders::NONE),
+        ] {
+            assert_eq!(warnings.len(), 1, "{warnings:?}");
+            let w = &warnings[0];
+            assert!(
+                w.starts_with("view 'cellar'")
+                    && w.contains("its 1024 pure pixels black, where the panorama's mean over them is 5.000e-2")
+                    && !w.contains("inf")
+                    && !w.contains("NaN"),
+                "{w}"
+            );
+        }
     }
 
     #[test]
