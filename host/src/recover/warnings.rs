@@ -160,7 +160,14 @@ pub fn stability_warnings(inputs: &Inputs) -> Vec<String> {
                 100.0 * share * relative_sigma
             ));
         }
-        if let Some(error) = report.error_final.filter(|&e| e > MISFIT_ERROR) {
+        // An unseen model is no recovered one: a group stage 1 found unlit keeps its pure
+        // pixels, and its black stand-in's error (1 where its panorama is not black) is
+        // told by the unlit warning.
+        let recovered = !matches!(model, GroupModel::Unseen { .. });
+        if let Some(error) = report
+            .error_final
+            .filter(|&e| recovered && e > MISFIT_ERROR)
+        {
             // A picture without vt came out an anisotropic lobe at 0.27, and the reason
             // was only in report.json.
             let unmapped = if inputs.mapped.get(g) == Some(&false) {
@@ -589,6 +596,24 @@ mod tests {
             "{}",
             w[0]
         );
+    }
+
+    /// A group stage 1 found unlit (no light of the scene reaches it) keeps its pure
+    /// pixels but has no recovered model: its stand-in renders black, and its final error
+    /// reads 1.000 wherever its panorama is not black. It was told that its "recovered
+    /// model (unseen) still leaves a relative error of 1.000 ... no model of its kind
+    /// explains them", beside the warning that said it is unlit and not recovered.
+    #[test]
+    fn an_unlit_group_is_not_told_that_its_model_misfits() {
+        let cellar = GroupReport {
+            error_final: Some(1.0),
+            ..group("cellar", 1024, vec![])
+        };
+        let models = [GroupModel::Unseen {
+            stand_in: crate::recover::model::NEUTRAL_STAND_IN,
+        }];
+        let w = warnings_for(&[cellar], &models, 0.025, 64, Effort::Default);
+        assert!(w.is_empty(), "{w:?}");
     }
 
     /// Kind auto: a group that kept a lobe is warned of when neither kind showed better:
