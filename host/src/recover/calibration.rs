@@ -453,11 +453,13 @@ fn view_factor(diff: f64, typical: f64) -> f64 {
 }
 
 /// Each view of at least `min_pixels` pure pixels with its mean residual and the median
-/// of the other such views' (where there are at least two others).
+/// of the other such views' (where there are at least two others). A view the model
+/// renders black has no ratio to compare, as one black in the panorama has none (its
+/// -100% in the others' median had two lit views beside it told their exposure off).
 fn against_the_others(readings: &[ViewReading], min_pixels: u32) -> Vec<(&ViewReading, f64, f64)> {
     let compared: Vec<(&ViewReading, f64)> = readings
         .iter()
-        .filter(|r| r.pure_pixels >= min_pixels)
+        .filter(|r| r.pure_pixels >= min_pixels && r.render_mean != 0.0)
         .filter_map(|r| Some((r, r.rel_mean_diff?)))
         .collect();
     let others_of = |i: usize| -> Vec<f64> {
@@ -516,9 +518,6 @@ fn gross_view_warnings(
             }),
     );
     for (r, diff, typical) in against_the_others(readings, 1) {
-        if r.render_mean == 0.0 {
-            continue; // Told above.
-        }
         let factor = view_factor(diff, typical);
         if (1.0 / VIEW_GROSS_FACTOR..=VIEW_GROSS_FACTOR).contains(&factor) {
             continue;
@@ -810,6 +809,35 @@ mod tests {
         // Nor is a difference within three of the view's standard errors a finding.
         readings[3].rel_mean_diff_sigma = Some(0.011);
         assert!(view_warnings(&readings, ImageHeaders::NONE).is_empty());
+    }
+
+    /// Nor is a view the model renders black part of the others' median: with two lit
+    /// views beside it, each read the other's residual and its -100% averaged, a median
+    /// of -50%, and both were told their exposure may be off by about 0.5x.
+    #[test]
+    fn a_view_the_model_renders_black_is_not_in_the_others_median() {
+        let reading = |view: &str, panorama: f64, render: f64| ViewReading {
+            view: view.into(),
+            pure_pixels: 1024,
+            panorama_mean: panorama,
+            render_mean: render,
+            rel_mean_diff: Some((render - panorama) / panorama),
+            rel_mean_diff_sigma: Some(0.0005),
+        };
+        let readings = [
+            reading("floor", 0.2195, 0.2193),
+            reading("floor2", 0.2226, 0.2226),
+            reading("cellar", 0.05, 0.0),
+        ];
+        for warnings in [
+            view_warnings(&readings, ImageHeaders::NONE),
+            preview_view_warnings(&readings, ImageHeaders::NONE),
+        ] {
+            assert!(
+                warnings.len() == 1 && warnings[0].starts_with("view 'cellar'"),
+                "{warnings:?}"
+            );
+        }
     }
 
     /// A view whose pure pixels the model renders black (all on a group no light of the
