@@ -412,12 +412,15 @@ impl ImageHeaders<'_> {
 /// (views of at least [`MIN_VIEW_PIXELS`]; at least two others to take a median of); and
 /// for each view, of any size, off the others by more than [`VIEW_GROSS_FACTOR`].
 pub fn view_warnings(readings: &[ViewReading], headers: ImageHeaders) -> Vec<String> {
+    let gross = gross_view_warnings(readings, headers, "the recovered model renders");
     let mut warnings = Vec::new();
     for (r, diff, typical) in against_the_others(readings, MIN_VIEW_PIXELS) {
         let sigma = r.rel_mean_diff_sigma.unwrap_or(f64::INFINITY);
-        let gross =
-            !(1.0 / VIEW_GROSS_FACTOR..=VIEW_GROSS_FACTOR).contains(&view_factor(diff, typical));
-        if gross || (diff - typical).abs() <= VIEW_AGREEMENT.max(VIEW_SIGMAS * sigma) {
+        // A view the gross test tells of is told once. Only those: the gross test's median
+        // is of every view, this one's of the large ones, and a view gross against the
+        // large ones alone was once told by neither.
+        let told_gross = gross.iter().any(|(view, _)| *view == r.view);
+        if told_gross || (diff - typical).abs() <= VIEW_AGREEMENT.max(VIEW_SIGMAS * sigma) {
             continue;
         }
         warnings.push(format!(
@@ -431,11 +434,7 @@ pub fn view_warnings(readings: &[ViewReading], headers: ImageHeaders) -> Vec<Str
             headers.note(&r.view)
         ));
     }
-    warnings.extend(gross_view_warnings(
-        readings,
-        headers,
-        "the recovered model renders",
-    ));
+    warnings.extend(gross.into_iter().map(|(_, warning)| warning));
     warnings
 }
 
@@ -443,7 +442,8 @@ pub fn view_warnings(readings: &[ViewReading], headers: ImageHeaders) -> Vec<Str
 /// preview: every group diffuse at a few samples, too rough for the 2% test (a glossy
 /// group's highlight in one view moves its mean), not for a factor of 2.
 pub fn preview_view_warnings(readings: &[ViewReading], headers: ImageHeaders) -> Vec<String> {
-    gross_view_warnings(readings, headers, "the first look's diffuse colours render")
+    let gross = gross_view_warnings(readings, headers, "the first look's diffuse colours render");
+    gross.into_iter().map(|(_, warning)| warning).collect()
 }
 
 /// The factor by which a view's exposure may be off: the panorama over the render, against
@@ -480,25 +480,26 @@ fn against_the_others(readings: &[ViewReading], min_pixels: u32) -> Vec<(&ViewRe
 /// A warning for each view, of any number of pure pixels, whose panorama over what
 /// `subject` renders lies more than [`VIEW_GROSS_FACTOR`] from the median of every other
 /// view's (at least two others): told in ratios, which percentages would hide (a view
-/// whose exposure was given as 1e-30 read +4e31%).
-fn gross_view_warnings(
-    readings: &[ViewReading],
+/// whose exposure was given as 1e-30 read +4e31%). Each warning beside its view's name.
+fn gross_view_warnings<'r>(
+    readings: &'r [ViewReading],
     headers: ImageHeaders,
     subject: &str,
-) -> Vec<String> {
+) -> Vec<(&'r str, String)> {
     // A view black in the panorama has no ratio to compare (a division by its 0), and is
     // the grossest case of all: an image left black or an exposure mistyped.
-    let mut warnings: Vec<String> = readings
+    let mut warnings: Vec<(&str, String)> = readings
         .iter()
         .filter(|r| r.pure_pixels > 0 && r.panorama_mean == 0.0 && r.render_mean > 0.0)
         .map(|r| {
-            format!(
+            let warning = format!(
                 "view '{}': its {} are all 0 in the panorama, where {subject} them at {:.3e} on average: its image may be black or its exposure off{} (the groups only it sees are recovered black)",
                 r.view,
                 counted(r.pure_pixels, "pure pixel"),
                 r.render_mean,
                 headers.note(&r.view)
-            )
+            );
+            (r.view.as_str(), warning)
         })
         .collect();
     // A view the model renders black where its panorama is not has no factor either (the
@@ -509,12 +510,13 @@ fn gross_view_warnings(
             .iter()
             .filter(|r| r.pure_pixels > 0 && r.panorama_mean > 0.0 && r.render_mean == 0.0)
             .map(|r| {
-                format!(
+                let warning = format!(
                     "view '{}': {subject} its {} black, where the panorama's mean over them is {:.3e}: no light of the scene reaches what it sees, or its image is not of this scene (the groups only it sees are not recovered)",
                     r.view,
                     counted(r.pure_pixels, "pure pixel"),
                     r.panorama_mean
-                )
+                );
+                (r.view.as_str(), warning)
             }),
     );
     for (r, diff, typical) in against_the_others(readings, 1) {
@@ -530,14 +532,15 @@ fn gross_view_warnings(
         {
             continue;
         }
-        warnings.push(format!(
+        let warning = format!(
             "view '{}': {subject} its {} {:.3e}x the panorama, where the other views' median is {:.3}x: its exposure or image may be off by about {factor:.3e}x{} (more than VIEW_GROSS_FACTOR {VIEW_GROSS_FACTOR} either way; partly absorbed by the groups only it sees)",
             r.view,
             counted(r.pure_pixels, "pure pixel"),
             1.0 + diff,
             1.0 + typical,
             headers.note(&r.view)
-        ));
+        );
+        warnings.push((r.view.as_str(), warning));
     }
     warnings
 }
@@ -838,6 +841,36 @@ mod tests {
                 "{warnings:?}"
             );
         }
+    }
+
+    /// A view gross against the large views is told, whatever the small ones read: the
+    /// 2% test left out such a view (its factor past VIEW_GROSS_FACTOR against the large
+    /// views' median), while the gross test took its median over every view, which small
+    /// views reading -45% pulled to 0.55: 0.4 against it is 1.4x, and no one told of a
+    /// view off 2.5x against the views that count.
+    #[test]
+    fn a_view_gross_against_the_large_views_is_told_whatever_the_small_ones_read() {
+        let reading = |view: &str, pure_pixels: u32, diff: f64| ViewReading {
+            view: view.into(),
+            pure_pixels,
+            panorama_mean: 0.2,
+            render_mean: 0.2 * (1.0 + diff),
+            rel_mean_diff: Some(diff),
+            rel_mean_diff_sigma: Some(0.0005),
+        };
+        let mut readings = vec![
+            reading("a", 1024, 0.0),
+            reading("b", 1024, 0.0),
+            reading("c", 1024, -0.6),
+        ];
+        readings.extend((0..4).map(|k| reading(&format!("small{k}"), 10, -0.45)));
+        let warnings = view_warnings(&readings, ImageHeaders::NONE);
+        let told_c: Vec<&String> = warnings
+            .iter()
+            .filter(|w| w.starts_with("view 'c'"))
+            .collect();
+        assert_eq!(told_c.len(), 1, "{warnings:?}");
+        assert!(told_c[0].contains("2.500x"), "{}", told_c[0]);
     }
 
     /// A view whose pure pixels the model renders black (all on a group no light of the
