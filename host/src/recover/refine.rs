@@ -82,8 +82,10 @@ impl Refined {
 pub struct RaceOutcome {
     pub winner: GroupModel,
     pub evaluations: u32,
-    /// The challengers measured against the incumbent.
+    /// The challengers measured against the incumbent, and how many of them were a
+    /// perfect mirror (a metal's alternative, not one of the search's points).
     pub challengers: usize,
+    pub mirrors: usize,
     /// The best challenger's z over the incumbent (`None` when none could be compared),
     /// and that challenger.
     pub best_z: Option<f64>,
@@ -97,15 +99,21 @@ impl RaceOutcome {
     /// One line for a group's decisions.
     pub fn describe(&self) -> String {
         let z = self.best_z.map_or("none".into(), |z| format!("{z:.1}"));
+        let points = self.challengers - self.mirrors;
+        let mirror = if self.mirrors > 0 {
+            " or the perfect mirror"
+        } else {
+            ""
+        };
         if self.replaced {
             format!(
-                "the search's point replaces the cache's proposal: it renders better at z {z} >= RACE_SIGNIFICANCE {RACE_SIGNIFICANCE} (race of {} points at {} spp)",
+                "the search's point{mirror} replaces the cache's proposal: it renders better at z {z} >= RACE_SIGNIFICANCE {RACE_SIGNIFICANCE} (race of {} points at {} spp)",
                 self.challengers, self.spp
             )
         } else {
             format!(
-                "the cache's proposal stands: none of the search's {} best points renders better at z >= RACE_SIGNIFICANCE {RACE_SIGNIFICANCE} (best z {z}, at {} spp)",
-                self.challengers, self.spp
+                "the cache's proposal stands: none of the search's {points} best points{mirror} renders better at z >= RACE_SIGNIFICANCE {RACE_SIGNIFICANCE} (best z {z}, at {} spp)",
+                self.spp
             )
         }
     }
@@ -173,6 +181,7 @@ pub(super) fn race(
         winner: incumbent,
         evaluations: 1,
         challengers: 0,
+        mirrors: 0,
         best_z: None,
         best_challenger: None,
         replaced: false,
@@ -184,6 +193,7 @@ pub(super) fn race(
         let terms = rec.paired_terms(&pixels, spp, seed)?;
         outcome.evaluations += 1;
         outcome.challengers += 1;
+        outcome.mirrors += usize::from(matches!(model, GroupModel::Mirror { .. }));
         let Some(c) = super::paired_comparison(&incumbent_terms, &terms) else {
             continue;
         };
@@ -376,3 +386,45 @@ pub const RACE_SPP_FACTOR: u32 = 4;
 /// 20-pixel statue left its cache proposal, specularity 0.93 and roughness 0.10, for a
 /// roughness of 0.16).
 pub const RACE_MIN_SAMPLES: u64 = 1 << 15;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A metal's race counts its perfect mirror among the challengers, which the report
+    /// once called one of "the search's 5 best points" where the search gives
+    /// FINALISTS 4.
+    #[test]
+    fn a_race_tells_the_search_points_apart_from_the_mirror() {
+        let lobe = GroupModel::Diffuse { color: [0.5; 3] };
+        let race = |challengers, mirrors, replaced| RaceOutcome {
+            winner: lobe,
+            evaluations: 1 + challengers as u32,
+            challengers,
+            mirrors,
+            best_z: Some(1.0),
+            best_challenger: Some(lobe),
+            replaced,
+            spp: 32,
+        };
+        let stands = race(FINALISTS + 1, 1, false).describe();
+        assert!(
+            stands.contains(&format!(
+                "none of the search's {FINALISTS} best points or the perfect mirror renders"
+            )),
+            "{stands}"
+        );
+        let plastic = race(FINALISTS, 0, false).describe();
+        assert!(
+            plastic.contains(&format!(
+                "none of the search's {FINALISTS} best points renders"
+            )),
+            "{plastic}"
+        );
+        let replaced = race(FINALISTS + 1, 1, true).describe();
+        assert!(
+            replaced.starts_with("the search's point or the perfect mirror replaces"),
+            "{replaced}"
+        );
+    }
+}
