@@ -129,7 +129,7 @@ pub fn recover_map(
         shadows: solved.shadows,
         unseen_texels: solved.unseen_texels,
         lobe_refit,
-        lobe_share: lobe_share(&observed.specular[..pure_count], &real),
+        lobe_share: lobe_share(&rec.models[g], &observed.specular[..pure_count], &real),
     })
 }
 

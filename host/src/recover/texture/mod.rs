@@ -14,6 +14,7 @@ use glam::Vec3;
 use relume_core::material::{TextureGrid, Wrap};
 use relume_core::math::luminance;
 
+use super::model::GroupModel;
 use super::Recovery;
 
 mod contrast;
@@ -87,14 +88,19 @@ fn median(mut values: Vec<f64>) -> f64 {
 }
 
 /// The share of the light of `real` (luminance, summed over a group's pixels) that a lobe
-/// renders, `specular` per pixel: 0 without light.
+/// renders, `specular` per pixel: 0 without light, and 0 for a `model` without a lobe,
+/// whose `specular` is what rounding leaves of a pixel's light less its diffuse part
+/// (textured's pictures without a lobe read 2e-7).
 ///
 /// A map is solved so that map and lobe together give each pixel its panorama value, and
 /// the panorama sees each texel from one direction only, so a lobe that sends too much
 /// light that way leaves its map too dark by as much, which shows from another viewpoint
 /// or under another light (the living room's picture_2 at 64 px: a lobe 26% broad, a
 /// map 4-7% dark, the picture -5.5% in the novel view; docs/edits.md).
-pub fn lobe_share(specular: &[Vec3], real: &[Vec3]) -> f64 {
+pub fn lobe_share(model: &GroupModel, specular: &[Vec3], real: &[Vec3]) -> f64 {
+    if !model.has_lobe() {
+        return 0.0;
+    }
     let total: f64 = real.iter().map(|v| luminance(*v) as f64).sum();
     if total.is_nan() || total <= 0.0 {
         return 0.0;
@@ -105,15 +111,22 @@ pub fn lobe_share(specular: &[Vec3], real: &[Vec3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::recover::model::MapLobe;
 
     /// The lobe's share is its light over the panorama's, summed over the pixels before
     /// dividing (a bright pixel counts for more), and 0 where the group has no light.
     #[test]
     fn a_lobes_share_is_its_light_over_the_panoramas() {
         let grey = |v: f32| Vec3::splat(v);
-        let share = lobe_share(&[grey(0.1), grey(0.0)], &[grey(0.2), grey(0.6)]);
+        let textured = |lobe| GroupModel::Textured { map: 0, lobe };
+        let lobe = textured(MapLobe::isotropic(0.05, 0.1));
+        let share = lobe_share(&lobe, &[grey(0.1), grey(0.0)], &[grey(0.2), grey(0.6)]);
         assert!((share - 0.125).abs() < 1e-6, "{share}");
-        assert_eq!(lobe_share(&[grey(0.1)], &[grey(0.0)]), 0.0);
-        assert_eq!(lobe_share(&[], &[]), 0.0);
+        assert_eq!(lobe_share(&lobe, &[grey(0.1)], &[grey(0.0)]), 0.0);
+        assert_eq!(lobe_share(&lobe, &[], &[]), 0.0);
+        // Without a lobe, what the split leaves is rounding: no share.
+        let residue = [grey(3e-8), grey(0.0)];
+        let real = [grey(0.2), grey(0.6)];
+        assert_eq!(lobe_share(&textured(MapLobe::None), &residue, &real), 0.0);
     }
 }
