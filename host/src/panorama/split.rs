@@ -156,7 +156,8 @@ pub fn split(args: &PanoramaArgs) -> Result<PanoramaSummary, Error> {
         }
     };
     let (image, divisor) = images::read_radiance_sized(&args.image, 1.0, |w, h| {
-        if w == 2 * h {
+        // In u64: twice a header's height may pass u32.
+        if u64::from(w) == 2 * u64::from(h) {
             Ok(())
         } else {
             Err(Error::input(
@@ -379,6 +380,42 @@ mod tests {
             wall > 200 && mixed > 0,
             "{wall} wall pixels, {mixed} on the light's edge"
         );
+    }
+
+    /// A Radiance picture's header may claim any u32 height: one of 3,000,000,000 rows
+    /// doubled overflowed u32 (a panic in a debug build; in a release build the width
+    /// 1705032704, what twice that wraps to, passed as twice the height, and was refused
+    /// only for its pixel count). It is refused for its shape, before any pixel is read.
+    #[test]
+    fn a_header_whose_doubled_height_overflows_is_refused_for_its_shape() {
+        let dir = tempfile::tempdir().unwrap();
+        let image = dir.path().join("tall.hdr");
+        std::fs::write(
+            &image,
+            b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 3000000000 +X 1705032704\n",
+        )
+        .unwrap();
+        let args = PanoramaArgs {
+            image,
+            position: Some([0.0; 3]),
+            forward: [1.0, 0.0, 0.0],
+            up: [0.0, 0.0, 1.0],
+            size: None,
+            scene: None,
+            out: dir.path().join("out"),
+            threads: Some(1),
+            tell_warnings: false,
+        };
+        let e = split(&args)
+            .err()
+            .expect("a panorama of that shape is refused");
+        assert_eq!(e.exit_code(), 3, "{e}");
+        let said = e.to_string();
+        assert!(
+            said.contains("tall.hdr: is 1705032704x3000000000: an equirectangular panorama is twice as wide as high"),
+            "{said}"
+        );
+        assert!(!dir.path().join("out").exists());
     }
 
     #[test]
