@@ -141,6 +141,19 @@ pub fn solve_map(
     }
     let (texels, numerator, denominator) =
         (&mut texels[..n], &mut numerator[..n], &mut denominator[..n]);
+    // The start within the bound too (NaN as 0): a texel no observation steps keeps it, and
+    // a NaN start would make every residual NaN.
+    for t in texels.iter_mut() {
+        *t = Vec3::from_array(t.to_array().map(
+            |x| {
+                if x > 0.0 {
+                    x.min(max_reflectance)
+                } else {
+                    0.0
+                }
+            },
+        ));
+    }
     let usable = |o: &MapObservation| {
         o.weight > 0.0
             && o.weight.is_finite()
@@ -553,6 +566,35 @@ mod tests {
                     .flat_map(|t| t.to_array())
                     .all(|x| (0.0..=1.0).contains(&x)),
                 "{o:?}: {map:?}"
+            );
+        }
+    }
+
+    /// The map comes back within `[0, max_reflectance]` whatever it starts from: a start
+    /// above the bound (or NaN) was kept by every texel no usable observation stepped, and
+    /// a NaN start made every observation's residual NaN, so that no texel moved at all.
+    #[test]
+    fn the_map_is_within_its_bound_whatever_it_starts_from() {
+        let obs = observe(&truth_map(4, 4), 4, 4, 200, 0.0, 1.0);
+        let unusable = [MapObservation {
+            weight: 0.0,
+            ..obs[0]
+        }];
+        for (observations, start) in [
+            (&obs[..], f32::NAN),
+            (&unusable[..], 2.0),
+            (&unusable[..], f32::NAN),
+            (&[][..], -1.0),
+        ] {
+            let mut map = vec![Vec3::splat(start); 16];
+            let (mut a, mut b) = (vec![Vec3::ZERO; 16], vec![Vec3::ZERO; 16]);
+            solve_map(observations, grid(4, 4), 0.9, &mut map, &mut a, &mut b).unwrap();
+            assert!(
+                map.iter()
+                    .flat_map(|t| t.to_array())
+                    .all(|x| (0.0..=0.9).contains(&x)),
+                "start {start}, {} observations: {map:?}",
+                observations.len()
             );
         }
     }
