@@ -128,7 +128,7 @@ fn finish(sums: &LinearSums, rho_d: [f64; 3], rho_s: [f64; 3], color: [f64; 3], 
 }
 
 /// Plastic: minimise over `rho_d` (3) and `s` with `S = s` white; `s` in [0, 1],
-/// `rho_d` in [0, 1), colour = rho_d / (1 - s) kept <= 1.
+/// `rho_d` in [0, 1 - s] (1 itself with no lobe), colour = rho_d / (1 - s) kept <= 1.
 pub fn solve_plastic(sums: &LinearSums) -> WardFit {
     // Eliminate rho_d_c = (dt_c - s db_c) / dd_c, then solve for s.
     let mut num = 0.0;
