@@ -21,17 +21,20 @@
 //! split; a larger one is split by SAH, or at the middle of its range when all centroids
 //! coincide or no bin boundary separates them. The children of the deepest nodes (at
 //! depth `MAX_BVH_DEPTH - 1`, the root's 0) are leaves whatever their size. Child boxes are
-//! padded by a few ulps so that the rounding of the slab test never loses a triangle lying
-//! on a box face (flat walls give flat boxes).
+//! padded by a few ulps of the scene's largest coordinate (or of their own, if larger) so
+//! that the rounding of the slab test never loses a triangle lying on a box face (flat
+//! walls give flat boxes), nor enters its box past a hit at the same distance.
 //!
 //! # Traversal
 //! A node's four boxes are tested at once; the nearest child hit is visited next and the
 //! others pushed with their entry distance, nearest on top, and skipped on pop when a hit
 //! closer than that entry has been found. Of hits at one distance (an edge two triangles
 //! share) the lower triangle index is taken, so the answer does not hang on the tree's
-//! shape or the order it is walked in. On the living room's ray sets (`relume bench
-//! rays`, one thread) four children a node trace 4-27% more rays a second than two did
-//! (docs/renderer-vs-radiance.md, "Ray tracing speed"). The fixed stack cannot overflow (see `STACK`).
+//! shape or the order it is walked in (for rays that start within the scene's bounds, or
+//! about as far from them as they are large: `t` rounds by ulps of a ray's length). On the
+//! living room's ray sets (`relume bench rays`, one thread) four children a node trace
+//! 4-27% more rays a second than two did (docs/renderer-vs-radiance.md, "Ray tracing
+//! speed"). The fixed stack cannot overflow (see `STACK`).
 
 use crate::config::{MAX_BVH_DEPTH, MAX_LEAF_TRIANGLES, MAX_TRIANGLES};
 use crate::error::{check_capacity, Error};
@@ -222,11 +225,14 @@ impl Aabb {
         ]
     }
 
-    /// The box grown by a few ulps of its coordinates on every side.
-    fn padded(&self) -> Aabb {
+    /// The box grown on every side by a few ulps of its coordinates or of `scale` (the
+    /// scene's largest coordinate), whichever is larger: a hit's `t`, and the slab test's,
+    /// round by ulps of the ray's length, which a box's own coordinates do not bound (a
+    /// floor at z = 0 has a box `f32::MIN_POSITIVE` thick).
+    fn padded(&self, scale: f32) -> Aabb {
         let mut out = *self;
         for k in 0..3 {
-            let m = self.min[k].abs().max(self.max[k].abs());
+            let m = self.min[k].abs().max(self.max[k].abs()).max(scale);
             let eps = m * (1.0 / 1_048_576.0) + f32::MIN_POSITIVE;
             out.min[k] = self.min[k] - eps;
             out.max[k] = self.max[k] + eps;
@@ -633,7 +639,8 @@ fn in_build_order(nodes: &[BvhNode]) -> bool {
 
 /// `packed[start..end]` as a [`Range`]: its box, and its split by the binary rule (the
 /// module's "Build"), which partitions its triangles.
-fn make_range(packed: &mut [PackedTriangle], (start, end): (usize, usize)) -> Range {
+/// `scale` is the scene's largest coordinate ([`Aabb::padded`]).
+fn make_range(packed: &mut [PackedTriangle], (start, end): (usize, usize), scale: f32) -> Range {
     let items = packed.get_mut(start..end).unwrap_or(&mut []);
     let count = items.len();
     let mut bounds = Aabb::EMPTY;
@@ -662,7 +669,7 @@ fn make_range(packed: &mut [PackedTriangle], (start, end): (usize, usize)) -> Ra
     Range {
         start,
         end,
-        bounds: bounds.padded(),
+        bounds: bounds.padded(scale),
         split_at,
     }
 }
@@ -670,7 +677,11 @@ fn make_range(packed: &mut [PackedTriangle], (start, end): (usize, usize)) -> Ra
 /// The children of a node over `range` (which splits, or is the whole tree): its two
 /// binary halves, then, while there are fewer than [`WIDTH`], the largest child that
 /// splits replaced by its halves. Returns them and how many there are.
-fn open_children(packed: &mut [PackedTriangle], range: Range) -> ([Range; WIDTH], usize) {
+fn open_children(
+    packed: &mut [PackedTriangle],
+    range: Range,
+    scale: f32,
+) -> ([Range; WIDTH], usize) {
     let mut kids = [Range::default(); WIDTH];
     kids[0] = range;
     let mut k = 1;
@@ -690,8 +701,8 @@ fn open_children(packed: &mut [PackedTriangle], range: Range) -> ([Range; WIDTH]
         };
         let r = kids[i];
         let mid = r.start + m;
-        kids[i] = make_range(packed, (r.start, mid));
-        kids[k] = make_range(packed, (mid, r.end));
+        kids[i] = make_range(packed, (r.start, mid), scale);
+        kids[k] = make_range(packed, (mid, r.end), scale);
         k += 1;
     }
     (kids, k)
@@ -706,9 +717,20 @@ fn build_nodes(nodes: &mut [BvhNode], packed: &mut [PackedTriangle], max_depth: 
     let mut at = 0usize;
     let mut depth = 0usize;
     let mut next = 1usize;
-    let mut range = make_range(packed, (0, packed.len()));
+    // The largest finite coordinate of the scene, which every box is padded by ulps of.
+    let scale = packed
+        .iter()
+        .flat_map(|p| {
+            let b = packed_bounds(p);
+            [b.min, b.max]
+        })
+        .flatten()
+        .map(f32::abs)
+        .filter(|c| c.is_finite())
+        .fold(0.0f32, f32::max);
+    let mut range = make_range(packed, (0, packed.len()), scale);
     loop {
-        let (kids, k) = open_children(packed, range);
+        let (kids, k) = open_children(packed, range, scale);
         let mut node = BvhNode::default();
         for (slot, kid) in kids[..k].iter().enumerate() {
             for axis in 0..3 {
@@ -1292,6 +1314,52 @@ mod tests {
             }
         }
         assert!(ties > 100, "only {ties} ties: not a test of them");
+    }
+
+    /// A floor at z = 0 (and one just above it) of quads in leaves of their own, seen
+    /// from inside the room: rays aimed at the quads' shared vertices and edges meet two
+    /// to six triangles at one distance, and the closest hit is the lowest index, as brute
+    /// force finds it. Boxes padded by ulps of their own coordinates were as thin as
+    /// `f32::MIN_POSITIVE` on the floor, thinner than the rounding of `t` over a ray's
+    /// length: the box of the lower index was entered past the hit already found and
+    /// skipped (3-6% of these rays, one in a thousand a closer hit by an ulp).
+    #[test]
+    fn ties_on_a_floor_at_zero_go_to_the_lowest_index() {
+        let mut s = Sampler::from_key(17);
+        let mut wrong = 0;
+        for z in [0.0f32, 1e-3] {
+            let mut tris = Vec::new();
+            for i in 0..16 {
+                for j in 0..16 {
+                    let p = Vec3::new(i as f32 * 0.1, j as f32 * 0.1, z);
+                    let (u, v) = (Vec3::new(0.1, 0.0, 0.0), Vec3::new(0.0, 0.1, 0.0));
+                    tris.push(tri(p, p + u, p + u + v));
+                    tris.push(tri(p, p + u + v, p + v));
+                }
+            }
+            // The room's ceiling, so that rays start inside the scene's bounds.
+            tris.push(tri(
+                Vec3::new(0.0, 0.0, 3.0),
+                Vec3::new(0.0, 1.6, 3.0),
+                Vec3::new(1.6, 0.0, 3.0),
+            ));
+            let mut owned = Owned::new(tris.len());
+            let bvh = owned.build(&tris);
+            for t in &tris[..512] {
+                for at in [t.v[0], (t.v[0] + t.v[1]) * 0.5, (t.v[1] + t.v[2]) * 0.5] {
+                    let from = Vec3::new(
+                        1.6 * s.next_f32(),
+                        1.6 * s.next_f32(),
+                        z + 0.01 + 2.9 * s.next_f32(),
+                    );
+                    let ray = Ray::new(from, (at - from).normalize());
+                    let key = |h: Option<Hit>| h.map(|h| (h.triangle, h.t.to_bits()));
+                    let (got, want) = (bvh.intersect(&ray, 9.0), brute(&tris, &ray, 9.0));
+                    wrong += (key(got) != key(want)) as u32;
+                }
+            }
+        }
+        assert_eq!(wrong, 0, "rays whose closest hit is not brute force's");
     }
 
     #[test]
