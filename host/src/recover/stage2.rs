@@ -497,7 +497,9 @@ impl Stage<'_> {
     /// and replaces `tested` if it passes: glossy's teal box at 64 px (effort fast, seed 2
     /// before 48b2516; s 0.04, roughness 0.08), whose proposal (s 0.118) and best rung
     /// fell short, was kept with the race's point (s 0.051, roughness 0.086) at z 3.3. A
-    /// rare rescue: on 1 of glossy's seeds 1-10 then, none of 1-21 since.
+    /// rare rescue: on 1 of glossy's seeds 1-10 then, none of 1-21 since; since the
+    /// tracer's tie fix (aa69da6) on seed 9 of 1-24 (kept at z 4.9, s 0.046 and roughness
+    /// 0.0069: the class right, the roughness the pixels do not fix), short on seed 24.
     fn race_challenger(
         &self,
         rec: &mut Recovery,
