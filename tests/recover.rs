@@ -107,6 +107,12 @@ fn glossy_small_seed_4() -> &'static SharedRecovery {
     small_reference_once("glossy", "4", &RECOVERED)
 }
 
+/// Glossy at 64 px, seed 24 (see [`small_reference_once`]).
+fn glossy_small_seed_24() -> &'static SharedRecovery {
+    static RECOVERED: std::sync::OnceLock<SharedRecovery> = std::sync::OnceLock::new();
+    small_reference_once("glossy", "24", &RECOVERED)
+}
+
 /// Asserts that group `name` is recovered in its true class with its specularity and
 /// roughness within the given relative errors of the truth.
 fn assert_lobe_near_truth(
@@ -875,14 +881,19 @@ fn map_decision(out: &std::path::Path, group: &str) -> String {
         .to_string()
 }
 
-/// Glossy at 64x64 per face (effort fast, seed 1): the yellow box's weak, broad lobe
-/// (specularity 0.1, roughness 0.2) is proposed by its cache at roughness 0.047, which a
-/// render shows removes almost none of its error; stage 2's ladder of roughnesses finds a
-/// broad lobe that does, says how loosely its shape is known, and no diffuse group is
-/// given one on the way.
+/// Glossy at 64x64 per face (effort fast, seed 24): the yellow box's weak, broad lobe
+/// (specularity 0.1, roughness 0.2) is proposed by its cache at s 0.137, which a render
+/// shows removes almost none of its error (z 1.2); stage 2's ladder of roughnesses finds
+/// a broad lobe that does (roughness 0.3, z 4.9), says how loosely its shape is known,
+/// and no diffuse group is given one on the way. This is one seed's path: over glossy's
+/// 64-px seeds 1-24 (docs/recovery.md, "The ladder") the yellow box's lobe comes from the
+/// ladder on 19, within the half-rung resolution of the truth's roughness on 8 of those,
+/// and its claimed roughness covers the truth at two standard errors on 18. (Seed 1 took
+/// this path until the tracer's tie fix, aa69da6, moved glossy's bytes; it now keeps the
+/// cache's proposal, which the lobe-claim test below reads.)
 #[test]
 fn glossy_small_finds_the_yellow_boxs_weak_broad_lobe() {
-    let (out, rows) = glossy_small();
+    let (out, rows) = glossy_small_seed_24();
     let row = |g: &str| rows.iter().find(|r| r.group == g).unwrap();
     let yellow = row("box_yellow");
     assert!(yellow.class_ok, "{yellow:?}");
@@ -982,8 +993,8 @@ fn glossy_small_seed_4_keeps_the_steel_boxs_undiluted_fit() {
 /// which is the path tested here; docs/recovery.md.)
 #[test]
 fn glossy_small_seed_24_tests_the_races_point_where_proposal_and_ladder_fall_short() {
-    let (_tmp, out, rows) = recover_reference("glossy", "scene-small.toml", "24");
-    let teal = group_report(&out, "box_teal");
+    let (out, rows) = glossy_small_seed_24();
+    let teal = group_report(out, "box_teal");
     let decided = decisions(&teal);
     let ladder_short = decided
         .iter()
@@ -995,7 +1006,7 @@ fn glossy_small_seed_24_tests_the_races_point_where_proposal_and_ladder_fall_sho
         .unwrap_or_else(|| panic!("no second look: {decided:?}"));
     let row = rows.iter().find(|r| r.group == "box_teal").unwrap();
     if look.ends_with("taken in its place") {
-        assert_lobe_near_truth(&rows, "box_teal", 0.3, 0.15);
+        assert_lobe_near_truth(rows, "box_teal", 0.3, 0.15);
     } else {
         assert!(look.ends_with("short of the test too"), "{look}");
         assert_eq!(row.model.as_deref(), Some("diffuse"), "{row:?}");
