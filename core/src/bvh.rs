@@ -118,8 +118,9 @@ const COST_TRAVERSAL: f32 = 1.0;
 const COST_INTERSECT: f32 = 1.0;
 /// Stack entries of a build or a traversal: the children pending are at most `WIDTH - 1`
 /// siblings of each node on the path from the root, and nodes are fewer than
-/// `MAX_BVH_DEPTH` deep. (Small on purpose: the stack is cleared for every ray, and 256
-/// entries cost 20-25% of the primary rays' speed.)
+/// `MAX_BVH_DEPTH` deep. (Small on purpose: when the traversal's stack was an array
+/// cleared for every ray, 256 entries cost 20-25% of the primary rays' speed; it is now
+/// left uncleared, [`Stack`], and the build's still is.)
 const STACK: usize = 64;
 /// `STACK - 1`, to index the stack without bounds checks (`STACK` is a power of two).
 const STACK_MASK: usize = STACK - 1;
@@ -504,8 +505,7 @@ impl<'a> Bvh<'a> {
         let mut best_t = t_max;
         let mut best_idx = u32::MAX;
         let mut best_b = (0.0f32, 0.0f32);
-        let mut stack = [Pending::default(); STACK];
-        let mut sp = 0usize;
+        let mut stack = Stack::new();
         let mut cur = Pending::ROOT;
         if self.nodes.is_empty() {
             return None;
@@ -513,7 +513,7 @@ impl<'a> Bvh<'a> {
         loop {
             if cur.count == 0 {
                 if let Some(node) = self.nodes.get(cur.child as usize) {
-                    if let Some(nearest) = visit_children(node, &r, best_t, &mut stack, &mut sp) {
+                    if let Some(nearest) = visit_children(node, &r, best_t, &mut stack) {
                         cur = nearest;
                         continue;
                     }
@@ -539,16 +539,14 @@ impl<'a> Bvh<'a> {
             }
             // Pop the nearest pending child that can still hold a closer hit.
             loop {
-                if sp == 0 {
+                let Some(pending) = stack.pop() else {
                     return (best_idx != u32::MAX).then_some(Hit {
                         t: best_t,
                         triangle: best_idx,
                         b1: best_b.0,
                         b2: best_b.1,
                     });
-                }
-                sp -= 1;
-                let pending = stack[sp & STACK_MASK];
+                };
                 if pending.entry < best_t || (pending.entry == best_t && best_idx != u32::MAX) {
                     cur = pending;
                     break;
@@ -565,8 +563,7 @@ impl<'a> Bvh<'a> {
     /// renderer's innermost loop.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let r = RayData::new(ray);
-        let mut stack = [Pending::default(); STACK];
-        let mut sp = 0usize;
+        let mut stack = Stack::new();
         let mut cur = Pending::ROOT;
         if self.nodes.is_empty() {
             return false;
@@ -574,7 +571,7 @@ impl<'a> Bvh<'a> {
         loop {
             if cur.count == 0 {
                 if let Some(node) = self.nodes.get(cur.child as usize) {
-                    if let Some(nearest) = visit_children(node, &r, t_max, &mut stack, &mut sp) {
+                    if let Some(nearest) = visit_children(node, &r, t_max, &mut stack) {
                         cur = nearest;
                         continue;
                     }
@@ -590,11 +587,10 @@ impl<'a> Bvh<'a> {
                     }
                 }
             }
-            if sp == 0 {
-                return false;
+            match stack.pop() {
+                Some(pending) => cur = pending,
+                None => return false,
             }
-            sp -= 1;
-            cur = stack[sp & STACK_MASK];
         }
     }
 }
@@ -812,6 +808,18 @@ impl RayData {
     }
 }
 
+/// The children a walk has still to visit, nearest on top. Not cleared for each ray: an
+/// array of [`STACK`] entries set to zero cost every ray a `memset` of 768 bytes, 2.2% of
+/// a recovery's time (living room at 64 px, `perf`).
+type Stack = heapless::Vec<Pending, STACK>;
+
+/// Pushes `p`; the stack never fills (see [`STACK`]), and a push past it would be lost
+/// (where the array's index wrapped before).
+#[inline(always)]
+fn push(stack: &mut Stack, p: Pending) {
+    let _ = stack.push(p);
+}
+
 /// A child still to visit: a node (`count` 0) or a leaf, and the ray's entry distance
 /// into its box.
 #[derive(Clone, Copy, Default)]
@@ -866,13 +874,7 @@ fn child_entries(n: &BvhNode, r: &RayData, t_max: f32) -> [f32; WIDTH] {
 /// The entries are sorted where they lie: a small array of them, sorted and then copied,
 /// stalled on its loads (store forwarding) and cost a third of the traversal.
 #[inline(always)]
-fn visit_children(
-    n: &BvhNode,
-    r: &RayData,
-    t_max: f32,
-    stack: &mut [Pending; STACK],
-    sp: &mut usize,
-) -> Option<Pending> {
+fn visit_children(n: &BvhNode, r: &RayData, t_max: f32, stack: &mut Stack) -> Option<Pending> {
     let entries = child_entries(n, r, t_max);
     let pending = |slot: usize| Pending {
         child: n.child[slot & (WIDTH - 1)],
@@ -899,26 +901,23 @@ fn visit_children(
         } else {
             (a, b)
         };
-        stack[*sp & STACK_MASK] = pending(far);
-        *sp += 1;
+        push(stack, pending(far));
         return Some(pending(near));
     }
     // Three or four: push them all sorted, nearest on top, and pop the nearest.
-    let base = *sp;
+    let base = stack.len();
     let mut left = hit;
     while left != 0 {
         let slot = left.trailing_zeros() as usize;
         left &= left - 1;
-        stack[*sp & STACK_MASK] = pending(slot);
-        *sp += 1;
-        let mut j = *sp - 1;
-        while j > base && stack[(j - 1) & STACK_MASK].entry < stack[j & STACK_MASK].entry {
-            stack.swap((j - 1) & STACK_MASK, j & STACK_MASK);
+        push(stack, pending(slot));
+        let mut j = stack.len() - 1;
+        while j > base && stack[j - 1].entry < stack[j].entry {
+            stack.swap(j - 1, j);
             j -= 1;
         }
     }
-    *sp -= 1;
-    Some(stack[*sp & STACK_MASK])
+    stack.pop()
 }
 
 /// Two-sided Möller–Trumbore: `(t, b1, b2)` when the ray hits the triangle with
