@@ -46,6 +46,10 @@ pub fn oversubscribed_warning(threads: Option<usize>, cores: usize) -> Option<St
     })
 }
 
+/// A worker's stack: the main thread's usual 8 MiB rather than a spawned thread's 2 MiB,
+/// since a recovery runs whole on one of its workers (`recover::pipeline::run`).
+const WORKER_STACK_BYTES: usize = 8 << 20;
+
 /// A pool of `threads` workers (all cores when `None`).
 pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, Error> {
     check_threads(threads)?;
@@ -54,7 +58,7 @@ pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, Error> {
     if let Some(w) = oversubscribed_warning(threads, cores) {
         WARNED.call_once(|| eprintln!("relume: warning: {w}"));
     }
-    let mut builder = rayon::ThreadPoolBuilder::new();
+    let mut builder = rayon::ThreadPoolBuilder::new().stack_size(WORKER_STACK_BYTES);
     if let Some(n) = threads {
         builder = builder.num_threads(n);
     }

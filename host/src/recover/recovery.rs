@@ -4,6 +4,7 @@
 //! errors and the paired comparison of two models that the decisions rest on, and stage
 //! 1's diffuse iteration.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use indicatif::ProgressBar;
@@ -33,7 +34,7 @@ pub(super) struct Recovery {
     pub(super) models: Vec<GroupModel>,
     /// Diffuse maps of textured groups (`GroupModel::Textured::map` indexes it).
     pub(super) maps: Vec<texture::RecoveredMap>,
-    pub(super) pool: rayon::ThreadPool,
+    pub(super) pool: Arc<rayon::ThreadPool>,
     pub(super) seed: u64,
     /// The last paired measurements ([`Recovery::paired_terms`]).
     pub(super) terms_memo: terms_memo::TermsMemo,

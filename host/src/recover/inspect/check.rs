@@ -154,7 +154,7 @@ pub fn check(
         // A group's mean over a few thousand pixels is as good a first reading as over all.
         pure: pixels::spread_subset(&pure, groups.len(), PREVIEW_GROUP_PIXELS),
         maps: Vec::new(),
-        pool,
+        pool: std::sync::Arc::new(pool),
         seed: PREVIEW_SEED,
         terms_memo: Default::default(),
         started: start,

@@ -656,7 +656,7 @@ objects = ["wrap"]
             ],
             owned,
             maps: vec![map(0.2), map(0.7)],
-            pool: crate::parallel::thread_pool(Some(1)).unwrap(),
+            pool: std::sync::Arc::new(crate::parallel::thread_pool(Some(1)).unwrap()),
             seed: 1,
             terms_memo: Default::default(),
             started: std::time::Instant::now(),
