@@ -62,7 +62,7 @@ pub fn run(args: &RecoverArgs) -> Result<RecoverReport, Error> {
     // steps (a render of a group's pixels, a fit on its cache) then start on the thread
     // that asks for them, and only the other workers are woken; from a thread outside
     // the pool, each step woke a worker to start it and woke the caller again to end it
-    // (the living room at 64 px: 16,774 futex calls -> 1,111, 3-7% less wall time). Which
+    // (the living room at 64 px: 16,774 futex calls -> 1,111, 3-8% less wall time). Which
     // thread runs what changes no result.
     let worker_pool = Arc::clone(&pool);
     pool.install(move || run_on(args, worker_pool, start))

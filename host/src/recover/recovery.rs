@@ -34,6 +34,7 @@ pub(super) struct Recovery {
     pub(super) models: Vec<GroupModel>,
     /// Diffuse maps of textured groups (`GroupModel::Textured::map` indexes it).
     pub(super) maps: Vec<texture::RecoveredMap>,
+    /// The workers, shared with `pipeline::run`, which runs the recovery on one of them.
     pub(super) pool: Arc<rayon::ThreadPool>,
     pub(super) seed: u64,
     /// The last paired measurements ([`Recovery::paired_terms`]).
