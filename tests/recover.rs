@@ -891,6 +891,87 @@ fn map_decision(out: &std::path::Path, group: &str) -> String {
 /// and its claimed roughness covers the truth at two standard errors on 18. (Seed 1 took
 /// this path until the tracer's tie fix, aa69da6, moved glossy's bytes; it now keeps the
 /// cache's proposal, which the lobe-claim test below reads.)
+/// A uniform anisotropic panel is not a picture. Textured's checker given its map's mean
+/// colour, the panorama rendered by relume from those materials: stage 3 reads the
+/// isotropic lobe's misfit of its narrow highlight as a texture (step contrast 0.14 at
+/// seed 1), and only its test again under stage 4's anisotropic lobe (0 there) keeps the
+/// panel from a map of its own.
+#[test]
+fn textured_small_with_a_uniform_checker_finds_it_anisotropic_without_a_map() {
+    let bench = shared().join("bench").join("textured");
+    let tmp = tempfile::tempdir().unwrap();
+    let at = |p: &str| path_str(&bench.join(p)).to_string();
+    let truth = std::fs::read_to_string(bench.join("truth.toml")).unwrap();
+    let checker_map =
+        "model = \"textured-anisotropic\"\ndiffuse_map = \"textures/picture_checker.exr\"";
+    assert!(
+        truth.contains(checker_map),
+        "the truth's checker as this test knows it"
+    );
+    let uniform = truth
+        .replace(
+            checker_map,
+            "model = \"anisotropic\"\ncolor = [0.3447, 0.2964, 0.4469]",
+        )
+        .replace("\"textures/", &format!("\"{}/", at("textures")));
+    let materials = tmp.path().join("uniform.toml");
+    std::fs::write(&materials, uniform).unwrap();
+    let views = tmp.path().join("views");
+    let small = bench.join("scene-small.toml");
+    relume_ok(
+        tmp.path(),
+        &[
+            "render",
+            path_str(&small),
+            "--materials",
+            path_str(&materials),
+            "--out",
+            path_str(&views),
+            "--spp",
+            "256",
+            "--seed",
+            "77",
+        ],
+    );
+    let scene = std::fs::read_to_string(&small)
+        .unwrap()
+        .replace(
+            "geometry = [\"",
+            &format!("geometry = [\"{}/", path_str(&bench)),
+        )
+        .replace(
+            "image = \"views-small/",
+            &format!("image = \"{}/", path_str(&views)),
+        );
+    let scene_file = tmp.path().join("scene.toml");
+    std::fs::write(&scene_file, scene).unwrap();
+    let out = tmp.path().join("rec");
+    recover(&scene_file, &out, &["--effort", "fast", "--seed", "1"]);
+    let rows = relume::compare::materials_report(&materials, &out.join("materials.toml")).unwrap();
+    for r in &rows {
+        println!("{r:?}");
+    }
+    let row = |g: &str| rows.iter().find(|r| r.group == g).unwrap();
+    let checker = row("picture_checker");
+    let decided = decisions(&group_report(&out, "picture_checker")).join("\n");
+    assert_eq!(
+        checker.model.as_deref(),
+        Some("anisotropic"),
+        "{checker:?}\n{decided}"
+    );
+    assert!(!out.join("textures/picture_checker.exr").exists());
+    assert!(checker.direction_err_deg.unwrap() < 10.0, "{checker:?}");
+    assert!(checker.roughness_u_rel_err.unwrap() < 0.25, "{checker:?}");
+    assert!(checker.roughness_v_rel_err.unwrap() < 0.25, "{checker:?}");
+    // The pictures keep their maps.
+    assert!(
+        row("picture_flowers").class_ok,
+        "{:?}",
+        row("picture_flowers")
+    );
+    assert!(out.join("textures/picture_stripes.exr").exists());
+}
+
 #[test]
 fn glossy_small_finds_the_yellow_boxs_weak_broad_lobe() {
     let (out, rows) = glossy_small_seed_24();

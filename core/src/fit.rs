@@ -522,6 +522,13 @@ pub const TEXTURE_THRESHOLD: f64 = 0.4;
 /// spans many pixels) and the references' own noise is 0.6-1.7%; a picture's contrast is
 /// tens of percent.
 pub const TEXTURE_CONTRAST_THRESHOLD: f64 = 0.1;
+/// Texture detection: the step contrast's renders take at least this many samples per
+/// pixel. The log of a noisy render is biased low by about half its relative variance
+/// (the log's curvature), a bias both renders share and their cross products keep; a
+/// sharp highlight's pixels carry more of it than their neighbours, which reads as a step.
+/// A uniform anisotropic panel (textured's checker given its mean colour, 64 px) read
+/// 0.124 under its anisotropic lobe at 32 samples a pixel, 0 at 256.
+pub const TEXTURE_MIN_SPP: u32 = 256;
 /// Texture detection: each group's bias-only error bounds the panorama's relative noise
 /// from above, but only up to its own measurement noise. A group's bound is its squared
 /// error plus this many standard errors (one-sided, about 2% to fall below the noise): a

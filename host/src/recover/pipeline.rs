@@ -328,7 +328,7 @@ fn stages_1_to_5(
     // the untextured stand-in an anisotropic lobe.
     let stage3::Stage3 {
         report: stage3_report,
-        textured,
+        mut textured,
         noise_bound,
         warnings: texture_warnings,
     } = stage3::run(
@@ -353,6 +353,14 @@ fn stages_1_to_5(
         kinds,
         &args.budget,
         &cache_settings,
+    )?);
+    stages.extend(stage3::test_again_under_anisotropic_lobes(
+        rec,
+        reports,
+        &mut textured,
+        noise_bound,
+        verify_spp,
+        args.seed,
     )?);
     stages.push(polish::polish_colours(
         rec,

@@ -1,6 +1,7 @@
 //! Stage 3: texture detection on the plastic groups a uniform model leaves measurably
 //! unexplained: the noise-free step contrast of `ln(real / rendered)`
-//! (`relume_core::stages::texture`), against `TEXTURE_CONTRAST_THRESHOLD`.
+//! (`relume_core::stages::texture`), against `TEXTURE_CONTRAST_THRESHOLD`; and the same
+//! test again after stage 4 for a textured group whose stand-in took an anisotropic lobe.
 
 use std::time::Instant;
 
@@ -127,7 +128,7 @@ impl NotTested {
     }
 }
 
-/// Runs stage 3 with renders at `4 * verify_spp` on `seed`, recording each tested group's
+/// Runs stage 3 with renders at [`contrast_spp`] on `seed`, recording each tested group's
 /// contrast and decision in `reports`. Groups without texture coordinates (`mapped`
 /// false) are not tested; one that shows a texture over coordinates no map can be laid
 /// over (`unfit_for_a_map`: over no area) keeps its uniform model, and is warned of.
@@ -183,7 +184,7 @@ pub(super) fn run(
     let mut warnings = Vec::new();
     let bar = progress_bar(tested.len() as u64, "3 textures");
     for g in tested {
-        let raw = texture::texture_contrast(rec, g, 4 * verify_spp, seed ^ 0x7E57)?;
+        let raw = texture::texture_contrast(rec, g, contrast_spp(verify_spp), contrast_seed(seed))?;
         evaluations += 1;
         bar.inc(1);
         let r = &mut reports[g];
@@ -259,7 +260,7 @@ pub(super) fn run(
     let report = StageReport {
         stage: "3 texture detection".into(),
         evaluations,
-        samples_per_pixel: 4 * verify_spp,
+        samples_per_pixel: contrast_spp(verify_spp),
         seconds: stage_start.elapsed().as_secs_f64(),
         notes,
     };
@@ -269,4 +270,76 @@ pub(super) fn run(
         noise_bound,
         warnings,
     })
+}
+
+/// The samples per pixel of a group's step-contrast renders: four times the loop's, and at
+/// least `TEXTURE_MIN_SPP` (the log's bias on a noisy highlight).
+fn contrast_spp(verify_spp: u32) -> u32 {
+    (4 * verify_spp).max(fit::TEXTURE_MIN_SPP)
+}
+
+/// The seed of a group's step-contrast renders: the same for stage 3 and for its test
+/// again after stage 4, so that the two contrasts differ by the model alone.
+fn contrast_seed(seed: u64) -> u64 {
+    seed ^ 0x7E57
+}
+
+/// Stage 3's test again for every group it called textured whose uniform stand-in stage 4
+/// gave an anisotropic lobe, under that lobe: its best untextured model, which stage 3
+/// could not know. A uniform anisotropic panel reads as a texture under stage 2's
+/// isotropic lobe, whose misfit of a narrow anisotropic highlight changes within a few
+/// pixels (textured's checker given its mean colour for a map, 64 px: step contrast 0.14
+/// under the isotropic lobe, and it got a 22x22 map). A group whose contrast is no longer
+/// above `TEXTURE_CONTRAST_THRESHOLD` is untextured: it keeps stage 4's anisotropic model
+/// and gets no map. With stage 3's samples, seed and noise bound. Returns the report of
+/// this step when it tested any group.
+pub(super) fn test_again_under_anisotropic_lobes(
+    rec: &mut Recovery,
+    reports: &mut [GroupReport],
+    textured: &mut [bool],
+    noise_bound: f64,
+    verify_spp: u32,
+    seed: u64,
+) -> Result<Option<StageReport>, Error> {
+    let again: Vec<usize> = (0..reports.len())
+        .filter(|&g| textured[g] && matches!(rec.models[g], GroupModel::Anisotropic { .. }))
+        .collect();
+    if again.is_empty() {
+        return Ok(None);
+    }
+    let stage_start = Instant::now();
+    let spp = contrast_spp(verify_spp);
+    for &g in &again {
+        let Some(raw) = texture::texture_contrast(rec, g, spp, contrast_seed(seed))? else {
+            continue;
+        };
+        let r = &mut reports[g];
+        let contrast = texture_stage::noise_corrected_contrast(raw, noise_bound);
+        r.texture_contrast = Some(contrast);
+        let measured = format!(
+            "step contrast {contrast:.4} (measured {raw:.4}, less the panorama's noise bound {noise_bound:.4}) under stage 4's anisotropic lobe"
+        );
+        if texture_stage::has_texture_contrast(contrast) {
+            r.decisions.push(format!(
+                "stage 3 again: textured: {measured} > TEXTURE_CONTRAST_THRESHOLD {}",
+                fit::TEXTURE_CONTRAST_THRESHOLD
+            ));
+        } else {
+            r.decisions.push(format!(
+                "stage 3 again: untextured: {measured} <= TEXTURE_CONTRAST_THRESHOLD {}: what stage 3 read was the anisotropic highlight that the isotropic lobe missed; it keeps the anisotropic model and gets no map",
+                fit::TEXTURE_CONTRAST_THRESHOLD
+            ));
+            textured[g] = false;
+        }
+    }
+    Ok(Some(StageReport {
+        stage: "3 texture detection again".into(),
+        evaluations: again.len() as u32,
+        samples_per_pixel: spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec![format!(
+            "the groups stage 3 called textured whose uniform stand-in stage 4 gave an anisotropic lobe, tested again under it (their best untextured model) with stage 3's samples, seed and noise bound: untextured when the step contrast is no longer above TEXTURE_CONTRAST_THRESHOLD {}",
+            fit::TEXTURE_CONTRAST_THRESHOLD
+        )],
+    }))
 }
