@@ -346,6 +346,7 @@ fn stages_1_to_5(
     stages.push(stage3_report);
     warnings.extend(texture_warnings);
 
+    let after_stage2 = rec.models.clone();
     stages.push(stage4::run(
         rec,
         reports,
@@ -354,13 +355,26 @@ fn stages_1_to_5(
         &args.budget,
         &cache_settings,
     )?);
-    stages.extend(stage3::test_again_under_anisotropic_lobes(
+    // A uniform anisotropic panel reads as a texture under stage 2's isotropic lobe: stage
+    // 3 tests again under stage 4's anisotropic one, and stage 4 fits a group found
+    // untextured there again as an untextured group.
+    let (untextured, again) = stage3::test_again_under_anisotropic_lobes(
         rec,
         reports,
         &mut textured,
         noise_bound,
         verify_spp,
         args.seed,
+    )?;
+    stages.extend(again);
+    stages.extend(stage4::again_untextured(
+        rec,
+        reports,
+        &untextured,
+        &after_stage2,
+        (&textured, kinds),
+        &args.budget,
+        &cache_settings,
     )?);
     stages.push(polish::polish_colours(
         rec,

@@ -76,6 +76,11 @@ pub struct GroupReport {
     /// (`kind::choose_again`).
     #[serde(skip)]
     pub metal_passed_over: Option<GroupModel>,
+    /// For a textured group: the anisotropic fit of its stand-in that a render favoured and
+    /// only the pattern test turned down, under which stage 3 tests it again
+    /// (`stage3::test_again_under_anisotropic_lobes`).
+    #[serde(skip)]
+    pub anisotropic_turned_down: Option<GroupModel>,
     /// Each recovered parameter with its standard error (see `uncertainty`).
     pub uncertainty: Vec<uncertainty::ParameterUncertainty>,
     /// What the stages that work group by group spent on this group, in the order they
@@ -119,6 +124,7 @@ impl GroupReport {
             map_lobe_share: None,
             kind_choice: None,
             metal_passed_over: None,
+            anisotropic_turned_down: None,
             uncertainty: Vec::new(),
             work: Vec::new(),
         }

@@ -285,14 +285,14 @@ fn contrast_seed(seed: u64) -> u64 {
 }
 
 /// Stage 3's test again for every group it called textured whose uniform stand-in stage 4
-/// gave an anisotropic lobe, under that lobe: its best untextured model, which stage 3
-/// could not know. A uniform anisotropic panel reads as a texture under stage 2's
-/// isotropic lobe, whose misfit of a narrow anisotropic highlight changes within a few
-/// pixels (textured's checker given its mean colour for a map, 64 px: step contrast 0.14
-/// under the isotropic lobe, and it got a 22x22 map). A group whose contrast is no longer
-/// above `TEXTURE_CONTRAST_THRESHOLD` is untextured: it keeps stage 4's anisotropic model
-/// and gets no map. With stage 3's samples, seed and noise bound. Returns the report of
-/// this step when it tested any group.
+/// found an anisotropic lobe for (kept, or turned down by the pattern test alone), under
+/// that lobe: its best untextured model, which stage 3 could not know. A uniform
+/// anisotropic panel reads as a texture under stage 2's isotropic lobe, whose misfit of a
+/// narrow anisotropic highlight changes within a few pixels (textured's checker given its
+/// mean colour for a map, 64 px: step contrast 0.14 under the isotropic lobe, and it got a
+/// 22x22 map). With stage 3's samples, seed and noise bound. Returns the groups no longer
+/// textured, whose contrast is not above `TEXTURE_CONTRAST_THRESHOLD` there, and the
+/// report of this step when it tested any group. Leaves every model as it was.
 pub(super) fn test_again_under_anisotropic_lobes(
     rec: &mut Recovery,
     reports: &mut [GroupReport],
@@ -300,24 +300,34 @@ pub(super) fn test_again_under_anisotropic_lobes(
     noise_bound: f64,
     verify_spp: u32,
     seed: u64,
-) -> Result<Option<StageReport>, Error> {
-    let again: Vec<usize> = (0..reports.len())
-        .filter(|&g| textured[g] && matches!(rec.models[g], GroupModel::Anisotropic { .. }))
+) -> Result<(Vec<usize>, Option<StageReport>), Error> {
+    let lobe_of = |g: usize, r: &GroupReport| match rec.models[g] {
+        m @ GroupModel::Anisotropic { .. } => Some(m),
+        _ => r.anisotropic_turned_down,
+    };
+    let again: Vec<(usize, GroupModel)> = (reports.iter().enumerate())
+        .filter(|&(g, _)| textured[g])
+        .filter_map(|(g, r)| Some((g, lobe_of(g, r)?)))
         .collect();
     if again.is_empty() {
-        return Ok(None);
+        return Ok((Vec::new(), None));
     }
     let stage_start = Instant::now();
     let spp = contrast_spp(verify_spp);
-    for &g in &again {
-        let Some(raw) = texture::texture_contrast(rec, g, spp, contrast_seed(seed))? else {
+    let mut untextured = Vec::new();
+    for &(g, lobe) in &again {
+        let kept = std::mem::replace(&mut rec.models[g], lobe);
+        let raw = texture::texture_contrast(rec, g, spp, contrast_seed(seed));
+        rec.models[g] = kept;
+        let Some(raw) = raw? else {
             continue;
         };
         let r = &mut reports[g];
         let contrast = texture_stage::noise_corrected_contrast(raw, noise_bound);
         r.texture_contrast = Some(contrast);
         let measured = format!(
-            "step contrast {contrast:.4} (measured {raw:.4}, less the panorama's noise bound {noise_bound:.4}) under stage 4's anisotropic lobe"
+            "step contrast {contrast:.4} (measured {raw:.4}, less the panorama's noise bound {noise_bound:.4}) under stage 4's anisotropic lobe{}",
+            if kept == lobe { "" } else { ", which the pattern test turned down" }
         );
         if texture_stage::has_texture_contrast(contrast) {
             r.decisions.push(format!(
@@ -326,20 +336,22 @@ pub(super) fn test_again_under_anisotropic_lobes(
             ));
         } else {
             r.decisions.push(format!(
-                "stage 3 again: untextured: {measured} <= TEXTURE_CONTRAST_THRESHOLD {}: what stage 3 read was the anisotropic highlight that the isotropic lobe missed; it keeps the anisotropic model and gets no map",
+                "stage 3 again: untextured: {measured} <= TEXTURE_CONTRAST_THRESHOLD {}: what stage 3 read was the anisotropic highlight that the isotropic lobe missed; no map",
                 fit::TEXTURE_CONTRAST_THRESHOLD
             ));
             textured[g] = false;
+            untextured.push(g);
         }
     }
-    Ok(Some(StageReport {
+    let report = StageReport {
         stage: "3 texture detection again".into(),
         evaluations: again.len() as u32,
         samples_per_pixel: spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![format!(
-            "the groups stage 3 called textured whose uniform stand-in stage 4 gave an anisotropic lobe, tested again under it (their best untextured model) with stage 3's samples, seed and noise bound: untextured when the step contrast is no longer above TEXTURE_CONTRAST_THRESHOLD {}",
+            "the groups stage 3 called textured whose uniform stand-in stage 4 found an anisotropic lobe for (kept, or turned down by the pattern test alone), tested again under it (their best untextured model) with stage 3's samples, seed and noise bound: untextured when the step contrast is no longer above TEXTURE_CONTRAST_THRESHOLD {}",
             fit::TEXTURE_CONTRAST_THRESHOLD
         )],
-    }))
+    };
+    Ok((untextured, Some(report)))
 }

@@ -78,6 +78,7 @@ impl Stage<'_> {
             c.error_complex
         );
         if let Some(test) = pattern.filter(|t| !t.passes()) {
+            r.anisotropic_turned_down = Some(refined);
             r.decisions.push(format!(
                 "stage 4: stays {}: the anisotropic fit {measured}, but its gain follows the picture, not a highlight: {}",
                 kept.name(),

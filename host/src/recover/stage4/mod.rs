@@ -80,16 +80,7 @@ pub(super) fn run(
     };
     let groups = groups_in(rec, reports, textured);
     say_why_not_tried(rec, reports, textured, &groups);
-    let bar = progress_bar(groups.len() as u64, STAGE);
-    let mut laps = Laps::new(STAGE);
-    let mut evaluations = 0;
-    for g in groups {
-        laps.start(g, evaluations, reports);
-        evaluations += stage.search(rec, &mut reports[g], g)?;
-        bar.inc(1);
-    }
-    laps.close(evaluations, reports);
-    bar.finish_and_clear();
+    let evaluations = stage.search_each(rec, reports, &groups)?;
     Ok(StageReport {
         stage: STAGE.into(),
         evaluations,
@@ -101,6 +92,49 @@ pub(super) fn run(
             fit::EXCEEDS_SIGMAS
         )],
     })
+}
+
+/// Stage 4 again for `groups`, each back at its model after stage 2 (`after_stage2`): the
+/// groups that stage 3's test again found untextured, fitted now as untextured groups.
+/// Stage 4 fitted them as textured stand-ins: plastics, whose anisotropic lobe must also
+/// pass the pattern test. A brushed metal of kind auto came out an anisotropic plastic
+/// (its colour 0.71 / 0.32 / 0), and with another panorama textured-isotropic, its
+/// anisotropic fit turned down by the pattern test alone. `textured` no longer holds them.
+pub(super) fn again_untextured(
+    rec: &mut Recovery,
+    reports: &mut [GroupReport],
+    groups: &[usize],
+    after_stage2: &[GroupModel],
+    (textured, kinds): (&[bool], &[GroupKind]),
+    budget: &Budget,
+    cache_settings: &RenderSettings,
+) -> Result<Option<StageReport>, Error> {
+    if groups.is_empty() {
+        return Ok(None);
+    }
+    let stage_start = Instant::now();
+    let stage = Stage {
+        textured,
+        kinds,
+        budget,
+        cache_settings,
+        verify_spp: budget.loop_spp,
+    };
+    for &g in groups {
+        rec.models[g] = after_stage2[g];
+        reports[g].decisions.push(
+            "stage 4 again: untextured: fitted again from stage 2's model as an untextured group"
+                .into(),
+        );
+    }
+    let evaluations = stage.search_each(rec, reports, groups)?;
+    Ok(Some(StageReport {
+        stage: format!("{STAGE} again"),
+        evaluations,
+        samples_per_pixel: stage.verify_spp,
+        seconds: stage_start.elapsed().as_secs_f64(),
+        notes: vec!["the groups that stage 3's test again found untextured, fitted again from stage 2's model as untextured groups (stage 4 fits a textured stand-in as a plastic, and its anisotropic lobe must pass the pattern test)".into()],
+    }))
 }
 
 /// What every group's search in this stage shares.
@@ -138,6 +172,27 @@ struct IsotropicSide {
 }
 
 impl Stage<'_> {
+    /// [`Stage::search`] for each of `groups` in turn, with a progress bar and each
+    /// group's work charged to it; returns the evaluations spent.
+    fn search_each(
+        &self,
+        rec: &mut Recovery,
+        reports: &mut [GroupReport],
+        groups: &[usize],
+    ) -> Result<u32, Error> {
+        let bar = progress_bar(groups.len() as u64, STAGE);
+        let mut laps = Laps::new(STAGE);
+        let mut evaluations = 0;
+        for &g in groups {
+            laps.start(g, evaluations, reports);
+            evaluations += self.search(rec, &mut reports[g], g)?;
+            bar.inc(1);
+        }
+        laps.close(evaluations, reports);
+        bar.finish_and_clear();
+        Ok(evaluations)
+    }
+
     /// Stage 4 for group `g`: whether it goes on, its anisotropic fit, the isotropic side
     /// that fit is weighed against, and the decision, each said in `r`. Leaves the group's
     /// model as decided; returns the evaluations spent.
