@@ -71,13 +71,7 @@ pub(super) fn run(
     cache_settings: &RenderSettings,
 ) -> Result<StageReport, Error> {
     let stage_start = Instant::now();
-    let stage = Stage {
-        textured,
-        kinds,
-        budget,
-        cache_settings,
-        verify_spp: budget.loop_spp,
-    };
+    let stage = Stage::new(textured, kinds, budget, cache_settings);
     let groups = groups_in(rec, reports, textured);
     say_why_not_tried(rec, reports, textured, &groups);
     let evaluations = stage.search_each(rec, reports, &groups)?;
@@ -113,13 +107,7 @@ pub(super) fn again_untextured(
         return Ok(None);
     }
     let stage_start = Instant::now();
-    let stage = Stage {
-        textured,
-        kinds,
-        budget,
-        cache_settings,
-        verify_spp: budget.loop_spp,
-    };
+    let stage = Stage::new(textured, kinds, budget, cache_settings);
     for &g in groups {
         rec.models[g] = after_stage2[g];
         reports[g].decisions.push(
@@ -171,7 +159,22 @@ struct IsotropicSide {
     replaced: bool,
 }
 
-impl Stage<'_> {
+impl<'a> Stage<'a> {
+    fn new(
+        textured: &'a [bool],
+        kinds: &'a [GroupKind],
+        budget: &'a Budget,
+        cache_settings: &'a RenderSettings,
+    ) -> Self {
+        Stage {
+            textured,
+            kinds,
+            budget,
+            cache_settings,
+            verify_spp: budget.loop_spp,
+        }
+    }
+
     /// [`Stage::search`] for each of `groups` in turn, with a progress bar and each
     /// group's work charged to it; returns the evaluations spent.
     fn search_each(
