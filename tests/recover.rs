@@ -988,6 +988,9 @@ fn textured_small_with_uniform_anisotropic_panels_finds_them_without_maps() {
         "{:?}",
         row("picture_flowers")
     );
+    // Stage 4's second pass is its own stage in the report, its work charged to it.
+    assert!(stage_names(&report_json(&out)["stages"]).contains(&"4 anisotropic again"));
+    assert_group_work_within_its_stages(&out);
 }
 
 #[test]

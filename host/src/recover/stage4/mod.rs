@@ -34,6 +34,9 @@ mod isotropic_side;
 
 /// The stage's name in report.json.
 const STAGE: &str = "4 anisotropic";
+/// The name in report.json of stage 4 again, for the groups stage 3's test again found
+/// untextured (`again_untextured`).
+const STAGE_AGAIN: &str = "4 anisotropic again";
 
 /// The groups stage 4 takes, in order: every textured group's stand-in, and every
 /// untextured group that stage 2 tried and left above `DIFFUSE_THRESHOLD`.
@@ -74,7 +77,7 @@ pub(super) fn run(
     let stage = Stage::new(textured, kinds, budget, cache_settings);
     let groups = groups_in(rec, reports, textured);
     say_why_not_tried(rec, reports, textured, &groups);
-    let evaluations = stage.search_each(rec, reports, &groups)?;
+    let evaluations = stage.search_each(rec, reports, &groups, STAGE)?;
     Ok(StageReport {
         stage: STAGE.into(),
         evaluations,
@@ -115,9 +118,9 @@ pub(super) fn again_untextured(
                 .into(),
         );
     }
-    let evaluations = stage.search_each(rec, reports, groups)?;
+    let evaluations = stage.search_each(rec, reports, groups, STAGE_AGAIN)?;
     Ok(Some(StageReport {
-        stage: format!("{STAGE} again"),
+        stage: STAGE_AGAIN.into(),
         evaluations,
         samples_per_pixel: stage.verify_spp,
         seconds: stage_start.elapsed().as_secs_f64(),
@@ -160,6 +163,7 @@ struct IsotropicSide {
 }
 
 impl<'a> Stage<'a> {
+    /// The settings every group's search shares, the loop's samples from `budget`.
     fn new(
         textured: &'a [bool],
         kinds: &'a [GroupKind],
@@ -176,15 +180,17 @@ impl<'a> Stage<'a> {
     }
 
     /// [`Stage::search`] for each of `groups` in turn, with a progress bar and each
-    /// group's work charged to it; returns the evaluations spent.
+    /// group's work charged to it under the report's stage `name`; returns the evaluations
+    /// spent.
     fn search_each(
         &self,
         rec: &mut Recovery,
         reports: &mut [GroupReport],
         groups: &[usize],
+        name: &'static str,
     ) -> Result<u32, Error> {
-        let bar = progress_bar(groups.len() as u64, STAGE);
-        let mut laps = Laps::new(STAGE);
+        let bar = progress_bar(groups.len() as u64, name);
+        let mut laps = Laps::new(name);
         let mut evaluations = 0;
         for &g in groups {
             laps.start(g, evaluations, reports);
