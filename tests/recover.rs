@@ -221,6 +221,16 @@ fn decisions(group_report: &serde_json::Value) -> Vec<&str> {
         .collect()
 }
 
+/// Group `group`'s material in the recovered materials.toml under `out`.
+fn recovered_material(out: &std::path::Path, group: &str) -> relume::materials_file::MaterialDesc {
+    let recovered = relume::materials_file::load_materials(&out.join("materials.toml")).unwrap();
+    recovered
+        .materials
+        .into_iter()
+        .find(|m| m.group == group)
+        .unwrap()
+}
+
 /// The first of a group report's comparisons that `matches`.
 fn comparison(
     group: &serde_json::Value,
@@ -406,12 +416,7 @@ fn glossy_small_finds_its_steel_box_metal_when_stage_4_chooses_the_kind_again() 
     let out = tmp.path().join("rec");
     recover(&scene, &out, &["--effort", "fast", "--seed", "1"]);
 
-    let recovered = relume::materials_file::load_materials(&out.join("materials.toml")).unwrap();
-    let steel = recovered
-        .materials
-        .iter()
-        .find(|m| m.group == "metal_steel")
-        .unwrap();
+    let steel = recovered_material(&out, "metal_steel");
     assert_eq!(
         steel.kind,
         Some(relume_core::material::Kind::Metal),
@@ -972,12 +977,7 @@ fn textured_small_with_uniform_anisotropic_panels_finds_them_without_maps() {
         assert!(r.roughness_u_rel_err.unwrap() < 0.25, "{r:?}");
         assert!(r.roughness_v_rel_err.unwrap() < 0.25, "{r:?}");
     }
-    let written = relume::materials_file::load_materials(&out.join("materials.toml")).unwrap();
-    let stripes = written
-        .materials
-        .iter()
-        .find(|m| m.group == "picture_stripes")
-        .unwrap();
+    let stripes = recovered_material(&out, "picture_stripes");
     assert_eq!(
         stripes.kind.map(relume::materials_file::kind_name),
         Some("metal")

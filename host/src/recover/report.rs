@@ -34,7 +34,8 @@ pub struct GroupReport {
     /// `relume_core::stages::texture`), for groups with enough pixels.
     pub texture_feature: Option<f64>,
     /// Stage 3's decision statistic (`relume_core::stages::texture::cross_contrast`) under
-    /// the best untextured model, for the groups tested.
+    /// the best untextured model, for the groups tested: stage 4's anisotropic lobe where
+    /// stage 3 tested a group again under it.
     pub texture_contrast: Option<f64>,
     /// The bias-only error of the group's model when stage 2 or 5 decided (see
     /// `pixels::evaluate_cross`; for a group stage 2 left diffuse, stage 1's measurement
