@@ -886,16 +886,6 @@ fn map_decision(out: &std::path::Path, group: &str) -> String {
         .to_string()
 }
 
-/// Glossy at 64x64 per face (effort fast, seed 24): the yellow box's weak, broad lobe
-/// (specularity 0.1, roughness 0.2) is proposed by its cache at s 0.137, which a render
-/// shows removes almost none of its error (z 1.2); stage 2's ladder of roughnesses finds
-/// a broad lobe that does (roughness 0.3, z 4.9), says how loosely its shape is known,
-/// and no diffuse group is given one on the way. This is one seed's path: over glossy's
-/// 64-px seeds 1-24 (docs/recovery.md, "The ladder") the yellow box's lobe comes from the
-/// ladder on 19, within the half-rung resolution of the truth's roughness on 8 of those,
-/// and its claimed roughness covers the truth at two standard errors on 18. (Seed 1 took
-/// this path until the tracer's tie fix, aa69da6, moved glossy's bytes; it now keeps the
-/// cache's proposal, which the lobe-claim test below reads.)
 /// A uniform anisotropic panel is not a picture. Textured's checker given its map's mean
 /// colour and its stripes a brushed metal of kind "auto", the panorama rendered by relume
 /// from those materials: stage 3 reads each isotropic lobe's misfit of the narrow highlight
@@ -993,6 +983,16 @@ fn textured_small_with_uniform_anisotropic_panels_finds_them_without_maps() {
     assert_group_work_within_its_stages(&out);
 }
 
+/// Glossy at 64x64 per face (effort fast, seed 24): the yellow box's weak, broad lobe
+/// (specularity 0.1, roughness 0.2) is proposed by its cache at s 0.137, which a render
+/// shows removes almost none of its error (z 1.2); stage 2's ladder of roughnesses finds
+/// a broad lobe that does (roughness 0.3, z 4.9), says how loosely its shape is known,
+/// and no diffuse group is given one on the way. This is one seed's path: over glossy's
+/// 64-px seeds 1-24 (docs/recovery.md, "The ladder") the yellow box's lobe comes from the
+/// ladder on 19, within the half-rung resolution of the truth's roughness on 8 of those,
+/// and its claimed roughness covers the truth at two standard errors on 18. (Seed 1 took
+/// this path until the tracer's tie fix, aa69da6, moved glossy's bytes; it now keeps the
+/// cache's proposal, which the lobe-claim test below reads.)
 #[test]
 fn glossy_small_finds_the_yellow_boxs_weak_broad_lobe() {
     let (out, rows) = glossy_small_seed_24();
