@@ -158,7 +158,8 @@ struct BudgetOverrides {
     /// Samples per pixel of the renders inside the loops.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     loop_spp: Option<u32>,
-    /// Samples per pixel of a group's transport cache.
+    /// Samples per pixel of a lobe's transport cache; the cache holds at least 4096
+    /// pixels' worth of them (2^16 samples at the least), however few its pixels.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     cache_spp: Option<u32>,
     /// Temperature levels of the stage-2 annealing (10 proposals each).

@@ -49,7 +49,8 @@ pub enum Optimiser {
 pub struct Budget {
     /// Samples per pixel of the renders inside the loops (stage 1, the searches).
     pub loop_spp: u32,
-    /// Samples per pixel of a group's transport cache (stage 2's proposal).
+    /// Samples per pixel of a group's transport cache (stage 2's proposal), and with them
+    /// the cache's floor ([`cache_min_samples`]).
     pub cache_spp: u32,
     /// Temperature levels of the annealing (10 proposals each); for Nelder-Mead, the same
     /// number of evaluations.
@@ -149,23 +150,45 @@ pub(super) const DIFFUSE_GROUP_PIXELS: usize = 1 << 14;
 /// (docs/recovery.md, "Stage 1's gate on large groups").
 pub(super) const MEASURED_GROUP_PIXELS: usize = 1 << 17;
 
-/// A group's transport cache holds at least this many pixel samples: a small group's
-/// lobe is seen in a few pixels, and a cache of the effort level's samples per pixel
-/// alone (16 at fast) cannot tell its specularity and shape from noise (the living
-/// room's 20-pixel statue: specularity 0.85 and roughness 0.15 against a true 0.9 and
-/// 0.1; 0.92 and 0.10 at this many samples).
+/// A group's transport cache holds at least this many pixel samples whatever the effort
+/// (effort fast's floor, [`cache_min_samples`]): a small group's lobe is seen in a few
+/// pixels, and a cache of the effort level's samples per pixel alone (16 at fast) cannot
+/// tell its specularity and shape from noise (the living room's 20-pixel statue:
+/// specularity 0.85 and roughness 0.15 against a true 0.9 and 0.1; 0.92 and 0.10 at this
+/// many samples).
 pub(super) const CACHE_MIN_SAMPLES: u64 = 1 << 16;
 
+/// A group's transport cache holds at least as many pixel samples as a group of this many
+/// pixels would at the effort's cache samples per pixel ([`cache_min_samples`]). At
+/// effort fast (16) that is [`CACHE_MIN_SAMPLES`], 2^18 at default (64) and 2^20 at
+/// thorough (256).
+///
+/// Why: a cache holds at most [`MAX_CACHE_PIXELS`], at 128 samples a pixel or more to
+/// reach [`CACHE_MIN_SAMPLES`], so a floor that did not grow with the effort left every
+/// lobe's cache the same at fast and default (only thorough's 256 spp passed it, on
+/// groups of more than 256 pixels). The cache's noise is much of what spreads a strong
+/// lobe over the seeds: glossy at 64 px, effort default, seeds 1-5, the gold sphere's
+/// specularity spread 2.3% -> 0.9% and the steel box's 3.3% -> 1.6% with this floor
+/// (docs/stability.md, "The cache's samples follow the effort").
+pub(super) const CACHE_FLOOR_PIXELS: u64 = 1 << 12;
+
+/// The fewest pixel samples a group's transport cache holds when the effort asks
+/// `cache_spp` samples per pixel of it: [`CACHE_FLOOR_PIXELS`] pixels' worth, and never
+/// fewer than [`CACHE_MIN_SAMPLES`].
+pub(super) fn cache_min_samples(cache_spp: u32) -> u64 {
+    CACHE_MIN_SAMPLES.max(CACHE_FLOOR_PIXELS.saturating_mul(u64::from(cache_spp)))
+}
+
 /// A group's transport cache holds at most this many of its pixels, so that its
-/// [`CACHE_MIN_SAMPLES`] are at least 128 per pixel. The cache's fits are least squares
-/// through the origin on each pixel's estimated parts, and a part's sampling noise biases
-/// them (a noisy regressor's coefficient comes out scaled by about `1 / (1 + var / D^2)`):
-/// on 1024 pixels at 64 spp, at 256 px per face, glossy's metals were proposed 7-13% off
-/// in specularity and the living room's floor, walls and ceiling came out 2.5-8% dark. At
-/// 512 pixels and 128 spp the metals are 3-4% off; at 256 pixels and 256 spp 1-2%, but a
-/// quarter of the pixels loses what only some of them show (the textured checker's
-/// anisotropy at 256 px, the steel box's roughness at 64 px). docs/recovery.md, "The
-/// cache on fewer pixels".
+/// [`CACHE_MIN_SAMPLES`] are at least 128 per pixel (512 at default effort's floor). The
+/// cache's fits are least squares through the origin on each pixel's estimated parts, and
+/// a part's sampling noise biases them (a noisy regressor's coefficient comes out scaled
+/// by about `1 / (1 + var / D^2)`): on 1024 pixels at 64 spp, at 256 px per face, glossy's
+/// metals were proposed 7-13% off in specularity and the living room's floor, walls and
+/// ceiling came out 2.5-8% dark. At 512 pixels and 128 spp the metals are 3-4% off; at 256
+/// pixels and 256 spp 1-2%, but a quarter of the pixels loses what only some of them show
+/// (the textured checker's anisotropy at 256 px, the steel box's roughness at 64 px).
+/// docs/recovery.md, "The cache on fewer pixels".
 pub(super) const MAX_CACHE_PIXELS: usize = 512;
 
 /// Samples per pixel on `subset` of a group's `all` pixels for as many samples in all as
@@ -191,6 +214,27 @@ pub(super) fn min_samples_spp(spp: u32, pixels: u32, min_samples: u64) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_caches_floor_grows_with_the_effort_and_keeps_fasts() {
+        let floor = |effort: Effort| cache_min_samples(effort.budget().cache_spp);
+        // Effort fast keeps the floor its recoveries' bytes were made with.
+        assert_eq!(floor(Effort::Fast), CACHE_MIN_SAMPLES);
+        assert_eq!(floor(Effort::Default), 4 * CACHE_MIN_SAMPLES);
+        assert_eq!(floor(Effort::Thorough), 16 * CACHE_MIN_SAMPLES);
+        // A cache asked for fewer samples than fast's still holds CACHE_MIN_SAMPLES.
+        assert_eq!(cache_min_samples(1), CACHE_MIN_SAMPLES);
+        assert_eq!(
+            cache_min_samples(u32::MAX),
+            CACHE_FLOOR_PIXELS * u64::from(u32::MAX)
+        );
+        // A small group's cache at default effort: the floor over its pixels, not the
+        // effort's 64 spp.
+        let statue = 20;
+        let default_spp = Effort::Default.budget().cache_spp;
+        let spp = min_samples_spp(default_spp, statue, cache_min_samples(default_spp));
+        assert_eq!(spp, (4 * CACHE_MIN_SAMPLES).div_ceil(20) as u32);
+    }
 
     #[test]
     fn a_decisions_samples_are_concentrated_on_its_subset_within_the_cap() {

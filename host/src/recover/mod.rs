@@ -63,8 +63,8 @@ use relume_core::stages::isotropic::{self, WardFit};
 
 use crate::scene_file::GroupKind;
 use budget::{
-    min_samples_spp, CACHE_MIN_SAMPLES, POLISH_MIN_SAMPLES, POLISH_NEWTON_MAX_GROUPS,
-    POLISH_SPP_FACTOR,
+    cache_min_samples, min_samples_spp, CACHE_FLOOR_PIXELS, CACHE_MIN_SAMPLES, POLISH_MIN_SAMPLES,
+    POLISH_NEWTON_MAX_GROUPS, POLISH_SPP_FACTOR,
 };
 pub use budget::{Budget, Effort, Optimiser};
 pub use calibration::NOT_CHECKED as CALIBRATION_NOT_CHECKED;

@@ -20,8 +20,8 @@ use super::kind::{self, KindFit};
 use super::model::GroupModel;
 use super::report::Laps;
 use super::{
-    anisotropic, fit_ward, lobe_kinds, pattern, progress_bar, Budget, GroupReport, Recovery,
-    StageReport, CACHE_MIN_SAMPLES,
+    anisotropic, cache_min_samples, fit_ward, lobe_kinds, pattern, progress_bar, Budget,
+    GroupReport, Recovery, StageReport, CACHE_FLOOR_PIXELS, CACHE_MIN_SAMPLES,
 };
 use crate::error::Error;
 use crate::scene_file::GroupKind;
@@ -84,9 +84,10 @@ pub(super) fn run(
         samples_per_pixel: stage.verify_spp,
         seconds: stage_start.elapsed().as_secs_f64(),
         notes: vec![format!(
-            "untextured groups with more than DIFFUSE_THRESHOLD {} of error left (those stage 2 left diffuse measured again with their colour levelled under the scene as now known, and going on unless below it by EXCEEDS_SIGMAS {} standard errors), and textured groups' isotropic stand-ins: each fitted on a transport cache of at least CACHE_MIN_SAMPLES {CACHE_MIN_SAMPLES} samples: colour and specularity in closed form, the lobe (log roughness_u, log roughness_v, direction angle) by a grid and Nelder-Mead, then annealing on renders; decided against the best isotropic fit, and kept anisotropic only if it also beats its own isotropic shadow (the roughnesses' geometric mean), else the shadow is kept",
+            "untextured groups with more than DIFFUSE_THRESHOLD {} of error left (those stage 2 left diffuse measured again with their colour levelled under the scene as now known, and going on unless below it by EXCEEDS_SIGMAS {} standard errors), and textured groups' isotropic stand-ins: each fitted on a transport cache of at least {} samples (cache_min_samples: CACHE_FLOOR_PIXELS {CACHE_FLOOR_PIXELS} pixels at the effort's cache samples per pixel, and at least CACHE_MIN_SAMPLES {CACHE_MIN_SAMPLES}): colour and specularity in closed form, the lobe (log roughness_u, log roughness_v, direction angle) by a grid and Nelder-Mead, then annealing on renders; decided against the best isotropic fit, and kept anisotropic only if it also beats its own isotropic shadow (the roughnesses' geometric mean), else the shadow is kept",
             fit::DIFFUSE_THRESHOLD,
-            fit::EXCEEDS_SIGMAS
+            fit::EXCEEDS_SIGMAS,
+            cache_min_samples(cache_settings.spp),
         )],
     })
 }
