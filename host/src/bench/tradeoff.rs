@@ -1,7 +1,8 @@
 //! `relume bench tradeoff`: recovery's accuracy against its wall time, sweeping one knob at
 //! a time from a base effort level: the effort level itself, the annealing's length, the
-//! samples per evaluation inside the loops, the views' resolution, and the Nelder-Mead arm
-//! at the same evaluation counts as the annealing (where the global search pays).
+//! samples per evaluation inside the loops, the samples of the lobes' transport caches,
+//! the views' resolution, and the Nelder-Mead arm at the same evaluation counts as the
+//! annealing (where the global search pays).
 //!
 //! Every point is a full `recover::run` judged against the truth; points with the same
 //! knobs (the base appears in several sweeps) run once. Results other than the times are
@@ -102,16 +103,19 @@ pub fn sweep(base: Effort, quick: bool, view_sizes: &[[u32; 2]]) -> Vec<SweepPoi
             factor: 1,
         });
     }
-    let (levels, spp, factors) = if quick {
+    let (levels, spp, cache_spp, factors) = if quick {
         (
             with_base(vec![(b.anneal_levels / 2).max(1)], b.anneal_levels),
             with_base(vec![(b.loop_spp / 2).max(1)], b.loop_spp),
+            // No cache knob in a first look: its samples change only the lobes' caches.
+            Vec::new(),
             vec![2, 1],
         )
     } else {
         (
             with_base(vec![2, 4, 8, 16], b.anneal_levels),
             with_base(vec![4, 8, 16, 32, 64], b.loop_spp),
+            with_base(vec![16, 64, 256], b.cache_spp),
             vec![4, 2, 1],
         )
     };
@@ -137,6 +141,14 @@ pub fn sweep(base: Effort, quick: bool, view_sizes: &[[u32; 2]]) -> Vec<SweepPoi
             knob: "loop-spp",
             value: s.to_string(),
             budget: Budget { loop_spp: s, ..b },
+            factor: 1,
+        });
+    }
+    for &c in &cache_spp {
+        points.push(SweepPoint {
+            knob: "cache-spp",
+            value: c.to_string(),
+            budget: Budget { cache_spp: c, ..b },
             factor: 1,
         });
     }
@@ -475,6 +487,7 @@ mod tests {
             let b = p.budget;
             let changed = [
                 b.loop_spp != base.loop_spp,
+                b.cache_spp != base.cache_spp,
                 b.anneal_levels != base.anneal_levels,
                 b.optimiser != base.optimiser,
                 p.factor != 1,
@@ -495,6 +508,7 @@ mod tests {
         assert_eq!(values("anneal-levels"), ["2", "4", "8", "16"]);
         assert_eq!(values("nelder-mead"), values("anneal-levels"));
         assert_eq!(values("loop-spp"), ["4", "8", "16", "32", "64"]);
+        assert_eq!(values("cache-spp"), ["16", "64", "256"]);
         assert_eq!(values("resolution"), ["16", "32", "64"]);
     }
 
@@ -554,6 +568,7 @@ mod tests {
         assert_eq!(values("effort"), ["default"]);
         assert_eq!(values("anneal-levels"), ["4", "8"]);
         assert_eq!(values("loop-spp"), ["16", "32"]);
+        assert!(values("cache-spp").is_empty());
         assert_eq!(values("resolution"), ["15", "30"]);
         let odd = sweep(Effort::Fast, true, &[[33, 33]]);
         assert!(odd
