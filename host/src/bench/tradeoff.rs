@@ -82,6 +82,9 @@ fn with_base(mut values: Vec<u32>, base: u32) -> Vec<u32> {
     values
 }
 
+/// A budget with one knob of samples per pixel set to a value.
+type SetSamples = fn(Budget, u32) -> Budget;
+
 /// The points to run, knob by knob; `view_sizes` are the scene's views' sizes in pixels:
 /// the resolution knob's values are what box-averaging gives the first view's width, by
 /// the factors that divide every view's width and height (a factor checked against the
@@ -136,21 +139,20 @@ pub fn sweep(base: Effort, quick: bool, view_sizes: &[[u32; 2]]) -> Vec<SweepPoi
             });
         }
     }
-    for &s in &spp {
-        points.push(SweepPoint {
-            knob: "loop-spp",
-            value: s.to_string(),
-            budget: Budget { loop_spp: s, ..b },
-            factor: 1,
-        });
-    }
-    for &c in &cache_spp {
-        points.push(SweepPoint {
-            knob: "cache-spp",
-            value: c.to_string(),
-            budget: Budget { cache_spp: c, ..b },
-            factor: 1,
-        });
+    // The samples-per-pixel knobs: each value set on the base alone.
+    let samples: [(&str, &[u32], SetSamples); 2] = [
+        ("loop-spp", &spp, |b, s| Budget { loop_spp: s, ..b }),
+        ("cache-spp", &cache_spp, |b, s| Budget { cache_spp: s, ..b }),
+    ];
+    for (knob, values, with) in samples {
+        for &s in values {
+            points.push(SweepPoint {
+                knob,
+                value: s.to_string(),
+                budget: with(b, s),
+                factor: 1,
+            });
+        }
     }
     for f in factors {
         if view_sizes
