@@ -179,6 +179,12 @@ pub(super) fn cache_min_samples(cache_spp: u32) -> u64 {
     CACHE_MIN_SAMPLES.max(CACHE_FLOOR_PIXELS.saturating_mul(u64::from(cache_spp)))
 }
 
+/// Samples per pixel of a transport cache over `pixels` pixels when the effort asks
+/// `cache_spp`: that many, or more so that it holds [`cache_min_samples`].
+pub(super) fn cache_pixel_spp(cache_spp: u32, pixels: u32) -> u32 {
+    min_samples_spp(cache_spp, pixels, cache_min_samples(cache_spp))
+}
+
 /// A group's transport cache holds at most this many of its pixels, so that its
 /// [`CACHE_MIN_SAMPLES`] are at least 128 per pixel (512 at default effort's floor). The
 /// cache's fits are least squares through the origin on each pixel's estimated parts, and
@@ -232,7 +238,7 @@ mod tests {
         // effort's 64 spp.
         let statue = 20;
         let default_spp = Effort::Default.budget().cache_spp;
-        let spp = min_samples_spp(default_spp, statue, cache_min_samples(default_spp));
+        let spp = cache_pixel_spp(default_spp, statue);
         assert_eq!(spp, (4 * CACHE_MIN_SAMPLES).div_ceil(20) as u32);
     }
 

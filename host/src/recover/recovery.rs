@@ -15,7 +15,7 @@ use relume_core::scene::Scene;
 use relume_core::stages::diffuse;
 
 use super::budget::{
-    cache_min_samples, concentrated_spp, min_samples_spp, DIFFUSE_GROUP_PIXELS, MAX_CACHE_PIXELS,
+    cache_pixel_spp, concentrated_spp, DIFFUSE_GROUP_PIXELS, MAX_CACHE_PIXELS,
     MEASURED_GROUP_PIXELS,
 };
 use super::model::GroupModel;
@@ -283,7 +283,7 @@ impl Recovery {
     /// [`Recovery::group_cache`]): what its lobe's estimate saw.
     pub(super) fn cache_samples(&self, g: usize, base_spp: u32) -> u64 {
         let pixels = self.cache_subset(g).len() as u32;
-        pixels as u64 * min_samples_spp(base_spp, pixels, cache_min_samples(base_spp)) as u64
+        pixels as u64 * cache_pixel_spp(base_spp, pixels) as u64
     }
 
     /// The pixels of group `g`'s transport cache: every k-th of the search's fixed subset
@@ -294,7 +294,7 @@ impl Recovery {
 
     /// The transport cache of group `g` under the current models: over
     /// [`Recovery::cache_subset`], at `base`'s samples per pixel or more, so that it holds
-    /// at least [`cache_min_samples`] pixel samples.
+    /// at least `cache_min_samples` pixel samples ([`cache_pixel_spp`]).
     pub(super) fn group_cache(
         &mut self,
         g: usize,
@@ -303,7 +303,7 @@ impl Recovery {
         self.apply_models();
         let subset = self.cache_subset(g);
         let settings = RenderSettings {
-            spp: min_samples_spp(base.spp, subset.len() as u32, cache_min_samples(base.spp)),
+            spp: cache_pixel_spp(base.spp, subset.len() as u32),
             ..*base
         };
         let scene = self.owned.build()?;
