@@ -149,19 +149,13 @@ pub fn trace_pixel_sample(
     };
     let light_sample = scene.sample_light(u_light, u_point);
     if let Some(ls) = light_sample {
-        let to_light = ls.point - origin;
-        let dist2 = to_light.length_squared();
-        let dist = math::sqrt(dist2);
-        if dist > 0.0 {
-            let wi = to_light / dist;
-            let cos_light = -ls.normal.dot(wi);
+        // Measured from the surface, the shadow ray traced from `origin`, as the renderer
+        // does (`render::towards_light`).
+        if let Some((wi, dist2, cos_light)) = render::towards_light(p, &ls) {
             let cos_surface = n.dot(wi);
             if cos_light > 0.0 && cos_surface > 0.0 && ls.pdf_area > 0.0 {
                 light_entry.wi = wi;
-                if !scene.occluded(
-                    &crate::geometry::Ray::new(origin, wi),
-                    dist * (1.0 - render::RAY_EPSILON),
-                ) {
+                if !render::occluded_on_the_way(scene, origin, ls.point) {
                     let pdf_light = ls.pdf_area * dist2 / cos_light;
                     let w = power_heuristic(pdf_light, mixture_pdf(n, wo, wi));
                     light_entry.weight = ls.radiance * (cos_surface * w / pdf_light);
@@ -237,7 +231,7 @@ pub fn trace_pixel_sample(
         let mut entry = IncidentSample::default();
         if let Some(ls) = &light_sample {
             if let Some(image) =
-                render::light_image_in_mirror(scene, mirror, origin, n, ls, |_| true)
+                render::light_image_in_mirror(scene, mirror, p, origin, n, ls, |_| true)
             {
                 let w = power_heuristic(image.pdf, mixture_pdf(n, wo, image.wi));
                 entry = IncidentSample {
