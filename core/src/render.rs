@@ -644,7 +644,7 @@ pub fn light_image_in_mirror(
     }
     let wi = to_image / unfolded;
     let cos_surface = n.dot(wi);
-    // The direction the light leaves towards the mirror: `wi` reflected in its plane.
+    // `wi` reflected in the mirror's plane: from the mirror on to the light.
     let reflected = wi - mirror.normal * (2.0 * mirror.normal.dot(wi));
     let cos_light = -ls.normal.dot(reflected);
     if !(cos_surface > 0.0 && cos_light > 0.0) {
